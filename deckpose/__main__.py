@@ -1,0 +1,5 @@
+import sys
+
+from deckpose.cli import main
+
+sys.exit(main())

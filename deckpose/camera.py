@@ -1,0 +1,245 @@
+"""Pinhole camera with OpenCV distortion, and the thesis's camera presets.
+
+Pixels follow OpenCV: ``u`` right, ``v`` down, pixel centres at integer
+coordinates, ``(u, v) = K @ (x/z, y/z, 1)`` before distortion. The camera frame
+is OpenCV's: x right, y down, z along the optical axis.
+"""
+
+from __future__ import annotations
+
+import enum
+import math
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from deckpose.errors import ConfigError, check_shape
+
+FloatArray = NDArray[np.float64]
+
+#: Number of coefficients per OpenCV distortion model name (ROS spelling).
+DISTORTION_MODELS: dict[str, tuple[int, ...]] = {
+    "plumb_bob": (5,),
+    "rational_polynomial": (8,),
+    "none": (0,),
+}
+
+#: The thesis's camera resolutions, (width_px, height_px).
+THESIS_RESOLUTIONS: dict[str, tuple[int, int]] = {
+    "4mp": (2312, 1734),
+    "8mp": (3840, 2160),
+    "16mp": (4624, 3468),
+    "64mp": (9248, 6936),
+}
+
+#: The thesis's focal angle, degrees (eq. 1.8/1.9 and chapter 4).
+THESIS_FOCAL_ANGLE_DEG = 75.0
+
+
+class PixelForm(enum.Enum):
+    """How a focal angle turns into focal lengths."""
+
+    #: Thesis eq. 1.8/1.9: the angle applies to both axes, fx != fy (non-square pixels).
+    THESIS = "thesis"
+    #: Square pixels, the angle is the horizontal field of view.
+    SQUARE = "square"
+
+
+def _readonly(a: ArrayLike) -> FloatArray:
+    out = np.array(a, dtype=float)
+    out.setflags(write=False)
+    return out
+
+
+@dataclass(frozen=True)
+class CameraModel:
+    """Intrinsics of a pinhole camera with optional OpenCV distortion.
+
+    Attributes
+    ----------
+    width_px, height_px : int
+        Image size in pixels.
+    K : (3, 3) array of float
+        Camera matrix ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]``, pixels.
+    dist_coeffs : (D,) array of float
+        OpenCV distortion coefficients, D = 0 (none), 5 (plumb_bob) or 8
+        (rational_polynomial).
+    name : str
+        Free-form label (e.g. ``"8mp-thesis"``).
+    """
+
+    width_px: int
+    height_px: int
+    K: FloatArray
+    dist_coeffs: FloatArray = field(default_factory=lambda: np.zeros(0))
+    name: str = ""
+
+    def __post_init__(self) -> None:
+        if int(self.width_px) <= 0 or int(self.height_px) <= 0:
+            raise ConfigError(
+                f"camera size must be positive, got {self.width_px}x{self.height_px}"
+            )
+        K = _readonly(self.K)
+        check_shape("K", K, (3, 3))
+        if not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
+            raise ConfigError(f"camera matrix needs finite, positive fx and fy, got\n{K}")
+        if not np.allclose(K[2], [0.0, 0.0, 1.0]) or K[1, 0] != 0.0:
+            raise ConfigError(f"camera matrix must be upper triangular with K[2] = [0,0,1], got\n{K}")
+        d = _readonly(np.ravel(self.dist_coeffs))
+        if d.size not in (0, 4, 5, 8, 12, 14):
+            raise ConfigError(
+                f"distortion needs 0, 4, 5, 8, 12 or 14 coefficients (OpenCV), got {d.size}"
+            )
+        if not np.all(np.isfinite(d)):
+            raise ConfigError("distortion coefficients must be finite")
+        object.__setattr__(self, "width_px", int(self.width_px))
+        object.__setattr__(self, "height_px", int(self.height_px))
+        object.__setattr__(self, "K", K)
+        object.__setattr__(self, "dist_coeffs", d)
+
+    @property
+    def fx(self) -> float:
+        return float(self.K[0, 0])
+
+    @property
+    def fy(self) -> float:
+        return float(self.K[1, 1])
+
+    @property
+    def cx(self) -> float:
+        return float(self.K[0, 2])
+
+    @property
+    def cy(self) -> float:
+        return float(self.K[1, 2])
+
+    @property
+    def has_distortion(self) -> bool:
+        return bool(np.any(self.dist_coeffs != 0.0))
+
+    @property
+    def distortion_model(self) -> str:
+        """ROS name of the distortion model."""
+        n = self.dist_coeffs.size
+        return {0: "plumb_bob", 4: "plumb_bob", 5: "plumb_bob", 8: "rational_polynomial"}.get(
+            n, "opencv"
+        )
+
+    def project(self, points_cam: ArrayLike) -> FloatArray:
+        """Project camera-frame points to pixels, with distortion.
+
+        Parameters
+        ----------
+        points_cam : (N, 3) array of float
+            Points in the camera frame; z must be positive for a meaningful result.
+
+        Returns
+        -------
+        (N, 2) array of float, pixels
+        """
+        P = np.asarray(points_cam, dtype=float)
+        check_shape("points_cam", P, (None, 3))
+        if P.shape[0] == 0:
+            return np.zeros((0, 2))
+        if not self.has_distortion:
+            xy = P[:, :2] / P[:, 2:3]
+            return xy @ self.K[:2, :2].T + self.K[:2, 2]
+        uv, _ = cv2.projectPoints(
+            P.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), self.K, self.dist_coeffs
+        )
+        return uv.reshape(-1, 2).astype(float)
+
+    def undistort(self, points_px: ArrayLike) -> FloatArray:
+        """Remove lens distortion: pixels in, ideal (undistorted) pixels out through the same K.
+
+        Parameters
+        ----------
+        points_px : (N, 2) array of float
+
+        Returns
+        -------
+        (N, 2) array of float, pixels
+        """
+        p = np.asarray(points_px, dtype=float)
+        check_shape("points_px", p, (None, 2))
+        if not self.has_distortion or p.shape[0] == 0:
+            return p.copy()
+        criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
+        src = p.reshape(-1, 1, 2)
+        if hasattr(cv2, "undistortPointsIter"):  # OpenCV 4.x
+            out = cv2.undistortPointsIter(src, self.K, self.dist_coeffs, None, self.K, criteria)
+        else:  # OpenCV 5 folded the iterative variant into undistortPoints
+            out = cv2.undistortPoints(src, self.K, self.dist_coeffs, R=None, P=self.K, criteria=criteria)
+        return out.reshape(-1, 2).astype(float)
+
+    def in_image(self, points_px: ArrayLike) -> NDArray[np.bool_]:
+        """Whether pixels lie inside the image, ``0 <= u <= W`` and ``0 <= v <= H``."""
+        p = np.asarray(points_px, dtype=float)
+        return (
+            (p[..., 0] >= 0.0)
+            & (p[..., 0] <= self.width_px)
+            & (p[..., 1] >= 0.0)
+            & (p[..., 1] <= self.height_px)
+        )
+
+    def with_size(self, width_px: int, height_px: int) -> "CameraModel":
+        """The same field of view at another resolution (K scaled per axis)."""
+        sx, sy = width_px / self.width_px, height_px / self.height_px
+        K = self.K.copy()
+        K[0] *= sx
+        K[1] *= sy
+        return CameraModel(width_px, height_px, K, self.dist_coeffs, self.name)
+
+
+def from_focal_angle(
+    width_px: int,
+    height_px: int,
+    focal_angle_deg: float = THESIS_FOCAL_ANGLE_DEG,
+    *,
+    form: PixelForm = PixelForm.THESIS,
+    name: str = "",
+) -> CameraModel:
+    """A distortion-free camera from a focal angle, centred principal point.
+
+    ``form=THESIS`` applies eq. 1.8/1.9 of the thesis: ``fx = (W/2)/tan(FA/2)``,
+    ``fy = (H/2)/tan(FA/2)``. ``form=SQUARE`` uses ``fx = fy = (W/2)/tan(FA/2)``.
+    """
+    if not 0.0 < focal_angle_deg < 180.0:
+        raise ConfigError(f"focal angle must be in (0, 180) degrees, got {focal_angle_deg}")
+    t = math.tan(math.radians(focal_angle_deg) / 2.0)
+    cx, cy = width_px / 2.0, height_px / 2.0
+    fx = cx / t
+    fy = cy / t if form is PixelForm.THESIS else fx
+    K = np.array([[fx, 0.0, cx], [0.0, fy, cy], [0.0, 0.0, 1.0]])
+    return CameraModel(width_px, height_px, K, np.zeros(0), name)
+
+
+def preset(name: str) -> CameraModel:
+    """A named camera preset.
+
+    Names are ``"<res>"`` or ``"<res>-thesis"`` (non-square thesis form) and
+    ``"<res>-square"`` with ``<res>`` one of ``4mp, 8mp, 16mp, 64mp``, plus
+    ``"published"``: the 3840x2160, ``fx = fy = 1920/tan(50 deg)`` camera
+    hard-coded in the thesis's published files.
+    """
+    key = name.strip().lower()
+    if key == "published":
+        f = 1920.0 / math.tan(math.radians(50.0))
+        K = np.array([[f, 0.0, 1920.0], [0.0, f, 1080.0], [0.0, 0.0, 1.0]])
+        return CameraModel(3840, 2160, K, np.zeros(0), "published")
+    res, _, form = key.partition("-")
+    if res not in THESIS_RESOLUTIONS or form not in ("", "thesis", "square"):
+        raise ConfigError(
+            f"unknown camera preset {name!r}; use one of {', '.join(preset_names())}"
+        )
+    w, h = THESIS_RESOLUTIONS[res]
+    pform = PixelForm.SQUARE if form == "square" else PixelForm.THESIS
+    return from_focal_angle(w, h, form=pform, name=f"{res}-{pform.value}")
+
+
+def preset_names() -> list[str]:
+    """All names :func:`preset` accepts (canonical spellings)."""
+    names = [f"{r}-{f}" for r in THESIS_RESOLUTIONS for f in ("thesis", "square")]
+    return names + ["published"]

@@ -1,0 +1,57 @@
+"""The ``deckpose`` command line: one subcommand per job.
+
+Each subcommand lives in its own module exposing ``register(subparsers)``; the
+module keeps heavy imports inside its run function so ``--help`` stays fast.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+from deckpose.errors import DeckposeError
+
+#: Modules that register a subcommand, in the order ``--help`` lists them.
+SUBCOMMAND_MODULES: tuple[str, ...] = (
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The top-level parser with every subcommand registered."""
+    from deckpose import __version__
+
+    parser = argparse.ArgumentParser(
+        prog="deckpose",
+        description=(
+            "Render, detect and estimate a ship deck's attitude and position from "
+            "monocular images of its beacons. Run 'deckpose COMMAND --help' for details."
+        ),
+    )
+    parser.add_argument("--version", action="version", version=f"deckpose {__version__}")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    for name in SUBCOMMAND_MODULES:
+        importlib.import_module(name).register(sub)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of the ``deckpose`` console script; returns the exit code."""
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.func(args) or 0)
+    except DeckposeError as exc:
+        print(f"deckpose {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"deckpose {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

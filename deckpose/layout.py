@@ -1,0 +1,155 @@
+"""The deck's beacon layout: a ring of n beacons plus an optional centre beacon.
+
+Beacon ids index the layout: ring beacons ``0..n-1`` start at the bow and
+increase counter-clockwise seen from above (toward port, +y); the centre beacon,
+when present, has id ``n``. Positions are in the deck frame (x bow, y port, z up).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from deckpose.errors import ConfigError
+
+FloatArray = np.ndarray
+
+
+@dataclass(frozen=True)
+class DeckLayout:
+    """Geometry and appearance of the deck beacons.
+
+    Attributes
+    ----------
+    n_ring : int
+        Number of ring beacons (>= 3).
+    radius_m : float
+        Ring radius, metres (the thesis's "units").
+    has_centre : bool
+        Whether a beacon sits at the deck centre (id ``n_ring``).
+    bow_id : int
+        Ring id of the beacon that marks the bow (0 by the id convention).
+    bow_rgb : tuple of float
+        Colour that tells the bow beacon apart (linear RGB in [0, 1]).
+    beacon_rgb : tuple of float
+        Colour of the other beacons.
+    beacon_radius_m : float
+        Radius of a beacon's emitting disc, metres (rendering).
+    intensity : float
+        Relative emitted radiance of a beacon (rendering; 1 = saturating at
+        the default exposure).
+    """
+
+    n_ring: int = 12
+    radius_m: float = 10.0
+    has_centre: bool = True
+    bow_id: int = 0
+    bow_rgb: tuple[float, float, float] = (1.0, 0.1, 0.05)
+    beacon_rgb: tuple[float, float, float] = (1.0, 1.0, 0.9)
+    beacon_radius_m: float = 0.15
+    intensity: float = 1.0
+
+    def __post_init__(self) -> None:
+        if int(self.n_ring) < 3:
+            raise ConfigError(f"layout needs at least 3 ring beacons, got n_ring={self.n_ring}")
+        if not (math.isfinite(self.radius_m) and self.radius_m > 0):
+            raise ConfigError(f"layout radius_m must be positive, got {self.radius_m}")
+        if not 0 <= int(self.bow_id) < int(self.n_ring):
+            raise ConfigError(f"bow_id must be a ring id in 0..{self.n_ring - 1}, got {self.bow_id}")
+        if not (self.beacon_radius_m > 0 and self.beacon_radius_m < self.radius_m):
+            raise ConfigError(
+                f"beacon_radius_m must be positive and smaller than the ring, got {self.beacon_radius_m}"
+            )
+        if not self.intensity > 0:
+            raise ConfigError(f"intensity must be positive, got {self.intensity}")
+        for name in ("bow_rgb", "beacon_rgb"):
+            rgb = tuple(float(c) for c in getattr(self, name))
+            if len(rgb) != 3 or not all(0.0 <= c <= 1.0 for c in rgb):
+                raise ConfigError(f"{name} must be three values in [0, 1], got {getattr(self, name)}")
+            object.__setattr__(self, name, rgb)
+        object.__setattr__(self, "n_ring", int(self.n_ring))
+        object.__setattr__(self, "bow_id", int(self.bow_id))
+        object.__setattr__(self, "radius_m", float(self.radius_m))
+
+    @property
+    def n_beacons(self) -> int:
+        """Total number of beacons, ring plus centre."""
+        return self.n_ring + int(self.has_centre)
+
+    @property
+    def centre_id(self) -> int | None:
+        """Id of the centre beacon, or ``None`` if there is none."""
+        return self.n_ring if self.has_centre else None
+
+    def positions_deck_m(self) -> FloatArray:
+        """Beacon positions in the deck frame.
+
+        Returns
+        -------
+        (n_beacons, 3) array of float, metres
+            Row ``i`` is beacon id ``i``: ring beacon ``i`` at angle ``2*pi*i/n``
+            from the bow toward port; the centre beacon last.
+        """
+        ang = 2.0 * np.pi * np.arange(self.n_ring) / self.n_ring
+        ring = np.stack([self.radius_m * np.cos(ang), self.radius_m * np.sin(ang), np.zeros_like(ang)], 1)
+        if self.has_centre:
+            ring = np.vstack([ring, np.zeros((1, 3))])
+        ring.setflags(write=False)
+        return ring
+
+    def ring_ids(self) -> np.ndarray:
+        """Ids of the ring beacons, shape (n_ring,)."""
+        return np.arange(self.n_ring)
+
+
+def thesis_layout() -> DeckLayout:
+    """The thesis's layout: 12 beacons on a radius-10 ring, bow = 0, no centre beacon."""
+    return DeckLayout(n_ring=12, radius_m=10.0, has_centre=False)
+
+
+_FIELDS = set(DeckLayout.__dataclass_fields__)
+
+
+def layout_from_dict(doc: object, source: str = "layout") -> DeckLayout:
+    """Build a :class:`DeckLayout` from a mapping, rejecting unknown keys."""
+    if doc is None:
+        return DeckLayout()
+    if not isinstance(doc, dict):
+        raise ConfigError(f"{source}: expected a mapping of layout fields, got {type(doc).__name__}")
+    unknown = set(doc) - _FIELDS
+    if unknown:
+        raise ConfigError(
+            f"{source}: unknown layout key(s) {sorted(unknown)}; valid keys are {sorted(_FIELDS)}"
+        )
+    try:
+        return DeckLayout(**doc)
+    except TypeError as exc:
+        raise ConfigError(f"{source}: {exc}") from exc
+
+
+def read_layout(path: str | os.PathLike[str]) -> DeckLayout:
+    """Read a layout YAML file (keys as :class:`DeckLayout` fields, or under ``layout:``)."""
+    p = Path(path)
+    try:
+        doc = yaml.safe_load(p.read_text())
+    except OSError as exc:
+        raise ConfigError(f"cannot read layout file {p}: {exc.strerror}") from exc
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{p}: not valid YAML ({exc})") from exc
+    if isinstance(doc, dict) and set(doc) == {"layout"}:
+        doc = doc["layout"]
+    return layout_from_dict(doc, str(p))
+
+
+def layout_to_dict(layout: DeckLayout) -> dict[str, Any]:
+    """Plain mapping of a layout (for manifests and YAML)."""
+    d = asdict(layout)
+    d["bow_rgb"] = list(d["bow_rgb"])
+    d["beacon_rgb"] = list(d["beacon_rgb"])
+    return d

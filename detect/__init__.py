@@ -1,0 +1,1 @@
+"""Detection stage: sub-pixel beacon centroids and beacon identification."""

@@ -1,0 +1,1 @@
+"""Estimation stage: ship attitude and position from identified beacon detections."""

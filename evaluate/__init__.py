@@ -1,0 +1,1 @@
+"""Evaluation stage: errors against ground truth, tables, logs and reports."""

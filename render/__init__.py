@@ -1,0 +1,1 @@
+"""Rendering stage: synthetic camera frames of the lit deck with exact ground truth."""
