@@ -34,7 +34,8 @@ class DeckLayout:
     has_centre : bool
         Whether a beacon sits at the deck centre (id ``n_ring``).
     bow_id : int
-        Ring id of the beacon that marks the bow (0 by the id convention).
+        Ring id of the beacon that marks the bow. Ids start at the bow, so this
+        must be 0; the field exists so configs can state it explicitly.
     bow_rgb : tuple of float
         Colour that tells the bow beacon apart (linear RGB in [0, 1]).
     beacon_rgb : tuple of float
@@ -60,8 +61,11 @@ class DeckLayout:
             raise ConfigError(f"layout needs at least 3 ring beacons, got n_ring={self.n_ring}")
         if not (math.isfinite(self.radius_m) and self.radius_m > 0):
             raise ConfigError(f"layout radius_m must be positive, got {self.radius_m}")
-        if not 0 <= int(self.bow_id) < int(self.n_ring):
-            raise ConfigError(f"bow_id must be a ring id in 0..{self.n_ring - 1}, got {self.bow_id}")
+        if int(self.bow_id) != 0:
+            raise ConfigError(
+                f"bow_id must be 0 (ring ids start at the bow beacon), got {self.bow_id}; "
+                "renumber the ring so the bow beacon is id 0"
+            )
         if not (self.beacon_radius_m > 0 and self.beacon_radius_m < self.radius_m):
             raise ConfigError(
                 f"beacon_radius_m must be positive and smaller than the ring, got {self.beacon_radius_m}"

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import importlib
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -44,7 +44,7 @@ class EstimateOptions:
 
     sigma_px: float = 1.0
     refine: bool = False
-    R_world_from_cam: np.ndarray = R_WORLD_FROM_NADIR_CAM
+    R_world_from_cam: np.ndarray = field(default_factory=lambda: R_WORLD_FROM_NADIR_CAM)
     max_reprojection_rms_px: float = 10.0
 
     def __post_init__(self) -> None:
@@ -59,7 +59,7 @@ EstimatorFn = Callable[[Detections, CameraModel, DeckLayout, EstimateOptions], P
 _REGISTRY: dict[str, EstimatorFn] = {}
 
 #: Modules that register the built-in estimators when imported.
-_BUILTIN_MODULES: tuple[str, ...] = ()
+_BUILTIN_MODULES: tuple[str, ...] = ("deckpose.estimate.thesis",)
 
 
 def register(name: str) -> Callable[[EstimatorFn], EstimatorFn]:

@@ -15,9 +15,9 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from deckpose.atomic_io import atomic_path
 from deckpose.errors import InputDataError
 from deckpose.pose import ShipPose
+from deckpose.tables import read_table, write_table
 
 FloatArray = NDArray[np.float64]
 _CHANNELS = ("roll_rad", "pitch_rad", "yaw_rad", "heave_m", "surge_m", "sway_m")
@@ -81,18 +81,6 @@ class MotionSeries:
         return df
 
 
-def _read_table(path: Path) -> pd.DataFrame:
-    ext = path.suffix.lower()
-    if ext not in (".csv", ".parquet", ".pq"):
-        raise InputDataError(f"{path}: motion files must be .csv or .parquet, got {ext!r}")
-    try:
-        return pd.read_csv(path) if ext == ".csv" else pd.read_parquet(path)
-    except FileNotFoundError:
-        raise InputDataError(f"motion file {path} does not exist") from None
-    except Exception as exc:  # pandas/pyarrow raise many types on corrupt files
-        raise InputDataError(f"{path}: cannot read motion table ({exc})") from exc
-
-
 def read_series(path: str | os.PathLike[str], *, angles: str = "deg") -> MotionSeries:
     """Read a motion series from CSV or Parquet (by extension).
 
@@ -105,7 +93,7 @@ def read_series(path: str | os.PathLike[str], *, angles: str = "deg") -> MotionS
     if angles not in ("deg", "rad"):
         raise InputDataError(f"angles must be 'deg' or 'rad', got {angles!r}")
     p = Path(path)
-    df = _read_table(p)
+    df = read_table(p, "motion series")
     need = ["t_s", f"roll_{angles}", f"pitch_{angles}", f"yaw_{angles}", "heave_m"]
     missing = [c for c in need if c not in df.columns]
     if missing:
@@ -128,12 +116,4 @@ def read_series(path: str | os.PathLike[str], *, angles: str = "deg") -> MotionS
 
 def write_series(series: MotionSeries, path: str | os.PathLike[str], *, angles: str = "deg") -> None:
     """Write a motion series as CSV or Parquet (by extension), atomically."""
-    p = Path(path)
-    df = series.to_frame(angles=angles)
-    with atomic_path(p) as tmp:
-        if p.suffix.lower() == ".csv":
-            df.to_csv(tmp, index=False)
-        elif p.suffix.lower() in (".parquet", ".pq"):
-            df.to_parquet(tmp, index=False)
-        else:
-            raise InputDataError(f"{p}: motion files must be .csv or .parquet")
+    write_table(series.to_frame(angles=angles), path, "motion series")

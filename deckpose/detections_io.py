@@ -1,0 +1,89 @@
+"""Read and validate detection tables (CSV or Parquet) into :class:`Detections` per frame.
+
+Required columns: ``frame_id, beacon_id, u_px, v_px``. Optional: ``cov_uu, cov_uv,
+cov_vv`` (px^2) and ``score``. ``beacon_id = -1`` marks an unassigned detection.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pandas as pd
+
+from deckpose.errors import InputDataError
+from deckpose.layout import DeckLayout
+from deckpose.records import UNASSIGNED, Detections
+from deckpose.tables import read_table
+
+REQUIRED = ("frame_id", "beacon_id", "u_px", "v_px")
+
+
+def detections_from_frame(df: pd.DataFrame, layout: DeckLayout, source: str = "detections") -> dict[int, Detections]:
+    """Validate a detections table and split it into one :class:`Detections` per frame.
+
+    Raises
+    ------
+    InputDataError
+        Missing columns, NaN or non-integer ids, ids outside the layout, or a
+        beacon id listed twice in one frame; the message names the row or frame.
+    """
+    missing = [c for c in REQUIRED if c not in df.columns]
+    if missing:
+        raise InputDataError(
+            f"{source}: missing column(s) {missing}; a detections table needs {list(REQUIRED)}"
+        )
+    for col in REQUIRED:
+        bad = df[col].isna() | ~np.isfinite(pd.to_numeric(df[col], errors="coerce").astype(float))
+        if bad.any():
+            row = int(np.flatnonzero(bad.to_numpy())[0])
+            raise InputDataError(f"{source}: row {row + 1} has a missing or non-numeric {col} ({df[col].iloc[row]!r})")
+    for col in ("frame_id", "beacon_id"):
+        v = df[col].to_numpy(float)
+        frac = v != np.round(v)
+        if frac.any():
+            row = int(np.flatnonzero(frac)[0])
+            raise InputDataError(f"{source}: row {row + 1}: {col} must be an integer, got {v[row]}")
+    ids = df["beacon_id"].to_numpy(float).astype(np.int64)
+    unknown = (ids != UNASSIGNED) & ((ids < 0) | (ids >= layout.n_beacons))
+    if unknown.any():
+        row = int(np.flatnonzero(unknown)[0])
+        raise InputDataError(
+            f"{source}: row {row + 1}: unknown beacon_id {ids[row]}; the layout has ids "
+            f"0..{layout.n_beacons - 1} (use -1 for an unassigned detection, or --layout/--radius "
+            "to describe your deck)"
+        )
+    frames = df["frame_id"].to_numpy(float).astype(np.int64)
+    assigned = ids != UNASSIGNED
+    key = pd.DataFrame({"f": frames[assigned], "b": ids[assigned]})
+    dup = key.duplicated(keep=False).to_numpy()
+    if dup.any():
+        i = int(np.flatnonzero(dup)[0])
+        raise InputDataError(
+            f"{source}: beacon_id {key['b'].iloc[i]} appears more than once in frame {key['f'].iloc[i]}"
+        )
+    uv = df[["u_px", "v_px"]].to_numpy(float)
+    has_cov = all(c in df.columns for c in ("cov_uu", "cov_uv", "cov_vv"))
+    cov = None
+    if has_cov:
+        c = df[["cov_uu", "cov_uv", "cov_vv"]].to_numpy(float)
+        cov = np.stack([np.stack([c[:, 0], c[:, 1]], -1), np.stack([c[:, 1], c[:, 2]], -1)], -2)
+    score = df["score"].to_numpy(float) if "score" in df.columns else None
+    out: dict[int, Detections] = {}
+    order = np.argsort(frames, kind="stable")
+    bounds = np.flatnonzero(np.diff(frames[order])) + 1
+    for idx in np.split(order, bounds) if order.size else []:
+        f = int(frames[idx[0]])
+        out[f] = Detections(
+            points_px=uv[idx],
+            beacon_ids=ids[idx],
+            covariance_px2=None if cov is None else cov[idx],
+            score=None if score is None else score[idx],
+            frame_id=f,
+        )
+    return out
+
+
+def read_detections(path: str | os.PathLike[str], layout: DeckLayout) -> dict[int, Detections]:
+    """Read a detections file and return ``{frame_id: Detections}`` in frame order."""
+    return detections_from_frame(read_table(path, "detections"), layout, str(path))
