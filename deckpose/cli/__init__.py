@@ -15,7 +15,9 @@ from deckpose.errors import DeckposeError
 
 #: Modules that register a subcommand, in the order ``--help`` lists them.
 SUBCOMMAND_MODULES: tuple[str, ...] = (
+    "deckpose.cli.demo_cmd",
     "deckpose.cli.estimate_cmd",
+    "deckpose.cli.thesis_tables_cmd",
 )
 
 

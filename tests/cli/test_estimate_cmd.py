@@ -1,0 +1,148 @@
+"""``deckpose estimate``: the happy path against the Python API, and every kind of bad input."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from deckpose.camera import preset
+from deckpose.camera_info import write_camera_info
+from deckpose.cli import main
+from deckpose.layout import DeckLayout
+from deckpose.pose import CameraPose, ShipPose
+from deckpose.projection import project_layout
+
+
+def _detections(n_frames=6, seed=0):
+    cam = preset("8mp")
+    rng = np.random.default_rng(seed)
+    rows, truth = [], []
+    for f in range(n_frames):
+        pose = ShipPose(*np.radians([rng.uniform(-15, 15), rng.uniform(-8, 8), rng.uniform(-180, 180)]))
+        D = rng.uniform(20, 60)
+        proj = project_layout(DeckLayout(), pose, CameraPose.nadir(D), cam)
+        for b in np.flatnonzero(proj.visible):
+            rows.append(dict(frame_id=f, beacon_id=int(b), u_px=proj.points_px[b, 0], v_px=proj.points_px[b, 1]))
+        truth.append((pose, D))
+    return cam, pd.DataFrame(rows), truth
+
+
+@pytest.fixture
+def setup(tmp_path):
+    cam, df, truth = _detections()
+    cam_path = tmp_path / "cam.yaml"
+    write_camera_info(cam, cam_path)
+    return tmp_path, cam_path, df, truth
+
+
+@pytest.mark.parametrize("ext", [".csv", ".parquet"])
+def test_estimate_thesis_end_to_end(setup, ext, capsys):
+    tmp, cam_path, df, truth = setup
+    det = tmp / f"det{ext}"
+    df.to_csv(det, index=False) if ext == ".csv" else df.to_parquet(det, index=False)
+    out = tmp / f"est{ext}"
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(out), "--method", "thesis"]) == 0
+    res = pd.read_csv(out) if ext == ".csv" else pd.read_parquet(out)
+    expected_cols = ["frame_id", "method", "ok", "reason", "roll_deg", "pitch_deg", "yaw_deg",
+                     "surge_m", "sway_m", "height_m", "thesis_roll_deg", "thesis_pitch_deg", "thesis_yaw_deg"]
+    assert list(res.columns[:10]) == expected_cols[:10]
+    assert set(expected_cols) <= set(res.columns)
+    assert res["ok"].all() and len(res) == len(truth)
+    for (pose, D), (_, row) in zip(truth, res.iterrows()):
+        assert row.roll_deg == pytest.approx(np.degrees(pose.roll_rad), abs=1e-6)
+        assert row.yaw_deg == pytest.approx(np.degrees(pose.yaw_rad), abs=1e-6)
+        assert row.height_m == pytest.approx(D, rel=1e-9)
+        tr = np.degrees(pose.thesis_angles_rad())
+        assert row.thesis_pitch_deg == pytest.approx(tr[1], abs=1e-6)
+    assert res["surge_m"].isna().all()
+    assert "6 frames, 6 ok" in capsys.readouterr().out
+
+
+def test_unsolvable_frame_becomes_a_failed_row(setup):
+    tmp, cam_path, df, _ = setup
+    df = df[~((df.frame_id == 2) & (df.beacon_id == 0))]  # hide the bow beacon of frame 2
+    df = df[~((df.frame_id == 4) & (df.beacon_id.isin(range(1, 9))))]  # frame 4: too few beacons
+    det = tmp / "det.csv"
+    df.to_csv(det, index=False)
+    out = tmp / "est.csv"
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(out)]) == 0
+    res = pd.read_csv(out, keep_default_na=False).set_index("frame_id")
+    assert not res.loc[2, "ok"] and "bow" in res.loc[2, "reason"]
+    assert not res.loc[4, "ok"] and "fewer than 5" in res.loc[4, "reason"]
+    assert res.loc[2, "roll_deg"] == "" and res.loc[[0, 1, 3, 5], "ok"].all()
+
+
+def _run_bad(tmp, cam_path, df, capsys, **kw):
+    det = tmp / "bad.csv"
+    df.to_csv(det, index=False)
+    out = tmp / "out.csv"
+    code = main(["estimate", str(det), "--camera", str(kw.get("camera", cam_path)), "-o", str(out)])
+    assert code == 2 and not out.exists()
+    return capsys.readouterr().err
+
+
+def test_missing_columns(setup, capsys):
+    tmp, cam_path, df, _ = setup
+    err = _run_bad(tmp, cam_path, df.drop(columns=["v_px"]), capsys)
+    assert "missing column" in err and "v_px" in err
+
+
+def test_nan_names_the_row(setup, capsys):
+    tmp, cam_path, df, _ = setup
+    df = df.copy()
+    df.loc[5, "u_px"] = np.nan
+    err = _run_bad(tmp, cam_path, df, capsys)
+    assert "row 6" in err and "u_px" in err
+
+
+def test_unknown_beacon_id(setup, capsys):
+    tmp, cam_path, df, _ = setup
+    df = df.copy()
+    df.loc[3, "beacon_id"] = 40
+    err = _run_bad(tmp, cam_path, df, capsys)
+    assert "row 4" in err and "unknown beacon_id 40" in err
+
+
+def test_duplicate_beacon_id_in_a_frame(setup, capsys):
+    tmp, cam_path, df, _ = setup
+    df = pd.concat([df, df.iloc[[0]]])
+    err = _run_bad(tmp, cam_path, df, capsys)
+    assert "appears more than once in frame 0" in err
+
+
+def test_camera_file_that_does_not_parse(setup, capsys):
+    tmp, cam_path, df, _ = setup
+    bad = tmp / "bad_cam.yaml"
+    bad.write_text("image_width: 10\nimage_height: [oops\n")
+    err = _run_bad(tmp, cam_path, df, capsys, camera=bad)
+    assert "not valid YAML" in err
+
+
+def test_wrong_extension_and_missing_file(setup, capsys):
+    tmp, cam_path, _, _ = setup
+    assert main(["estimate", str(tmp / "x.txt"), "--camera", str(cam_path), "-o", str(tmp / "o.csv")]) == 2
+    assert ".csv or .parquet" in capsys.readouterr().err
+    assert main(["estimate", str(tmp / "nope.csv"), "--camera", str(cam_path), "-o", str(tmp / "o.csv")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+
+
+def test_radius_option_scales_the_height(setup):
+    tmp, cam_path, df, truth = setup
+    det = tmp / "det.csv"
+    df.to_csv(det, index=False)
+    out = tmp / "est.csv"
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(out), "--radius", "5"]) == 0
+    res = pd.read_csv(out)
+    # the height is proportional to the assumed ring radius; angles do not depend on it
+    np.testing.assert_allclose(res.height_m, [D / 2 for _, D in truth], rtol=1e-9)
+
+
+def test_help_of_every_subcommand(capsys):
+    from deckpose.cli import build_parser
+
+    parser = build_parser()
+    sub = next(a for a in parser._actions if a.dest == "command")
+    for name in sub.choices:
+        with pytest.raises(SystemExit) as exc:
+            main([name, "--help"])
+        assert exc.value.code == 0
+        assert "usage: deckpose " + name in capsys.readouterr().out

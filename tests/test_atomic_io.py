@@ -1,0 +1,27 @@
+import os
+
+import pytest
+
+from deckpose.atomic_io import atomic_open, atomic_path
+
+
+def test_atomic_open_writes_whole_file_with_normal_mode(tmp_path):
+    p = tmp_path / "a.txt"
+    with atomic_open(p) as fh:
+        fh.write("hello")
+        assert not p.exists()  # nothing visible until the block ends
+    assert p.read_text() == "hello"
+    umask = os.umask(0)
+    os.umask(umask)
+    assert (p.stat().st_mode & 0o777) == 0o666 & ~umask
+
+
+def test_failure_leaves_old_file_and_no_temporaries(tmp_path):
+    p = tmp_path / "b.txt"
+    p.write_text("old")
+    with pytest.raises(RuntimeError):
+        with atomic_path(p) as tmp:
+            tmp.write_text("half")
+            raise RuntimeError("crash")
+    assert p.read_text() == "old"
+    assert sorted(x.name for x in tmp_path.iterdir()) == ["b.txt"]
