@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+import numpy as np
+
 
 def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None:
     p = sub.add_parser(
@@ -20,9 +22,12 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
         ),
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
-    p.add_argument("detections", type=Path, help="detections table (.csv or .parquet)")
-    p.add_argument("--camera", type=Path, required=True, help="ROS camera_info YAML of the camera")
-    p.add_argument("-o", "--output", type=Path, required=True, help="output table (.csv or .parquet)")
+    p.add_argument("detections", type=Path, nargs="?", help="detections table (.csv or .parquet)")
+    p.add_argument("--camera", type=Path, help="ROS camera_info YAML of the camera")
+    p.add_argument("-o", "--output", type=Path, help="output table (.csv or .parquet)")
+    p.add_argument("--run", type=Path, help="a run folder: read RUN/detections/DETECTOR.parquet with each "
+                   "frame's own camera and write RUN/estimates/DETECTOR--METHOD.parquet")
+    p.add_argument("--detector", help="with --run: which detector's detections to use")
     from deckpose.estimate import registry
 
     p.add_argument("--method", default="thesis", choices=registry.names(), help="estimator")
@@ -46,6 +51,10 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.layout import DeckLayout, read_layout
     from deckpose.tables import write_table
 
+    if args.run is not None:
+        return _run_folder(args)
+    if args.detections is None or args.camera is None or args.output is None:
+        raise ConfigError("give DETECTIONS --camera CAMERA.yaml -o OUTPUT, or --run RUN --detector NAME")
     layout = read_layout(args.layout) if args.layout else DeckLayout()
     if args.radius is not None:
         if not args.radius > 0:
@@ -64,4 +73,51 @@ def run(args: argparse.Namespace) -> int:
     write_table(df, args.output, "estimates")
     n_ok = int(df["ok"].sum()) if len(df) else 0
     print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {args.output}")
+    return 0
+
+
+def _run_folder(args: argparse.Namespace) -> int:
+    """``--run`` mode: per-frame cameras and camera attitudes from the dataset's frames table."""
+    import dataclasses
+
+    from tqdm import tqdm
+
+    from deckpose.detections_io import detections_from_frame
+    from deckpose.errors import ConfigError
+    from deckpose.estimate import registry
+    from deckpose.estimate.results_table import estimates_frame
+    from deckpose.evaluate import run_layout as rl
+    from deckpose.tables import write_table
+
+    run = rl.run_paths(args.run)
+    detectors = run.detectors()
+    if args.detector is None:
+        if len(detectors) != 1:
+            raise ConfigError(f"--run needs --detector (this run has detections of: {detectors or 'none'})")
+        args.detector = detectors[0]
+    layout = rl.read_layout(run)
+    if args.radius is not None:
+        layout = dataclasses.replace(layout, radius_m=float(args.radius))
+    frames = rl.read_frames(run).set_index("frame_id")
+    cameras = rl.read_cameras(run, sorted(frames["camera"].unique()))
+    det_df = rl.read_detections(run, args.detector)
+    rl.check_frames_match(frames.reset_index(), det_df, f"detections of {args.detector}",
+                          f"deckpose detect {run.root} --detector {args.detector}")
+    dets = detections_from_frame(det_df, layout, str(run.detections(args.detector)))
+    estimator = registry.get(args.method)
+    base = registry.EstimateOptions(sigma_px=args.sigma_px, refine=args.refine)
+    ids, results = [], []
+    from deckpose.records import Detections
+
+    for frame_id, row in tqdm(frames.iterrows(), total=len(frames), desc=f"estimate ({args.method})",
+                              unit="frame", disable=None, leave=False):
+        det = dets.get(int(frame_id), Detections(np.zeros((0, 2)), np.zeros(0, dtype=np.int64), frame_id=int(frame_id)))
+        opts = dataclasses.replace(base, R_world_from_cam=rl.R_world_from_cam(row))
+        ids.append(int(frame_id))
+        results.append(estimator(det, cameras[row["camera"]], layout, opts))
+    df = estimates_frame(ids, results)
+    out = run.estimates(args.detector, args.method)
+    write_table(df, out, "estimates")
+    n_ok = int(df["ok"].sum()) if len(df) else 0
+    print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {out}")
     return 0

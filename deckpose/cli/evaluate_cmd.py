@@ -1,0 +1,50 @@
+"""``deckpose evaluate`` and ``deckpose report``: errors, tables, MCAP log and report of a run."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None:
+    p = sub.add_parser(
+        "evaluate",
+        help="join ground truth, detections and estimates of a run into errors, tables and an MCAP log",
+        description=(
+            "Read RUN (a rendered dataset with RUN/detections/*.parquet and RUN/estimates/*.parquet) and "
+            "write RUN/evaluation/errors.parquet (per frame: pose errors, centroid errors, ok flags, sigmas), "
+            "RUN/evaluation/resolution_tables.{md,csv} (thesis-format tables per detector x estimator x "
+            "resolution), RUN/log.mcap and RUN/foxglove_layout.json (open the log in Foxglove and import the layout)."
+        ),
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    p.add_argument("run", type=Path, help="run folder")
+    p.add_argument("--no-mcap", action="store_true", help="skip the MCAP log")
+    p.add_argument("--preview-px", type=int, default=1920, help="long side of the image previews in the log (<= 4096)")
+    p.set_defaults(func=run_evaluate)
+    r = sub.add_parser(
+        "report",
+        help="write a Markdown report with plots for an evaluated run",
+        description="Write RUN/report/report.md with figures under RUN/report/figures (needs 'deckpose evaluate RUN' first).",
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    r.add_argument("run", type=Path, help="run folder")
+    r.set_defaults(func=run_report)
+
+
+def run_evaluate(args: argparse.Namespace) -> int:
+    from deckpose.evaluate.pipeline import evaluate_run
+    from deckpose.evaluate.run_layout import run_paths
+
+    paths = evaluate_run(run_paths(args.run), mcap=not args.no_mcap, preview_px=args.preview_px)
+    for k, v in paths.items():
+        print(f"{k}: {v}")
+    return 0
+
+
+def run_report(args: argparse.Namespace) -> int:
+    from deckpose.evaluate.report import write_report
+    from deckpose.evaluate.run_layout import run_paths
+
+    print(f"report: {write_report(run_paths(args.run))}")
+    return 0

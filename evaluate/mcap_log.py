@@ -1,0 +1,263 @@
+"""MCAP logs of a run for Foxglove: images, calibration, annotations, transforms, errors.
+
+Topics (Foxglove protobuf schemas, zstd-compressed chunks):
+
+* ``/camera/image`` (``foxglove.CompressedImage``, PNG): a downscaled preview, at most
+  ``preview_px`` on its long side (viewers cannot show 64 MP textures; full frames
+  stay in the dataset), and ``/camera/calibration`` (``foxglove.CameraCalibration``)
+  scaled to match;
+* ``/annotations/truth`` and ``/annotations/<detector>`` (``foxglove.ImageAnnotations``):
+  projected and detected beacon centres with their ids, in preview pixels;
+* ``/tf`` (``foxglove.FrameTransforms``): ``world -> deck`` (truth), ``world -> camera``
+  and ``world -> deck_est/<detector>--<method>`` per estimate;
+* ``/errors/<detector>--<method>`` (JSON): the per-frame errors, for Foxglove's Plot panel.
+
+Timestamps come from the motion time base (``stamp_ns``). A run that replays one
+motion series for several cameras and heights would repeat stamps, so each
+(camera, height) group is shifted after the previous one; every message keeps
+the motion time in ``t_s`` (JSON) and the true stamp in the frame tables.
+Log and publish times are always given explicitly.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pandas as pd
+from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
+from foxglove_schemas_protobuf.Color_pb2 import Color
+from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
+from foxglove_schemas_protobuf.FrameTransform_pb2 import FrameTransform
+from foxglove_schemas_protobuf.FrameTransforms_pb2 import FrameTransforms
+from foxglove_schemas_protobuf.ImageAnnotations_pb2 import ImageAnnotations
+from foxglove_schemas_protobuf.Point2_pb2 import Point2
+from foxglove_schemas_protobuf.PointsAnnotation_pb2 import PointsAnnotation
+from foxglove_schemas_protobuf.Quaternion_pb2 import Quaternion
+from foxglove_schemas_protobuf.TextAnnotation_pb2 import TextAnnotation
+from foxglove_schemas_protobuf.Vector3_pb2 import Vector3
+from google.protobuf.timestamp_pb2 import Timestamp
+from mcap.writer import CompressionType, Writer
+from mcap_protobuf.schema import build_file_descriptor_set
+from scipy.spatial.transform import Rotation
+
+from deckpose.atomic_io import atomic_path
+from deckpose.camera import CameraModel
+from deckpose.errors import InputDataError
+from deckpose.evaluate import run_layout as rl
+from deckpose.rotation import R_from_zyx
+
+TRUTH_RGBA = (0.1, 0.9, 0.2, 1.0)
+DETECTION_RGBA = (1.0, 0.3, 0.1, 1.0)
+
+
+class McapLog:
+    """An open MCAP file that registers schemas and channels on first use."""
+
+    def __init__(self, fh) -> None:  # noqa: ANN001 - binary file object
+        self._w = Writer(fh, compression=CompressionType.ZSTD)
+        self._w.start(profile="", library="deckpose")
+        self._schemas: dict[str, int] = {}
+        self._channels: dict[str, int] = {}
+
+    def _channel(self, topic: str, schema_name: str, encoding: str, schema_data: bytes, schema_enc: str) -> int:
+        if topic not in self._channels:
+            if schema_name not in self._schemas:
+                self._schemas[schema_name] = self._w.register_schema(schema_name, schema_enc, schema_data)
+            self._channels[topic] = self._w.register_channel(topic, encoding, self._schemas[schema_name])
+        return self._channels[topic]
+
+    def proto(self, topic: str, msg, stamp_ns: int) -> None:  # noqa: ANN001 - protobuf message
+        name = msg.DESCRIPTOR.full_name
+        cid = self._channel(topic, name, "protobuf",
+                            build_file_descriptor_set(type(msg)).SerializeToString(), "protobuf")
+        self._w.add_message(cid, log_time=stamp_ns, publish_time=stamp_ns, data=msg.SerializeToString())
+
+    def json(self, topic: str, obj: dict, stamp_ns: int, schema_name: str = "deckpose.FrameErrors") -> None:
+        schema = json.dumps({"type": "object", "title": schema_name}).encode()
+        cid = self._channel(topic, schema_name, "json", schema, "jsonschema")
+        self._w.add_message(cid, log_time=stamp_ns, publish_time=stamp_ns,
+                            data=json.dumps(obj, allow_nan=False).encode())
+
+    def finish(self) -> None:
+        self._w.finish()
+
+
+def _ts(stamp_ns: int) -> Timestamp:
+    return Timestamp(seconds=stamp_ns // 1_000_000_000, nanos=stamp_ns % 1_000_000_000)
+
+
+def _color(rgba: tuple[float, float, float, float]) -> Color:
+    return Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
+
+
+def preview_scale(camera: CameraModel, preview_px: int) -> float:
+    """Downscale factor (<= 1) that brings the long side to at most ``preview_px``."""
+    return min(1.0, preview_px / max(camera.width_px, camera.height_px))
+
+
+def preview_image(path: Path, scale: float) -> np.ndarray:
+    """Read an image (8/16-bit, mono or colour) and shrink it for viewing, 8-bit."""
+    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+    if img is None:
+        raise InputDataError(f"cannot read image {path}")
+    if img.dtype == np.uint16:
+        img = (img >> 8).astype(np.uint8)
+    if scale < 1.0:
+        w = max(1, round(img.shape[1] * scale))
+        h = max(1, round(img.shape[0] * scale))
+        img = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA)
+    return img
+
+
+def calibration_msg(camera: CameraModel, scale: float, stamp_ns: int, width: int, height: int) -> CameraCalibration:
+    """Calibration of the preview image: K scaled with the image (pixel centres kept)."""
+    sx, sy = width / camera.width_px, height / camera.height_px
+    K = camera.K.copy()
+    K[0, 0] *= sx
+    K[1, 1] *= sy
+    K[0, 2] = (K[0, 2] + 0.5) * sx - 0.5
+    K[1, 2] = (K[1, 2] + 0.5) * sy - 0.5
+    P = np.hstack([K, np.zeros((3, 1))])
+    D = list(camera.dist_coeffs) if camera.dist_coeffs.size else [0.0] * 5
+    return CameraCalibration(timestamp=_ts(stamp_ns), frame_id="camera", width=width, height=height,
+                             distortion_model=camera.distortion_model, D=D, K=list(K.ravel()),
+                             R=list(np.eye(3).ravel()), P=list(P.ravel()))
+
+
+def annotations_msg(points_px: np.ndarray, ids: np.ndarray, sx: float, sy: float, stamp_ns: int,
+                    rgba: tuple[float, float, float, float], label: str) -> ImageAnnotations:
+    """Points (with id labels) in preview pixels."""
+    pts = [Point2(x=float((u + 0.5) * sx - 0.5), y=float((v + 0.5) * sy - 0.5)) for u, v in points_px]
+    ann = ImageAnnotations()
+    ann.points.append(PointsAnnotation(timestamp=_ts(stamp_ns), type=PointsAnnotation.Type.POINTS, points=pts,
+                                       outline_color=_color(rgba), fill_color=_color(rgba), thickness=6.0))
+    for p, i in zip(pts, ids):
+        ann.texts.append(TextAnnotation(timestamp=_ts(stamp_ns), position=Point2(x=p.x + 6, y=p.y - 6),
+                                        text=f"{label}{int(i)}" if i >= 0 else f"{label}?", font_size=12.0,
+                                        text_color=_color(rgba), background_color=_color((0, 0, 0, 0.5))))
+    return ann
+
+
+def _transform(parent: str, child: str, R: np.ndarray, t: np.ndarray, stamp_ns: int) -> FrameTransform:
+    x, y, z, w = Rotation.from_matrix(R).as_quat()
+    return FrameTransform(timestamp=_ts(stamp_ns), parent_frame_id=parent, child_frame_id=child,
+                          translation=Vector3(x=float(t[0]), y=float(t[1]), z=float(t[2])),
+                          rotation=Quaternion(x=float(x), y=float(y), z=float(z), w=float(w)))
+
+
+def log_stamps(frames: pd.DataFrame) -> pd.Series:
+    """Monotone log times: ``stamp_ns`` shifted per (camera, height) group so groups do not overlap."""
+    out = pd.Series(0, index=frames.index, dtype=np.int64)
+    offset = 0
+    for _, g in frames.groupby(["camera", "camera_height_m"], sort=True):
+        s = g["stamp_ns"].astype(np.int64)
+        base = int(s.min())
+        out.loc[g.index] = s - base + offset
+        offset += int(s.max() - base) + 1_000_000_000  # one second between groups
+    return out
+
+
+def _finite(d: dict) -> dict:
+    return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in d.items()}
+
+
+def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px: int = 1920,
+                  errors: pd.DataFrame | None = None) -> Path:
+    """Write the run's MCAP log (atomically) and return its path."""
+    if not 16 <= preview_px <= 4096:
+        raise InputDataError(f"preview_px must be within 16..4096 (viewers cannot show larger textures), got {preview_px}")
+    frames = rl.read_frames(run)
+    beacons = rl.read_beacons(run)
+    cameras = rl.read_cameras(run, sorted(frames["camera"].unique()))
+    dets = {d: rl.read_detections(run, d) for d in run.detectors()}
+    dets = {d: df.set_index("frame_id") for d, df in dets.items()}
+    pairs = run.estimate_pairs()
+    ests = {p: rl.read_estimates(run, *p).set_index("frame_id") for p in pairs}
+    err_by_pair = {}
+    if errors is not None and len(errors):
+        for (d, m), g in errors.groupby(["detector", "method"]):
+            err_by_pair[(d, m)] = g.set_index("frame_id")
+    stamps = log_stamps(frames)
+    beacons_by_frame = {f: g for f, g in beacons.groupby("frame_id")}
+    out = Path(out_path) if out_path else run.mcap
+    with atomic_path(out) as tmp, open(tmp, "wb") as fh:
+        log = McapLog(fh)
+        for i in np.argsort(stamps.to_numpy(), kind="stable"):
+            row = frames.iloc[i]
+            f = int(row["frame_id"])
+            ts = int(stamps.iloc[i])
+            cam = cameras[row["camera"]]
+            scale = preview_scale(cam, preview_px)
+            img = preview_image(run.root / row["image"], scale)
+            h, w = img.shape[:2]
+            sx, sy = w / cam.width_px, h / cam.height_px
+            ok, png = cv2.imencode(".png", img)
+            log.proto("/camera/image", CompressedImage(timestamp=_ts(ts), frame_id="camera",
+                                                       data=png.tobytes(), format="png"), ts)
+            log.proto("/camera/calibration", calibration_msg(cam, scale, ts, w, h), ts)
+            b = beacons_by_frame.get(f)
+            if b is not None:
+                vis = b[b["visible"].astype(bool)]
+                log.proto("/annotations/truth", annotations_msg(vis[["u_px", "v_px"]].to_numpy(float),
+                                                                vis["beacon_id"].to_numpy(), sx, sy, ts, TRUTH_RGBA, "T"), ts)
+            for d, ddf in dets.items():
+                sel = ddf.loc[[f]] if f in ddf.index else ddf.iloc[0:0]
+                log.proto(f"/annotations/{d}", annotations_msg(sel[["u_px", "v_px"]].to_numpy(float),
+                                                               sel["beacon_id"].to_numpy(), sx, sy, ts, DETECTION_RGBA, ""), ts)
+            R_deck = R_from_zyx(row["roll_rad"], row["pitch_rad"], row["yaw_rad"])
+            tfs = FrameTransforms()
+            tfs.transforms.append(_transform("world", "deck", R_deck,
+                                             np.array([row["surge_m"], row["sway_m"], row["heave_m"]]), ts))
+            tfs.transforms.append(_transform("world", "camera", rl.R_world_from_cam(row),
+                                             np.array([row["cam_x_m"], row["cam_y_m"], row["cam_z_m"]]), ts))
+            for (d, m), edf in ests.items():
+                if f not in edf.index or not bool(edf.loc[f, "ok"]):
+                    continue
+                e = edf.loc[f]
+                R_est = R_from_zyx(*np.radians([e["roll_deg"], e["pitch_deg"], e["yaw_deg"]]))
+                # Translation: camera position minus the estimated camera-to-deck offset.
+                tx = row["cam_x_m"] + (e["surge_m"] if np.isfinite(e["surge_m"]) else 0.0)
+                ty = row["cam_y_m"] + (e["sway_m"] if np.isfinite(e["sway_m"]) else 0.0)
+                tz = row["cam_z_m"] - e["height_m"]
+                tfs.transforms.append(_transform("world", f"deck_est/{d}{rl.SEPARATOR}{m}", R_est,
+                                                 np.array([tx, ty, tz]), ts))
+            log.proto("/tf", tfs, ts)
+            for (d, m), edf in err_by_pair.items():
+                if f in edf.index:
+                    rec = edf.loc[f]
+                    obj = {k: (v.item() if hasattr(v, "item") else v) for k, v in rec.items()}
+                    obj.update(frame_id=f, t_s=float(row["t_s"]), detector=d, method=m)
+                    log.json(f"/errors/{d}{rl.SEPARATOR}{m}", _finite(obj), ts)
+        log.finish()
+    return out
+
+
+def foxglove_layout(detectors: list[str], pairs: list[tuple[str, str]]) -> dict:
+    """A Foxglove layout: image with annotations, 3D view of the frames, error plots."""
+    annotations = {"/annotations/truth": {"visible": True}}
+    annotations.update({f"/annotations/{d}": {"visible": True} for d in detectors})
+    paths = []
+    for d, m in pairs:
+        for q in ("roll_err_deg", "pitch_err_deg", "yaw_err_deg", "height_err_m"):
+            paths.append({"value": f"/errors/{d}{rl.SEPARATOR}{m}.{q}", "enabled": True,
+                          "timestampMethod": "receiveTime", "label": f"{d}+{m} {q}"})
+    return {
+        "configById": {
+            "Image!deckpose": {"imageMode": {"imageTopic": "/camera/image",
+                                             "calibrationTopic": "/camera/calibration",
+                                             "annotations": annotations}},
+            "3D!deckpose": {"followTf": "world", "topics": {"/tf": {"visible": True}},
+                            "transforms": {"showLabel": True, "axisScale": 3}},
+            "Plot!errors": {"paths": paths, "showLegend": True, "xAxisVal": "timestamp"},
+        },
+        "globalVariables": {},
+        "userNodes": {},
+        "layout": {"direction": "row", "first": "Image!deckpose",
+                   "second": {"direction": "column", "first": "3D!deckpose", "second": "Plot!errors",
+                              "splitPercentage": 50},
+                   "splitPercentage": 55},
+    }

@@ -1,0 +1,180 @@
+"""Where each stage's output lives in a run folder, and loading it with clear errors.
+
+A run folder is a rendered dataset (``deckpose render``) that later stages add to::
+
+    RUN/manifest.json, cameras/, images/, frames.parquet, beacons.parquet   (render)
+    RUN/detections/<detector>.parquet [+ <detector>.frames.parquet]       (deckpose detect)
+    RUN/estimates/<detector>--<method>.parquet                             (deckpose estimate --run)
+    RUN/evaluation/errors.parquet, resolution_tables.{md,csv}              (deckpose evaluate)
+    RUN/log.mcap                                                           (deckpose evaluate)
+    RUN/report/report.md, report/figures/*.png                             (deckpose report)
+
+A missing stage output raises :class:`~deckpose.errors.InputDataError` naming
+the file and the command that makes it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from deckpose.camera import CameraModel
+from deckpose.camera_info import read_camera_info
+from deckpose.errors import InputDataError
+from deckpose.layout import DeckLayout, layout_from_dict
+from deckpose.tables import read_table
+
+SEPARATOR = "--"
+
+
+@dataclass(frozen=True)
+class RunPaths:
+    """Paths inside one run folder."""
+
+    root: Path
+
+    @property
+    def manifest(self) -> Path:
+        return self.root / "manifest.json"
+
+    @property
+    def frames(self) -> Path:
+        return self.root / "frames.parquet"
+
+    @property
+    def beacons(self) -> Path:
+        return self.root / "beacons.parquet"
+
+    @property
+    def cameras_dir(self) -> Path:
+        return self.root / "cameras"
+
+    def detections(self, detector: str) -> Path:
+        return self.root / "detections" / f"{detector}.parquet"
+
+    def detect_frames(self, detector: str) -> Path:
+        return self.root / "detections" / f"{detector}.frames.parquet"
+
+    def estimates(self, detector: str, method: str) -> Path:
+        return self.root / "estimates" / f"{detector}{SEPARATOR}{method}.parquet"
+
+    @property
+    def evaluation_dir(self) -> Path:
+        return self.root / "evaluation"
+
+    @property
+    def errors(self) -> Path:
+        return self.evaluation_dir / "errors.parquet"
+
+    @property
+    def mcap(self) -> Path:
+        return self.root / "log.mcap"
+
+    @property
+    def report_dir(self) -> Path:
+        return self.root / "report"
+
+    def detectors(self) -> list[str]:
+        """Detectors with outputs in this run."""
+        d = self.root / "detections"
+        return sorted(p.stem for p in d.glob("*.parquet") if not p.name.endswith(".frames.parquet")) if d.is_dir() else []
+
+    def estimate_pairs(self) -> list[tuple[str, str]]:
+        """``(detector, method)`` pairs with estimates in this run."""
+        d = self.root / "estimates"
+        if not d.is_dir():
+            return []
+        pairs = []
+        for p in sorted(d.glob(f"*{SEPARATOR}*.parquet")):
+            det, _, method = p.stem.partition(SEPARATOR)
+            pairs.append((det, method))
+        return pairs
+
+
+def _require(path: Path, command: str) -> None:
+    if not path.exists():
+        raise InputDataError(f"{path} is missing; make it with: {command}")
+
+
+def require_dataset(run: RunPaths) -> None:
+    """Raise unless the render stage's outputs are present."""
+    if not run.root.is_dir():
+        raise InputDataError(f"run folder {run.root} does not exist; make it with: deckpose render CONFIG.yaml -o {run.root}")
+    for p in (run.manifest, run.frames, run.beacons):
+        _require(p, f"deckpose render CONFIG.yaml -o {run.root}")
+
+
+def read_manifest(run: RunPaths) -> dict[str, Any]:
+    require_dataset(run)
+    try:
+        return json.loads(run.manifest.read_text())
+    except json.JSONDecodeError as exc:
+        raise InputDataError(f"{run.manifest}: not valid JSON ({exc})") from exc
+
+
+def read_layout(run: RunPaths) -> DeckLayout:
+    """The deck layout recorded in the run's manifest."""
+    man = read_manifest(run)
+    return layout_from_dict(man.get("layout"), f"{run.manifest}: layout")
+
+
+def read_frames(run: RunPaths) -> pd.DataFrame:
+    require_dataset(run)
+    return read_table(run.frames, "frames table")
+
+
+def read_beacons(run: RunPaths) -> pd.DataFrame:
+    require_dataset(run)
+    return read_table(run.beacons, "beacons table")
+
+
+def read_cameras(run: RunPaths, names: list[str] | None = None) -> dict[str, CameraModel]:
+    """Camera models by name from ``cameras/<name>.yaml``."""
+    require_dataset(run)
+    if names is None:
+        names = sorted(p.stem for p in run.cameras_dir.glob("*.yaml"))
+    out = {}
+    for n in names:
+        path = run.cameras_dir / f"{n}.yaml"
+        _require(path, f"deckpose render CONFIG.yaml -o {run.root}")
+        out[n] = read_camera_info(path)
+    return out
+
+
+def read_detections(run: RunPaths, detector: str) -> pd.DataFrame:
+    p = run.detections(detector)
+    _require(p, f"deckpose detect {run.root} --detector {detector}")
+    return read_table(p, "detections")
+
+
+def read_estimates(run: RunPaths, detector: str, method: str) -> pd.DataFrame:
+    p = run.estimates(detector, method)
+    _require(p, f"deckpose estimate --run {run.root} --detector {detector} --method {method}")
+    return read_table(p, "estimates")
+
+
+def check_frames_match(frames: pd.DataFrame, other: pd.DataFrame, what: str, command: str) -> None:
+    """Raise if ``other`` names frames the dataset does not have (stale or foreign output)."""
+    known = set(frames["frame_id"].to_numpy(np.int64))
+    ids = set(other["frame_id"].to_numpy(np.int64)) if len(other) else set()
+    extra = sorted(ids - known)
+    if extra:
+        raise InputDataError(
+            f"{what} has frame ids the dataset does not have (e.g. {extra[:5]}): it belongs to another "
+            f"run or is stale; remake it with: {command}"
+        )
+
+
+def R_world_from_cam(row: pd.Series) -> np.ndarray:
+    """The camera rotation stored in a frames-table row (columns r00..r22)."""
+    return np.array([[row[f"r{i}{j}"] for j in range(3)] for i in range(3)], dtype=float)
+
+
+def run_paths(root: str | os.PathLike[str]) -> RunPaths:
+    return RunPaths(Path(root))

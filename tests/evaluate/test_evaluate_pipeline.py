@@ -1,0 +1,118 @@
+"""estimate --run -> evaluate -> MCAP -> report on a synthetic run with known answers."""
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from mcap.decoder import DecoderFactory as McapDecoderFactory
+from mcap.reader import make_reader
+from mcap_protobuf.decoder import DecoderFactory
+
+from deckpose.cli import main
+from deckpose.errors import InputDataError
+from deckpose.evaluate.errors import frame_errors
+from deckpose.evaluate.pipeline import compute_errors
+from deckpose.evaluate.run_layout import run_paths
+from tests.evaluate.fake_run import make_fake_run
+
+
+class JsonDecoderFactory(McapDecoderFactory):
+    def decoder_for(self, message_encoding, schema):
+        return json.loads if message_encoding == "json" else None
+
+
+@pytest.fixture
+def run(tmp_path):
+    root = make_fake_run(tmp_path / "run")
+    assert main(["estimate", "--run", str(root), "--detector", "fake", "--method", "thesis"]) == 0
+    return root
+
+
+def test_errors_against_truth(run):
+    errs = pd.read_parquet(run / "estimates" / "fake--thesis.parquet")
+    assert errs.ok.all()
+    e = compute_errors(run_paths(run))
+    assert set(e.detector) == {"fake"} and set(e.method) == {"thesis"}
+    # 0.3 px noise on beacons 80-200 px from the centre: well under a degree
+    assert np.abs(e[["roll_err_deg", "pitch_err_deg"]]).max().max() < 1.0
+    # centroid errors equal the injected noise: RMS of |N(0, 0.3 I)| is 0.3*sqrt(2)
+    assert e.centroid_rms_px.mean() == pytest.approx(0.3 * np.sqrt(2), rel=0.2)
+    assert (e.recall == 1.0).all()
+    assert e.surge_err_m.isna().all()  # the thesis method gives no surge
+
+
+def test_frame_errors_wrap_yaw_and_use_true_height():
+    frames = pd.DataFrame(dict(frame_id=[0], camera=["c"], camera_height_m=[30.0], roll_rad=[0.0], pitch_rad=[0.0],
+                               yaw_rad=[np.radians(179.0)], heave_m=[2.0], surge_m=[1.0], sway_m=[0.0],
+                               cam_x_m=[0.0], cam_y_m=[0.0], cam_z_m=[30.0]))
+    est = pd.DataFrame(dict(frame_id=[0], method=["m"], ok=[True], reason=[""], roll_deg=[0.1], pitch_deg=[0.0],
+                            yaw_deg=[-179.0], surge_m=[1.5], sway_m=[0.0], height_m=[28.5]))
+    e = frame_errors(frames, est).iloc[0]
+    assert e.yaw_err_deg == pytest.approx(2.0)
+    assert e.height_err_m == pytest.approx(0.5)  # true height = 30 - 2
+    assert e.surge_err_m == pytest.approx(0.5)
+
+
+def test_evaluate_writes_tables_and_mcap_with_every_topic(run):
+    assert main(["evaluate", str(run), "--preview-px", "256"]) == 0
+    tables = pd.read_csv(run / "evaluation" / "resolution_tables.csv")
+    assert set(tables.camera) == {"4mp-small", "8mp-small"} and set(tables.table_height_m) == {20, 40}
+    assert (tables.n_frames == 3).all()
+    topics, count = {}, 0
+    with open(run / "log.mcap", "rb") as fh:
+        reader = make_reader(fh, decoder_factories=[DecoderFactory(), JsonDecoderFactory()])
+        summary = reader.get_summary()
+        assert summary is not None
+        for schema, channel, message, decoded in reader.iter_decoded_messages():
+            topics.setdefault(channel.topic, []).append((schema.name, message, decoded))
+            count += 1
+    expected = {"/camera/image": "foxglove.CompressedImage", "/camera/calibration": "foxglove.CameraCalibration",
+                "/annotations/truth": "foxglove.ImageAnnotations", "/annotations/fake": "foxglove.ImageAnnotations",
+                "/tf": "foxglove.FrameTransforms", "/errors/fake--thesis": "deckpose.FrameErrors"}
+    assert set(topics) == set(expected)
+    for t, name in expected.items():
+        assert len(topics[t]) == 12 and all(s == name for s, _, _ in topics[t])
+    # previews respect the size limit, and the calibration matches the preview
+    cal = topics["/camera/calibration"][0][2]
+    assert max(cal.width, cal.height) <= 256
+    img = topics["/camera/image"][0][2]
+    assert img.format == "png" and len(img.data) > 0
+    # explicit, monotone log times; publish time equals log time
+    times = [m.log_time for _, m, _ in topics["/tf"]]
+    assert times == sorted(times) and len(set(times)) == len(times)
+    assert all(m.publish_time == m.log_time for _, m, _ in topics["/tf"])
+    frames = {tf.child_frame_id for _, _, d in topics["/tf"] for tf in d.transforms}
+    assert frames == {"deck", "camera", "deck_est/fake--thesis"}
+    err = topics["/errors/fake--thesis"][0][2]
+    assert "roll_err_deg" in err and "t_s" in err
+    layout = json.loads((run / "foxglove_layout.json").read_text())
+    assert layout["configById"]["Image!deckpose"]["imageMode"]["imageTopic"] == "/camera/image"
+
+
+def test_report(run):
+    assert main(["evaluate", str(run), "--no-mcap"]) == 0
+    assert main(["report", str(run)]) == 0
+    md = (run / "report" / "report.md").read_text()
+    for fig in ("error_vs_height.png", "error_distributions.png", "centroid_vs_size.png", "example_4mp-small.png"):
+        assert f"figures/{fig}" in md
+        assert (run / "report" / "figures" / fig).stat().st_size > 1000
+    assert "## Beside the thesis" in md and "| fake+thesis | 4mp | 20 |" in md
+
+
+def test_missing_stage_names_the_command(tmp_path, capsys):
+    root = make_fake_run(tmp_path / "r2")
+    assert main(["evaluate", str(root)]) == 2
+    assert "deckpose estimate --run" in capsys.readouterr().err
+    assert main(["report", str(root)]) == 2
+    assert f"deckpose evaluate {root}" in capsys.readouterr().err
+    assert main(["evaluate", str(tmp_path / "nope")]) == 2
+    assert "deckpose render" in capsys.readouterr().err
+
+
+def test_frames_that_do_not_match_are_rejected(run):
+    d = pd.read_parquet(run / "detections" / "fake.parquet")
+    d.loc[0, "frame_id"] = 999
+    d.to_parquet(run / "detections" / "fake.parquet", index=False)
+    with pytest.raises(InputDataError, match="frame ids the dataset does not have"):
+        compute_errors(run_paths(run))
