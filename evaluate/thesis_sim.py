@@ -10,21 +10,27 @@ noise of N px; the faithful estimator; errors against the true thesis angles.
 from __future__ import annotations
 
 import enum
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import resources
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from deckpose.camera import PixelForm, from_focal_angle, THESIS_RESOLUTIONS
+from deckpose.camera import THESIS_RESOLUTIONS, CameraModel, PixelForm, from_focal_angle
 from deckpose.errors import InputDataError
 from deckpose.estimate.thesis_batch import Failure, estimate_thesis_batch
 from deckpose.layout import thesis_layout
 from deckpose.noise import thesis_uniform
 from deckpose.projection import project_thesis_centred
-from deckpose.rotation import R_from_thesis
+from deckpose.records import Detections
+from deckpose.rotation import R_from_thesis, thesis_from_zyx
+
+if TYPE_CHECKING:
+    from deckpose.estimate.registry import EstimateOptions
 
 FloatArray = NDArray[np.float64]
 
@@ -116,7 +122,7 @@ class CellResult:
     failures: dict[str, int] = field(default_factory=dict)
 
 
-def thesis_camera(resolution: str):
+def thesis_camera(resolution: str) -> CameraModel:
     """The thesis camera of a resolution: 75 deg focal angle, eq. 1.8/1.9 (non-square)."""
     w, h = THESIS_RESOLUTIONS[resolution]
     return from_focal_angle(w, h, 75.0, form=PixelForm.THESIS, name=f"{resolution}-thesis")
@@ -134,12 +140,73 @@ def clean_projection(spec: CellSpec, motion: ThesisMotion) -> tuple[FloatArray, 
     return pc, vis, D
 
 
+@dataclass(frozen=True)
+class BatchOutput:
+    """What a batch estimator returns for the simulation; arrays of shape (F,).
+
+    Angles are the thesis's convention (``R = Rx(roll) Ry(pitch) Rz(yaw)``), degrees,
+    so they compare directly with the thesis's truth and tables.
+    """
+
+    roll_deg: FloatArray
+    pitch_deg: FloatArray
+    yaw_deg: FloatArray
+    height: FloatArray
+    ok: NDArray[np.bool_]
+    failure: NDArray[np.object_]  # reason key per frame ("" when ok)
+    yz2: FloatArray  # the thesis's Y''_z (NaN for other methods)
+
+
+#: A batch estimator: centred points (F, N, 2), mask (F, N), camera -> BatchOutput.
+BatchEstimator = Callable[[FloatArray, NDArray[np.bool_], CameraModel], BatchOutput]
+
+
+def thesis_batch_estimator(points_c: FloatArray, mask: NDArray[np.bool_], camera: CameraModel) -> BatchOutput:
+    """The vectorised faithful thesis estimator as a :data:`BatchEstimator`."""
+    res = estimate_thesis_batch(points_c, mask, camera.fx, camera.fy, 10.0)
+    names = np.array([""] + [f.name.lower() for f in list(Failure)[1:]], dtype=object)
+    return BatchOutput(res.roll_deg, res.pitch_deg, res.yaw_deg, res.height, res.ok, names[res.failure], res.yz2)
+
+
+def registry_batch_estimator(method: str, options: "EstimateOptions | None" = None) -> BatchEstimator:
+    """Any registered per-frame estimator as a :data:`BatchEstimator` (a loop over frames).
+
+    Beacons keep their ring ids (row ``i`` of the points is beacon ``i``); the
+    layout is the thesis's (no centre beacon).
+    """
+    from deckpose.estimate import registry
+
+    fn = registry.get(method)
+    opts = options or registry.EstimateOptions()
+    layout = thesis_layout()
+
+    def run(points_c: FloatArray, mask: NDArray[np.bool_], camera: CameraModel) -> BatchOutput:
+        F = points_c.shape[0]
+        out = np.full((F, 4), np.nan)
+        ok = np.zeros(F, dtype=bool)
+        failure = np.full(F, "", dtype=object)
+        for f in range(F):
+            ids = np.flatnonzero(mask[f])
+            uv = np.column_stack([points_c[f, ids, 0] + camera.cx, camera.cy - points_c[f, ids, 1]])
+            est = fn(Detections(uv, ids), camera, layout, opts)
+            if not est.ok:
+                failure[f] = est.reason
+                continue
+            r, p, y = thesis_from_zyx(est.roll_rad, est.pitch_rad, est.yaw_rad)
+            out[f] = np.degrees([r, p, y]).tolist() + [est.height_m]
+            ok[f] = True
+        return BatchOutput(out[:, 0], out[:, 1], out[:, 2], out[:, 3], ok, failure, np.full(F, np.nan))
+
+    return run
+
+
 def simulate_cell(
     spec: CellSpec,
     motion: ThesisMotion,
     repetitions: int,
     rng: np.random.Generator,
     *,
+    estimator: BatchEstimator = thesis_batch_estimator,
     chunk_repetitions: int = 20,
 ) -> CellResult:
     """Run ``repetitions`` noisy passes over the motion series for one cell.
@@ -152,16 +219,17 @@ def simulate_cell(
         Passes over the series (500 in the thesis).
     rng : numpy.random.Generator
         Source of the eq. 4.1 noise.
+    estimator : BatchEstimator
+        The estimator under test (default: the vectorised thesis estimator).
     chunk_repetitions : int
-        Passes estimated per vectorised batch (memory/speed trade-off only;
-        the result does not depend on it for a given rng... except through the
-        order of draws, so keep it fixed for reproducibility).
+        Passes drawn and estimated per batch. It fixes the order of the random
+        draws, so keep it fixed for reproducible numbers.
     """
     cam = thesis_camera(spec.resolution)
     pc, vis, D = clean_projection(spec, motion)
     S = len(motion)
     truth = np.stack([motion.roll_deg, motion.pitch_deg, motion.yaw_deg, D], axis=1)
-    clean = estimate_thesis_batch(pc, vis, cam.fx, cam.fy, 10.0)
+    clean = estimator(pc, vis, cam)
     n_q = 4
     mx = np.zeros(n_q)
     s1 = np.zeros(n_q)
@@ -171,14 +239,14 @@ def simulate_cell(
     yz2_err: list[FloatArray] = []
     yz2_sign_hits = 0
     yz2_n = 0
-    fail_counts = np.zeros(len(Failure), dtype=np.int64)
+    fail_counts: dict[str, int] = {}
     done = 0
     while done < repetitions:
         r = min(chunk_repetitions, repetitions - done)
         noisy = thesis_uniform(np.broadcast_to(pc, (r,) + pc.shape), spec.noise_px,
                                cam.width_px, cam.height_px, rng)
         m = np.broadcast_to(vis, (r,) + vis.shape).reshape(r * S, -1)
-        res = estimate_thesis_batch(noisy.reshape(r * S, -1, 2), m, cam.fx, cam.fy, 10.0)
+        res = estimator(noisy.reshape(r * S, -1, 2), m, cam)
         d2 = np.sum((noisy - pc) ** 2, axis=-1).reshape(r * S, -1)
         rms_all.append(np.sqrt(np.sum(np.where(m, d2, 0.0), axis=1) / np.maximum(m.sum(axis=1), 1)))
         t = np.tile(truth, (r, 1))
@@ -192,7 +260,8 @@ def simulate_cell(
             s1 += e.sum(axis=0)
             s2 += (e * e).sum(axis=0)
         n_ok += int(ok.sum())
-        fail_counts += np.bincount(res.failure, minlength=len(Failure))
+        for key in res.failure[~ok]:
+            fail_counts[str(key)] = fail_counts.get(str(key), 0) + 1
         yz_clean = np.tile(clean.yz2, r)
         both = ok & np.isfinite(yz_clean)
         yz2_err.append(res.yz2[both] - yz_clean[both])
@@ -206,7 +275,7 @@ def simulate_cell(
     ye = np.concatenate(yz2_err) if yz2_err else np.zeros(0)
     ys = float(np.std(ye)) if ye.size else float("nan")
     within = float(np.mean(np.abs(ye) <= ys) * 100.0) if ye.size else float("nan")
-    failures = {Failure(i).name.lower(): int(c) for i, c in enumerate(fail_counts) if i and c}
+    failures = dict(sorted(fail_counts.items()))
     return CellResult(
         spec=spec,
         max_abs=mx,

@@ -17,6 +17,7 @@ from deckpose.errors import DeckposeError
 SUBCOMMAND_MODULES: tuple[str, ...] = (
     "deckpose.cli.demo_cmd",
     "deckpose.cli.estimate_cmd",
+    "deckpose.cli.estimator_tables_cmd",
     "deckpose.cli.evaluate_cmd",
     "deckpose.cli.thesis_tables_cmd",
 )
