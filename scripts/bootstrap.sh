@@ -36,7 +36,7 @@ stamp=.venv/.deckpose-stamp
 want=$(cat pyproject.toml | sha256sum | cut -d' ' -f1)
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ] || ! .venv/bin/python -c "import deckpose" 2>/dev/null; then
   echo "[deckpose] installing deckpose and its dependencies into .venv"
-  .venv/bin/python -m pip install -q --upgrade pip >/dev/null
+  .venv/bin/python -m pip install -q --upgrade pip >/dev/null 2>&1 || true
   if ! .venv/bin/python -m pip install -q -e ".[test,cluster]" > .venv/install.log 2>&1; then
     cat .venv/install.log >&2
     echo "[deckpose] pip install failed (log above, also in .venv/install.log)" >&2
