@@ -22,6 +22,7 @@ significant height ``Hs = 4 sqrt(m0)`` and the peak period ``Tp``:
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from enum import Enum
@@ -149,6 +150,7 @@ def _unit_shape(x: FloatArray, kind: SpectrumKind, gamma: float) -> FloatArray:
     return out
 
 
+@functools.lru_cache(maxsize=64)
 def _unit_m0(kind: SpectrumKind, gamma: float) -> float:
     """Integral of :func:`_unit_shape` over x in (0, inf)."""
     if kind is SpectrumKind.PIERSON_MOSKOWITZ or gamma == 1.0:
