@@ -316,7 +316,7 @@ def regular_series(
         raise ConfigError(f"time step must be > 0 s, got {dt_s}")
     if not math.isfinite(duration_s) or duration_s < dt_s:
         raise ConfigError(f"duration must be at least one time step ({dt_s} s), got {duration_s}")
-    t = np.arange(int(math.floor(duration_s / dt_s + 1e-9)) + 1) * dt_s
+    t = np.arange(math.floor(duration_s / dt_s + 1e-9) + 1, dtype=float) * dt_s
     r = regular_wave_response(ship, wave, t)
     return MotionSeries(
         t_s=t, roll_rad=r.roll_rad, pitch_rad=pitch_sign_bow_down(wave.heading_rad) * r.pitch_rad,

@@ -200,8 +200,8 @@ def irregular_series(
         raise ConfigError(f"time step must be > 0 s, got {dt_s}")
     if not math.isfinite(duration_s) or duration_s < dt_s:
         raise ConfigError(f"duration must be at least one time step ({dt_s} s), got {duration_s}")
-    n = int(math.floor(duration_s / dt_s + 1e-9)) + 1
-    t = np.arange(n) * dt_s
+    n = math.floor(duration_s / dt_s + 1e-9) + 1
+    t = np.arange(n, dtype=float) * dt_s
     comps = wave_components(sea.spectrum, sea.n_components, rng)
     heave, pitch, roll = wave_frequency_motion(ship, sea, comps, t)
     at_cg = MotionSeries(

@@ -155,7 +155,7 @@ def _unit_m0(kind: SpectrumKind, gamma: float) -> float:
     """Integral of :func:`_unit_shape` over x in (0, inf)."""
     if kind is SpectrumKind.PIERSON_MOSKOWITZ or gamma == 1.0:
         return 0.2  # int x^-5 exp(-5/4 x^-4) dx = 1/5
-    f = lambda x: float(_unit_shape(np.array([x]), kind, gamma)[0])  # noqa: E731
+    f = lambda x: float(_unit_shape(np.array([x]), kind, gamma)[0])
     pieces = [(0.0, 0.7), (0.7, 1.0), (1.0, 1.5), (1.5, 4.0), (4.0, math.inf)]
     return sum(integrate.quad(f, a, b, limit=200, epsabs=1e-13, epsrel=1e-11)[0] for a, b in pieces)
 

@@ -52,7 +52,7 @@ def thesis_motion_table() -> pd.DataFrame:
     ship = thesis_ship()
     parts = []
     for segment, period_s in enumerate(thesis_wave_periods_s(), start=1):
-        n = int(math.floor(period_s / THESIS_STEP_S + 1e-9)) + 1
+        n = math.floor(period_s / THESIS_STEP_S + 1e-9) + 1
         t = np.arange(n) * THESIS_STEP_S
         wave = RegularWave(THESIS_WAVE_AMPLITUDE_M, period_s, math.radians(THESIS_HEADING_DEG),
                            THESIS_SPEED_M_S)
@@ -85,7 +85,7 @@ def thesis_motion_series() -> MotionSeries:
         np.radians(df["yaw_deg"].to_numpy()),
     )
     return MotionSeries(
-        t_s=np.arange(len(df)) * THESIS_STEP_S,
+        t_s=np.arange(len(df), dtype=float) * THESIS_STEP_S,
         roll_rad=roll, pitch_rad=pitch, yaw_rad=yaw,
         heave_m=df["heave_m"].to_numpy(),
     )

@@ -7,9 +7,9 @@ import pytest
 from deckpose.errors import ConfigError
 from deckpose.motion.closed_form import (
     GRAVITY_M_S2,
-    _sinc_terms,
     PhaseConvention,
     RegularWave,
+    _sinc_terms,
     pitch_sign_bow_down,
     regular_series,
     regular_wave_response,
@@ -130,14 +130,14 @@ def test_regular_series_amplitudes_match_the_raos():
 
 
 @pytest.mark.parametrize("kwargs, match", [
-    (dict(length_m=-1.0), "length_m"),
-    (dict(block_coefficient=1.5), "block_coefficient"),
-    (dict(roll_damping_ratio=0.0), "roll_damping_ratio"),
-    (dict(gm_m=float("nan")), "gm_m"),
+    ({"length_m": -1.0}, "length_m"),
+    ({"block_coefficient": 1.5}, "block_coefficient"),
+    ({"roll_damping_ratio": 0.0}, "roll_damping_ratio"),
+    ({"gm_m": float("nan")}, "gm_m"),
 ])
 def test_bad_ship_particulars(kwargs, match):
-    base = dict(length_m=100.0, beam_m=12.0, draught_m=4.0, block_coefficient=0.5, gm_m=1.0,
-                roll_period_s=10.0, roll_damping_ratio=0.1)
+    base = {"length_m": 100.0, "beam_m": 12.0, "draught_m": 4.0, "block_coefficient": 0.5, "gm_m": 1.0,
+                "roll_period_s": 10.0, "roll_damping_ratio": 0.1}
     with pytest.raises(ConfigError, match=match):
         ShipParticulars(**{**base, **kwargs})
 

@@ -1,3 +1,4 @@
+import itertools
 import math
 
 import numpy as np
@@ -55,7 +56,7 @@ def test_band_holds_the_energy():
 
 def test_sea_state_table():
     assert [r.code for r in SEA_STATES] == list(range(1, 10))
-    for lower, upper in zip(SEA_STATES[:-1], SEA_STATES[1:]):
+    for lower, upper in itertools.pairwise(SEA_STATES):
         assert lower.hs_max_m == upper.hs_min_m  # ranges tile
     for r in SEA_STATES:
         assert r.hs_min_m <= r.hs_default_m <= r.hs_max_m and r.tp_default_s > 0
