@@ -22,6 +22,8 @@ from typing import Any
 from deckpose.errors import ConfigError
 
 _KNOTS_PER_M_S = 1.94384
+#: Keys this command adds to the resolved ``.motion.yaml``; dropped when it is read back with --config.
+_METADATA_KEYS = ("source", "angles", "samples")
 
 
 def register(subparsers: Any) -> None:
@@ -37,63 +39,75 @@ def register(subparsers: Any) -> None:
     p.add_argument("--radians", action="store_true", help="angle columns in radians (roll_rad, ...) in and out")
     p.add_argument("--thesis-table", action="store_true",
                    help="thesis: write the table exactly as the reference CSV (thesis X-Y-Z angles)")
-    g = p.add_argument_group("ship and waves (regular, sea)")
-    g.add_argument("--ship", default="ffg7", help="ship preset: ffg7 (default) or thesis")
-    g.add_argument("--heading-deg", type=float, default=135.0,
-                   help="wave heading relative to the ship: 180 head, 135 bow quartering (default), 90 beam, 0 following")
-    g.add_argument("--speed-kn", type=float, default=15.0, help="ship speed, knots (default 15)")
-    g.add_argument("--duration-s", type=float, default=600.0, help="series length, s (default 600)")
-    g.add_argument("--dt-s", type=float, default=0.1, help="sample step, s (default 0.1)")
-    g.add_argument("--amplitude-m", type=float, default=2.5, help="regular: wave amplitude, m")
-    g.add_argument("--period-s", type=float, default=10.0, help="regular: wave period, s")
-    g.add_argument("--sea-state", type=int, default=6, help="sea: Douglas sea state 1-9 (default 6)")
+    g = p.add_argument_group("ship and waves (regular, sea); sea defaults: the SS6 frigate scenario")
+    g.add_argument("--config", help="sea: YAML run configuration (schema in deckpose.motion.config); "
+                   "flags given on the command line override it")
+    g.add_argument("--ship", help="ship preset: ffg7 (default) or thesis")
+    g.add_argument("--heading-deg", type=float,
+                   help="wave heading relative to the ship: 180 head, 135 bow quartering (default), 90 beam, "
+                   "0 following")
+    g.add_argument("--speed-kn", type=float, help="ship speed, knots (default 15)")
+    g.add_argument("--duration-s", type=float, help="series length, s (default 600)")
+    g.add_argument("--dt-s", type=float, help="sample step, s (default 0.1)")
+    g.add_argument("--amplitude-m", type=float, default=2.5, help="regular: wave amplitude, m (default 2.5)")
+    g.add_argument("--period-s", type=float, default=10.0, help="regular: wave period, s (default 10)")
+    g.add_argument("--sea-state", type=int, help="sea: Douglas sea state 1-9 (default 6)")
     g.add_argument("--hs-m", type=float, help="sea: significant wave height (default: the state's most probable)")
     g.add_argument("--tp-s", type=float, help="sea: peak period (default: the state's most probable)")
-    g.add_argument("--spectrum", choices=["jonswap", "pm"], default="jonswap", help="sea: spectrum shape")
-    g.add_argument("--gamma", type=float, default=3.3, help="sea: JONSWAP peak enhancement (default 3.3)")
-    g.add_argument("--components", type=int, default=600, help="sea: number of wave components")
-    g.add_argument("--seed", type=int, default=0, help="sea: random seed (default 0)")
-    g.add_argument("--yaw-sigma-deg", type=float, default=1.0, help="sea: yaw std, deg (0 disables)")
-    g.add_argument("--yaw-period-s", type=float, default=30.0, help="sea: yaw period, s")
-    g.add_argument("--drift-sigma-m", type=float, default=0.5, help="sea: surge/sway drift std, m (0 disables)")
-    g.add_argument("--drift-period-s", type=float, default=60.0, help="sea: surge/sway drift period, s")
-    g.add_argument("--deck-offset-m", type=float, nargs=3, metavar=("X", "Y", "Z"), default=(0.0, 0.0, 0.0),
+    g.add_argument("--spectrum", choices=["jonswap", "pm"], help="sea: spectrum shape (default jonswap)")
+    g.add_argument("--gamma", type=float, help="sea: JONSWAP peak enhancement (default 3.3)")
+    g.add_argument("--components", type=int, help="sea: number of wave components (default 600)")
+    g.add_argument("--seed", type=int, help="sea: random seed (default 0)")
+    g.add_argument("--yaw-sigma-deg", type=float, help="sea: yaw std, deg (default 1; 0 disables)")
+    g.add_argument("--yaw-period-s", type=float, help="sea: yaw period, s (default 30)")
+    g.add_argument("--drift-sigma-m", type=float, help="sea: surge/sway drift std, m (default 0.5; 0 disables)")
+    g.add_argument("--drift-period-s", type=float, help="sea: surge/sway drift period, s (default 60)")
+    g.add_argument("--deck-offset-m", type=float, nargs=3, metavar=("X", "Y", "Z"),
                    help="sea: deck centre relative to the centre of gravity (x bow, y port, z up), m")
     p.set_defaults(func=run)
 
 
-def _sea(args: argparse.Namespace) -> tuple[Any, Any, dict[str, Any]]:
-    from deckpose.motion.filtered_noise import FilteredNoise
-    from deckpose.motion.irregular import IrregularSea, default_drift, default_yaw
-    from deckpose.motion.ship import ship_preset
-    from deckpose.motion.spectrum import SpectrumKind, spectrum_for_sea_state
+def _sea_mapping(args: argparse.Namespace) -> dict[str, Any]:
+    """The configuration file (if any) with the flags given on the command line on top."""
+    import yaml
 
-    ship = ship_preset(args.ship)
-    spec = spectrum_for_sea_state(args.sea_state, hs_m=args.hs_m, tp_s=args.tp_s,
-                                  kind=SpectrumKind(args.spectrum), gamma=args.gamma)
-    yaw = FilteredNoise(math.radians(args.yaw_sigma_deg), args.yaw_period_s, default_yaw().damping_ratio)
-    drift = FilteredNoise(args.drift_sigma_m, args.drift_period_s, default_drift().damping_ratio)
-    sea = IrregularSea(spectrum=spec, heading_rad=math.radians(args.heading_deg),
-                       speed_m_s=args.speed_kn / _KNOTS_PER_M_S, n_components=args.components,
-                       yaw=yaw, surge=drift, sway=drift, deck_offset_m=tuple(args.deck_offset_m))
-    resolved = {
-        "source": "sea", "ship": ship.as_dict(), "sea_state": args.sea_state,
-        "spectrum": {"kind": spec.kind.value, "hs_m": spec.hs_m, "tp_s": spec.tp_s, "gamma": spec.gamma},
-        "heading_deg": args.heading_deg, "speed_kn": args.speed_kn, "n_components": args.components,
-        "yaw": {"sigma_deg": args.yaw_sigma_deg, "period_s": args.yaw_period_s,
-                "damping_ratio": yaw.damping_ratio},
-        "drift": {"sigma_m": args.drift_sigma_m, "period_s": args.drift_period_s,
-                  "damping_ratio": drift.damping_ratio},
-        "deck_offset_m": list(sea.deck_offset_m), "duration_s": args.duration_s, "dt_s": args.dt_s,
-        "seed": args.seed,
-    }
-    return ship, sea, resolved
+    mapping: dict[str, Any] = {}
+    if args.config:
+        try:
+            loaded = yaml.safe_load(Path(args.config).read_text())
+        except FileNotFoundError:
+            raise ConfigError(f"configuration file {args.config} does not exist") from None
+        except yaml.YAMLError as exc:
+            raise ConfigError(f"{args.config}: not valid YAML ({exc})") from None
+        if not isinstance(loaded, dict):
+            raise ConfigError(f"{args.config}: expected a mapping at the top level")
+        mapping = {k: v for k, v in loaded.items() if k not in _METADATA_KEYS}
+    sea = dict(mapping.get("sea") or {})
+    flags = {"sea_state": args.sea_state, "hs_m": args.hs_m, "tp_s": args.tp_s, "spectrum": args.spectrum,
+             "gamma": args.gamma, "heading_deg": args.heading_deg, "speed_kn": args.speed_kn,
+             "n_components": args.components,
+             "deck_offset_m": None if args.deck_offset_m is None else list(args.deck_offset_m)}
+    sea.update({k: v for k, v in flags.items() if v is not None})
+    for key, sigma_key, sigma, period in (("yaw", "sigma_deg", args.yaw_sigma_deg, args.yaw_period_s),
+                                          ("drift", "sigma_m", args.drift_sigma_m, args.drift_period_s)):
+        sub = dict(sea.get(key) or {})
+        if sigma is not None:
+            sub[sigma_key] = sigma
+        if period is not None:
+            sub["period_s"] = period
+        if sub:
+            sea[key] = sub
+    mapping["sea"] = sea
+    top = {"ship": args.ship, "duration_s": args.duration_s, "dt_s": args.dt_s, "seed": args.seed}
+    mapping.update({k: v for k, v in top.items() if v is not None})
+    return mapping
 
 
 def _series(args: argparse.Namespace) -> tuple[Any, dict[str, Any], str]:
     import numpy as np
 
     from deckpose.motion.closed_form import RegularWave, regular_series
+    from deckpose.motion.config import parse_sea_run, sea_run_to_mapping
     from deckpose.motion.irregular import irregular_series
     from deckpose.motion.series import read_series
     from deckpose.motion.ship import ship_preset
@@ -108,23 +122,27 @@ def _series(args: argparse.Namespace) -> tuple[Any, dict[str, Any], str]:
         raise ConfigError(f"a FILE is only for 'read', not for {args.source!r}")
     if args.source == "thesis":
         return thesis_motion_series(), {"source": "thesis"}, "thesis closed-form series (ZYX angles)"
+    duration_s = 600.0 if args.duration_s is None else args.duration_s
+    dt_s = 0.1 if args.dt_s is None else args.dt_s
+    heading_deg = 135.0 if args.heading_deg is None else args.heading_deg
+    speed_kn = 15.0 if args.speed_kn is None else args.speed_kn
     if args.source == "regular":
-        ship = ship_preset(args.ship)
-        wave = RegularWave(args.amplitude_m, args.period_s, math.radians(args.heading_deg),
-                           args.speed_kn / _KNOTS_PER_M_S)
+        ship = ship_preset(args.ship or "ffg7")
+        wave = RegularWave(args.amplitude_m, args.period_s, math.radians(heading_deg), speed_kn / _KNOTS_PER_M_S)
         resolved = {"source": "regular", "ship": ship.as_dict(), "amplitude_m": args.amplitude_m,
-                    "period_s": args.period_s, "heading_deg": args.heading_deg, "speed_kn": args.speed_kn,
-                    "duration_s": args.duration_s, "dt_s": args.dt_s}
-        title = (f"{ship.name}: regular wave a={args.amplitude_m} m, T={args.period_s} s, "
-                 f"heading {args.heading_deg:g} deg, {args.speed_kn:g} kn")
-        return regular_series(ship, wave, duration_s=args.duration_s, dt_s=args.dt_s), resolved, title
-    ship, sea, resolved = _sea(args)
-    series = irregular_series(ship, sea, duration_s=args.duration_s, dt_s=args.dt_s,
-                              rng=np.random.default_rng(args.seed))
-    title = (f"{ship.name}: sea state {args.sea_state} ({sea.spectrum.kind.value}, Hs={sea.spectrum.hs_m:g} m, "
-             f"Tp={sea.spectrum.tp_s:g} s), heading {args.heading_deg:g} deg, {args.speed_kn:g} kn, "
-             f"seed {args.seed}")
-    return series, resolved, title
+                    "period_s": args.period_s, "heading_deg": heading_deg, "speed_kn": speed_kn,
+                    "duration_s": duration_s, "dt_s": dt_s}
+        title = (f"{ship.name}: regular wave a={args.amplitude_m:g} m, T={args.period_s:g} s, "
+                 f"heading {heading_deg:g} deg, {speed_kn:g} kn")
+        return regular_series(ship, wave, duration_s=duration_s, dt_s=dt_s), resolved, title
+    run = parse_sea_run(_sea_mapping(args))
+    series = irregular_series(run.ship, run.sea, duration_s=run.duration_s, dt_s=run.dt_s,
+                              rng=np.random.default_rng(run.seed))
+    spec = run.sea.spectrum
+    title = (f"{run.ship.name}: sea state {run.sea_state} ({spec.kind.value}, Hs={spec.hs_m:g} m, "
+             f"Tp={spec.tp_s:g} s), heading {math.degrees(run.sea.heading_rad):.4g} deg, "
+             f"{run.sea.speed_m_s * _KNOTS_PER_M_S:.4g} kn, seed {run.seed}")
+    return series, {"source": "sea", **sea_run_to_mapping(run)}, title
 
 
 def run(args: argparse.Namespace) -> int:

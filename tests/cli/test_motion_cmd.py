@@ -16,7 +16,7 @@ def test_sea_writes_series_config_and_plot(tmp_path, capsys):
     s = read_series(out)
     assert len(s) == 601 and np.any(s.roll_rad) and np.any(s.surge_m)
     cfg = yaml.safe_load((tmp_path / "ss6.motion.yaml").read_text())
-    assert cfg["seed"] == 3 and cfg["spectrum"]["hs_m"] == 5.0 and cfg["ship"]["name"] == "ffg7"
+    assert cfg["seed"] == 3 and cfg["sea"]["hs_m"] == 5.0 and cfg["ship"]["name"] == "ffg7"
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert "significant amplitudes" in capsys.readouterr().out
     # Same seed, same series.
@@ -61,3 +61,16 @@ def test_read_file_with_missing_columns(tmp_path, capsys):
     pd.DataFrame({"t_s": [0.0, 1.0], "heave_m": [0.0, 1.0]}).to_csv(bad, index=False)
     assert main(["motion", "read", str(bad), "-o", str(tmp_path / "o.csv")]) == 2
     assert "missing column" in capsys.readouterr().err
+
+
+def test_config_file_with_flag_override_and_rerun(tmp_path):
+    from tests.motion.test_config import CONFIG
+
+    first = tmp_path / "a.csv"
+    assert main(["motion", "sea", "--config", str(CONFIG), "--duration-s", "20", "--speed-kn", "10",
+                 "-o", str(first)]) == 0
+    cfg = yaml.safe_load((tmp_path / "a.motion.yaml").read_text())
+    assert cfg["seed"] == 1 and cfg["sea"]["speed_kn"] == 10.0 and cfg["duration_s"] == 20.0
+    second = tmp_path / "b.csv"  # the resolved file repeats the run exactly
+    assert main(["motion", "sea", "--config", str(tmp_path / "a.motion.yaml"), "-o", str(second)]) == 0
+    assert first.read_text() == second.read_text()
