@@ -93,6 +93,9 @@ def plot_series(series: MotionSeries, path: str | os.PathLike[str], *, title: st
             w, p = channel_psd(series.t_s, x)
             keep = w <= max_omega_rad_s
             ax_f.plot(w[keep], p[keep], lw=0.9)
+        else:
+            ax_f.text(0.5, 0.5, "no spectrum:\nnon-uniform sampling", ha="center", va="center",
+                      transform=ax_f.transAxes, fontsize=8)
         ax_f.grid(alpha=0.3)
         ax_f.set_ylabel(f"PSD [{unit}²·s/rad]", fontsize=8)
     axes[-1][0].set_xlabel("time [s]")
