@@ -2,7 +2,8 @@
 
 The sea is a sum of many regular waves: the band holding all but 0.1 % of the
 spectrum's energy is split into ``n_components`` equal bins, each wave taking
-a frequency drawn uniformly inside its bin (so the sum never repeats), the
+a frequency drawn uniformly inside its bin (so the sum has no short repeat
+period), the
 amplitude ``sqrt(2 S(w) dw)`` and a uniform random phase. Each wave passes
 through the closed-form response (:mod:`deckpose.motion.closed_form`, causal
 phases, roll scaled by the wave amplitude) at its own encounter frequency, so
@@ -22,7 +23,7 @@ sway sigma 0.5 m with period 60 s (station keeping of ship and hovering UAV).
 "Significant" values: the significant *height* (double amplitude, crest to
 trough) is ``4 sigma``, the definition of ``Hs = 4 sqrt(m0)``; the significant
 *amplitude* (single amplitude, the usual naval seakeeping figure) is half of
-it, ``2 sigma``. Published closed-form estimates quote the latter.
+it, ``2 sigma``, the figure naval seakeeping criteria usually quote.
 """
 
 from __future__ import annotations
