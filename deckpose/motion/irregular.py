@@ -3,8 +3,7 @@
 The sea is a sum of many regular waves: the band holding all but 0.1 % of the
 spectrum's energy is split into ``n_components`` equal bins, each wave taking
 a frequency drawn uniformly inside its bin (so the sum has no short repeat
-period), the
-amplitude ``sqrt(2 S(w) dw)`` and a uniform random phase. Each wave passes
+period), the amplitude ``sqrt(2 S(w) dw)`` and a uniform random phase. Each wave passes
 through the closed-form response (:mod:`deckpose.motion.closed_form`, causal
 phases, roll scaled by the wave amplitude) at its own encounter frequency, so
 for a long series the variance of each motion tends to the frequency-domain
