@@ -20,6 +20,7 @@ SUBCOMMAND_MODULES: tuple[str, ...] = (
     "deckpose.cli.estimator_tables_cmd",
     "deckpose.cli.evaluate_cmd",
     "deckpose.cli.thesis_tables_cmd",
+    "deckpose.cli.motion_cmd",
 )
 
 
