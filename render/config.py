@@ -243,7 +243,7 @@ class SensorSpec:
     noise: bool = True
     color: str = "rgb"
     psf_sigma_px: float = 0.8
-    beacon_peak: float = 40.0
+    beacon_peak: float = 6.0
     halo_fraction: float = 0.05
     halo_scale: float = 4.0
 

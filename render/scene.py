@@ -185,7 +185,6 @@ class DeckRenderer:
         self._pr: Any = None
         self._scene: Any = None
         self._nodes: dict[str, Any] = {}
-        self._offscreen: Any = None
         self._sea_tile_m = 40.0
 
     def _build(self) -> None:
@@ -212,14 +211,18 @@ class DeckRenderer:
         self._scene = s
 
     def _renderer(self, width: int, height: int) -> Any:
-        # One context per scene (pyrender binds meshes to the context that first drew them);
-        # the framebuffer is re-made when the viewport size changes.
-        if self._offscreen is None:
-            self._offscreen = self._pr.OffscreenRenderer(width, height)
-            atexit.register(self.close)
-        self._offscreen.viewport_width = width
-        self._offscreen.viewport_height = height
-        return self._offscreen
+        return _offscreen(self._pr, width, height)
+
+    def offscreen(self, width: int, height: int) -> Any:
+        """This renderer's pyrender OffscreenRenderer, sized ``width x height``.
+
+        For drawing other scenes in the same GL context (tests): pyrender's EGL
+        platform terminates the process-wide display when a renderer is deleted,
+        so a process must keep to one context.
+        """
+        if self._scene is None:
+            self._build()
+        return self._renderer(width, height)
 
     def render(self, camera: CameraModel, camera_pose: CameraPose, ship: ShipPose, t_s: float,
                lighting: Lighting) -> NDArray[np.uint8]:
@@ -274,10 +277,33 @@ class DeckRenderer:
         return out
 
     def close(self) -> None:
-        """Free the GL contexts."""
-        if self._offscreen is not None:
-            self._offscreen.delete()
-            self._offscreen = None
+        """Forget this scene (the process's GL context lives until the process exits)."""
+        self._scene = None
+        self._nodes.clear()
+
+
+_OFFSCREEN: list[Any] = []
+
+
+def _offscreen(pr: Any, width: int, height: int) -> Any:
+    """The process's single OffscreenRenderer, resized to ``width x height``.
+
+    One GL context per process: pyrender's EGL platform terminates the shared
+    display when any renderer is deleted, so two contexts in one process break each
+    other. Scenes share the context; the framebuffer is re-made when the size changes.
+    """
+    if not _OFFSCREEN:
+        _OFFSCREEN.append(pr.OffscreenRenderer(width, height))
+        atexit.register(_delete_offscreen)
+    r = _OFFSCREEN[0]
+    r.viewport_width = width
+    r.viewport_height = height
+    return r
+
+
+def _delete_offscreen() -> None:
+    while _OFFSCREEN:
+        _OFFSCREEN.pop().delete()
 
 
 def radiance_scale(lighting: Lighting, shading: Shading) -> NDArray[np.float32]:

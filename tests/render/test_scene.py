@@ -13,7 +13,7 @@ from deckpose.render.config import Lighting
 from .conftest import tiny_config
 
 
-def _white_square_image(camera: CameraModel, cam_pose: CameraPose, centre_xy: tuple[float, float],
+def _white_square_image(renderer, camera: CameraModel, cam_pose: CameraPose, centre_xy: tuple[float, float],
                         angle_rad: float, side_m: float) -> np.ndarray:
     import pyrender
 
@@ -26,11 +26,8 @@ def _white_square_image(camera: CameraModel, cam_pose: CameraPose, centre_xy: tu
     sc.add(pyrender.Mesh([prim]))
     sc.add(pyrender.IntrinsicsCamera(*scene_mod.gl_intrinsics(camera, 0, camera.height_px), znear=0.1, zfar=100),
            pose=scene_mod.gl_camera_pose(cam_pose))
-    r = pyrender.OffscreenRenderer(camera.width_px, camera.height_px)
-    try:
-        color, _ = r.render(sc, flags=pyrender.RenderFlags.FLAT | pyrender.RenderFlags.SKIP_CULL_FACES)
-    finally:
-        r.delete()
+    r = renderer.offscreen(camera.width_px, camera.height_px)
+    color, _ = r.render(sc, flags=pyrender.RenderFlags.FLAT | pyrender.RenderFlags.SKIP_CULL_FACES)
     return color[..., 0].astype(float)
 
 
@@ -41,10 +38,10 @@ def test_raster_centroid_matches_K(egl_renderer_factory, centre_xy: tuple[float,
     An off-by-half-pixel convention error would show as 0.5 px; 4x MSAA edge coverage
     leaves a few hundredths.
     """
-    egl_renderer_factory(tiny_config())  # EGL selected for this process
+    renderer = egl_renderer_factory(tiny_config())
     cam = CameraModel(400, 300, [[480.0, 0, 203.7], [0, 470.0, 146.2], [0, 0, 1]])
     pose = CameraPose.nadir(20.0)
-    img = _white_square_image(cam, pose, centre_xy, 0.3, 3.0)
+    img = _white_square_image(renderer, cam, pose, centre_xy, 0.3, 3.0)
     vv, uu = np.mgrid[0:300, 0:400]
     got = np.array([(img * uu).sum(), (img * vv).sum()]) / img.sum()
     want = cam.project((pose.T_cam_from_world @ np.r_[centre_xy, 0.0, 1.0])[None, :3])[0]
