@@ -135,12 +135,18 @@ def beacon_splats(layout: DeckLayout, poses: tuple[ShipPose, ...], camera_pose: 
 
 
 def add_splats(image: NDArray[np.float32], splats: list[Splat], row_offset: int = 0,
-               gain: float = 1.0) -> None:
+               gain: float = 1.0) -> list[tuple[slice, slice]]:
     """Add ``gain`` x splats into an (h, W, C) strip whose first row is image row ``row_offset``.
 
     ``C`` is 3 (RGB) or 1 (mono, the colour's mean is used). Modifies ``image`` in place
     (it is a private work buffer of the sensor stage).
+
+    Returns
+    -------
+    list of (slice, slice)
+        The (row, column) windows of ``image`` that received light.
     """
+    touched: list[tuple[slice, slice]] = []
     h, W = image.shape[:2]
     mono = image.shape[2] == 1
     for sp in splats:
@@ -152,4 +158,7 @@ def add_splats(image: NDArray[np.float32], splats: list[Splat], row_offset: int 
             continue
         p = sp.patch[r0 - sp.row0: r1 - sp.row0, c0 - sp.col0: c1 - sp.col0, None]
         col = (sp.rgb.mean(keepdims=True) if mono else sp.rgb) * np.float32(gain)
-        image[r0 - row_offset: r1 - row_offset, c0:c1] += p * col
+        rows = slice(r0 - row_offset, r1 - row_offset)
+        image[rows, c0:c1] += p * col
+        touched.append((rows, slice(c0, c1)))
+    return touched

@@ -34,6 +34,7 @@ import atexit
 import math
 import os
 import sys
+import types
 from dataclasses import dataclass
 from typing import Any
 
@@ -293,12 +294,34 @@ def _offscreen(pr: Any, width: int, height: int) -> Any:
     other. Scenes share the context; the framebuffer is re-made when the size changes.
     """
     if not _OFFSCREEN:
-        _OFFSCREEN.append(pr.OffscreenRenderer(width, height))
+        r = pr.OffscreenRenderer(width, height)
+        r._renderer._read_main_framebuffer = types.MethodType(_read_colour_only, r._renderer)
+        _OFFSCREEN.append(r)
         atexit.register(_delete_offscreen)
     r = _OFFSCREEN[0]
     r.viewport_width = width
     r.viewport_height = height
     return r
+
+
+def _read_colour_only(self: Any, scene: Any, flags: int) -> tuple[np.ndarray, None]:
+    """pyrender's framebuffer read without the depth buffer (we never use it).
+
+    Replaces ``Renderer._read_main_framebuffer`` on our one renderer: resolves the
+    multisampled colour buffer and reads RGB bytes only, skipping pyrender's
+    float depth read-back and linearisation (a third of the time of a 64 MP frame).
+    """
+    from OpenGL import GL
+
+    width, height = self._main_fb_dims[0], self._main_fb_dims[1]
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
+    GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+    GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_LINEAR)
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
+    GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+    buf = GL.glReadPixels(0, 0, width, height, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
+    colour = np.frombuffer(buf, dtype=np.uint8).reshape((height, width, 3))
+    return colour[::-1], None
 
 
 def _delete_offscreen() -> None:

@@ -86,3 +86,24 @@ def test_splat_peak_flux_scales_with_disc_area() -> None:
     np.testing.assert_allclose(np.array(f20) / np.array(f40), 4.0, rtol=1e-3)
 
 
+
+
+@pytest.mark.parametrize(("bit_depth", "color"), [(8, "rgb"), (12, "mono"), (16, "rgb")])
+def test_sensor_noise_statistics(bit_depth: int, color: str) -> None:
+    """Flat grey field: mean and variance in DN follow signal and shot + read noise; saturation clips."""
+    from deckpose.render.sensor import expose
+
+    sensor = SensorSpec(bit_depth=bit_depth, color=color, full_well_e=10000.0, read_noise_e=20.0)
+    raster = np.full((200, 300, 3), 100, np.uint8)
+    scale = np.full(3, 1.0 / 255.0, np.float32)
+    img = expose(raster, scale, [], sensor, np.random.default_rng(5)).astype(float)
+    assert img.shape == ((200, 300) if color == "mono" else (200, 300, 3))
+    dn_max = 2 ** bit_depth - 1
+    e = 100 / 255 * 10000.0
+    want_mean = e / 10000.0 * dn_max
+    want_sd = np.sqrt(e + 400.0) / 10000.0 * dn_max
+    assert img.mean() == pytest.approx(want_mean, rel=2e-3)
+    if bit_depth > 8:  # 8-bit quantisation (1 DN) dominates sigma there
+        assert img.std() == pytest.approx(want_sd, rel=0.03)
+    bright = expose(np.full((10, 10, 3), 255, np.uint8), scale * 2, [], sensor, np.random.default_rng(0))
+    assert bright.max() == dn_max and bright.min() > 0.9 * dn_max
