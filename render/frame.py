@@ -47,6 +47,7 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
     splats = beacon_splats(cfg.layout, poses, cam_pose, camera, cfg.sensor)
     rng = np.random.default_rng(spec.seed)
     image = expose(raster, radiance_scale(spec.lighting, cfg.scene.shading), splats, cfg.sensor, rng)
+    image.setflags(write=False)  # Frame keeps a read-only array as is (no 200 MB copy at 64 MP)
     proj = project_layout(cfg.layout, spec.ship, cam_pose, camera)
     truth = GroundTruth(spec.ship, cam_pose, proj.points_px, proj.visible, proj.apparent_radius_px,
                         spec.frame_id, spec.stamp_ns, spec.seed)
