@@ -367,6 +367,28 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
     return cfg
 
 
+#: The embedded default job (the same as ``configs/smoke.yaml``): two small resolutions x two
+#: heights x night/day x three attitudes = 24 frames, seconds on two cores.
+DEFAULT_CONFIG: dict[str, Any] = {
+    "name": "smoke",
+    "seed": 7,
+    "backend": "egl",
+    "cameras": [{"preset": "4mp", "size": [640, 480]}, {"preset": "8mp", "size": [960, 540]}],
+    "heights_m": [30, 50],
+    "lighting": ["night", "day"],
+    "motion": {"source": "fixed",
+               "attitudes_deg": [[0, 0, 0], [4.5, 2.1, 0], [-3.0, 5.0, 15.0, 1.0, 0.0, 0.0]]},
+    "sensor": {"bit_depth": 8, "read_noise_e": 5},
+    "scene": {"shading": "flat", "texture_px": 1024},
+    "layout": {"n_ring": 12, "radius_m": 10.0, "has_centre": True},
+}
+
+
+def default_config() -> RenderConfig:
+    """The embedded default config (no file needed)."""
+    return config_from_dict(DEFAULT_CONFIG, "default config")
+
+
 def load_config(path: str | os.PathLike[str]) -> RenderConfig:
     """Read and validate a render config YAML file."""
     p = Path(path)

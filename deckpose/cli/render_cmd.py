@@ -13,9 +13,11 @@ def register(subparsers: Any) -> None:
         "render",
         help="render a synthetic dataset (images + ground truth) from a YAML config",
         description="Render a dataset: images/, frames.parquet, beacons.parquet, manifest.json. "
-                    "Example: deckpose render configs/smoke.yaml data/smoke",
+                    "Example: deckpose render configs/smoke.yaml datasets/smoke "
+                    "('deckpose render' alone renders the embedded smoke config into datasets/smoke)",
     )
-    p.add_argument("config", type=Path, help="render config YAML (see configs/)")
+    p.add_argument("config", type=Path, nargs="?", default=None,
+                   help="render config YAML (see configs/); default: the embedded smoke config")
     p.add_argument("out", type=Path, nargs="?", default=None,
                    help="dataset folder (default: datasets/<config name>)")
     p.add_argument("--workers", type=int, default=1,
@@ -33,10 +35,10 @@ def register(subparsers: Any) -> None:
 def run(args: argparse.Namespace) -> int:
     import dataclasses
 
-    from deckpose.render.config import Backend, load_config
+    from deckpose.render.config import Backend, default_config, load_config
     from deckpose.render.dataset import render_dataset
 
-    cfg = load_config(args.config)
+    cfg = default_config() if args.config is None else load_config(args.config)
     if args.backend:
         cfg = dataclasses.replace(cfg, backend=Backend(args.backend))
     if args.seed is not None:

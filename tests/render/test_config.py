@@ -88,6 +88,13 @@ def test_shipped_configs_parse(name: str) -> None:
     assert cfg.cameras and cfg.heights_m
 
 
+def test_embedded_default_is_the_smoke_config() -> None:
+    from deckpose.render.config import default_config
+
+    assert default_config() == load_config(REPO / "configs" / "smoke.yaml")
+    assert len(plan_frames(default_config())) == 24
+
+
 def test_thesis_sweep_size() -> None:
     cfg = load_config(REPO / "configs" / "thesis_sweep.yaml")
     frames = plan_frames(cfg)
