@@ -1,4 +1,9 @@
-"""One frame end to end: rasterise, distort, add beacons, expose; and its exact ground truth."""
+"""One frame end to end: rasterise, distort, add beacons, expose; and its exact ground truth.
+
+Motion blur (``motion.exposure_s > 0``) spreads each beacon over the deck poses of the
+exposure; the deck and sea raster is drawn once, at mid-exposure (blurring it would
+cost one rasterisation per sub-pose). The ground truth is the mid-exposure pose.
+"""
 
 from __future__ import annotations
 

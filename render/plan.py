@@ -9,7 +9,6 @@ so the images do not depend on how frames are spread over workers.
 from __future__ import annotations
 
 import importlib
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -139,9 +138,8 @@ def _check_camera_above_deck(cfg: RenderConfig, height_m: float, ship: ShipPose,
     dist = float((cam - ship.t_world_from_deck) @ n_world)
     if dist <= 0.5:
         raise ConfigError(
-            f"frame {fid}: the camera at height {height_m} m is {'inside or ' if dist > -1 else ''}"
-            f"below the deck (distance to the deck plane {dist:.2f} m with heave {ship.heave_m:.2f} m); "
-            "raise heights_m"
+            f"frame {fid}: the camera at height {height_m} m is inside or below the deck (distance "
+            f"to the deck plane {dist:.2f} m with heave {ship.heave_m:.2f} m); raise heights_m"
         )
 
 
@@ -175,6 +173,6 @@ def plan_frames(cfg: RenderConfig, series: MotionSeries | None = None) -> list[F
                     seed = int(np.random.SeedSequence([cfg.seed, fid]).generate_state(1)[0])
                     frames.append(FrameSpec(fid, cam, float(h), ship, blur_poses, t, light, seed))
                     fid += 1
-    if not math.isfinite(len(frames)) or not frames:
+    if not frames:
         raise ConfigError("the config yields no frames")
     return frames

@@ -41,9 +41,12 @@ def distortion_maps(camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
     key = (camera.width_px, camera.height_px, camera.K.tobytes(), camera.dist_coeffs.tobytes())
     if key not in _MAP_CACHE:
         _MAP_CACHE.clear()
-        _MAP_CACHE[key] = cv2.initInverseRectificationMap(
+        # Float maps, then OpenCV's compact fixed-point form: asking initInverseRectificationMap
+        # for CV_16SC2 directly returned an uninitialised interpolation table here (OpenCV 5.0).
+        mx, my = cv2.initInverseRectificationMap(
             camera.K, camera.dist_coeffs, np.eye(3), camera.K, (camera.width_px, camera.height_px),
-            cv2.CV_16SC2)
+            cv2.CV_32FC1)
+        _MAP_CACHE[key] = cv2.convertMaps(mx, my, cv2.CV_16SC2)
     return _MAP_CACHE[key]
 
 

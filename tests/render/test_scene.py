@@ -70,3 +70,41 @@ def test_lighting_presets_order_brightness(egl_renderer_factory) -> None:
         raw = r.render(cam, CameraPose.nadir(30.0), ShipPose(), 0.0, light)
         mean[light] = float((raw.astype(np.float32) * scene_mod.radiance_scale(light, cfg.scene.shading)).mean())
     assert mean[Lighting.NIGHT] < mean[Lighting.DUSK] < mean[Lighting.DAY]
+
+
+def test_distortion_remap_moves_raster_to_the_distorted_projection(egl_renderer_factory) -> None:
+    """A small white square rendered pinhole, then warped with cv2.remap: its centroid lands on
+    CameraModel.project (distorted) of its centre, not on the pinhole position."""
+    from deckpose.render.sensor import distort
+
+    renderer = egl_renderer_factory(tiny_config())
+    K = [[300.0, 0, 201.3], [0, 300.0, 148.8], [0, 0, 1]]
+    pinhole = CameraModel(400, 300, K)
+    cam = CameraModel(400, 300, K, [-0.25, 0.08, 0.0, 0.0, 0.0])
+    pose = CameraPose.nadir(20.0)
+    centre = (-6.0, 7.5)  # far off-axis, where the distortion is several pixels
+    img = _white_square_image(renderer, pinhole, pose, centre, 0.2, 0.6)
+    rgb = np.repeat(np.clip(img, 0, 255).astype(np.uint8)[..., None], 3, axis=2)
+    warped = distort(rgb, cam)[..., 0].astype(float)
+    vv, uu = np.mgrid[0:300, 0:400]
+    got = np.array([(warped * uu).sum(), (warped * vv).sum()]) / warped.sum()
+    P = (pose.T_cam_from_world @ np.r_[centre, 0.0, 1.0])[None, :3]
+    want, ideal = cam.project(P)[0], pinhole.project(P)[0]
+    assert np.linalg.norm(want - ideal) > 3.0
+    print(f"\nraster centroid after distortion: {np.linalg.norm(got - want):.3f} px from the projection")
+    np.testing.assert_allclose(got, want, atol=0.1)
+
+
+def test_distortion_maps_match_undistort() -> None:
+    """The remap table takes every distorted pixel to CameraModel.undistort of it (1/32 px fixed point)."""
+    import cv2
+
+    from deckpose.render.sensor import distortion_maps
+
+    cam = CameraModel(200, 150, [[150.0, 0, 99.5], [0, 150.0, 74.5], [0, 0, 1]], [-0.25, 0.08, 0.001, 0.0, 0.0])
+    m1, m2 = distortion_maps(cam)
+    mx, my = cv2.convertMaps(m1, m2, cv2.CV_32FC1)
+    vv, uu = np.mgrid[0:150:7, 0:200:9]
+    src = cam.undistort(np.c_[uu.ravel(), vv.ravel()])
+    got = np.c_[mx[vv.ravel(), uu.ravel()], my[vv.ravel(), uu.ravel()]]
+    np.testing.assert_allclose(got, src, atol=1 / 32 + 1e-3)
