@@ -26,12 +26,13 @@ from dataclasses import asdict, dataclass, fields
 from pathlib import Path
 from typing import Any
 
-import numpy as np
 import yaml
 
-from deckpose.camera import CameraModel, from_focal_angle, preset, PixelForm
+from deckpose.camera import CameraModel
 from deckpose.errors import ConfigError
 from deckpose.layout import DeckLayout, layout_from_dict, layout_to_dict
+from deckpose.render.camera_spec import CameraSpec, camera_spec
+from deckpose.render.config_checks import check_keys, parse_enum
 
 
 class Backend(enum.Enum):
@@ -67,27 +68,6 @@ class MotionSource(enum.Enum):
 THESIS_SERIES_PATH = Path("/work/shared/reference/thesis_motion_series.csv")
 
 
-def _check_keys(doc: object, cls: type, where: str) -> dict[str, Any]:
-    if doc is None:
-        return {}
-    if not isinstance(doc, dict):
-        raise ConfigError(f"{where}: expected a mapping, got {type(doc).__name__}")
-    valid = {f.name for f in fields(cls)}
-    unknown = set(doc) - valid
-    if unknown:
-        raise ConfigError(f"{where}: unknown key(s) {sorted(unknown)}; valid keys are {sorted(valid)}")
-    return dict(doc)
-
-
-def _enum(cls: type[enum.Enum], value: object, where: str) -> Any:
-    if isinstance(value, cls):
-        return value
-    try:
-        return cls(str(value).lower())
-    except ValueError:
-        raise ConfigError(f"{where}: {value!r} is not one of {[e.value for e in cls]}") from None
-
-
 def _positive(value: object, where: str, *, allow_zero: bool = False) -> float:
     try:
         v = float(value)  # type: ignore[arg-type]
@@ -96,73 +76,6 @@ def _positive(value: object, where: str, *, allow_zero: bool = False) -> float:
     if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
         raise ConfigError(f"{where}: must be {'>= 0' if allow_zero else '> 0'}, got {value!r}")
     return v
-
-
-@dataclass(frozen=True)
-class CameraSpec:
-    """One camera: a preset (``4mp``, ``8mp-square``...) or explicit intrinsics.
-
-    ``size`` re-samples a preset to another resolution keeping its field of view;
-    ``focal_angle_deg`` with ``size`` builds a camera from scratch; ``K`` (3x3) with
-    ``size`` gives full intrinsics; ``dist_coeffs`` adds OpenCV lens distortion.
-    """
-
-    preset: str | None = None
-    size: tuple[int, int] | None = None
-    focal_angle_deg: float | None = None
-    form: str = "thesis"
-    K: tuple[float, ...] | None = None
-    dist_coeffs: tuple[float, ...] = ()
-    name: str | None = None
-
-    def model(self) -> CameraModel:
-        """The :class:`CameraModel` this spec describes."""
-        where = f"camera {self.name or self.preset or ''}".strip()
-        if self.preset is not None:
-            cam = preset(self.preset)
-            if self.size is not None:
-                cam = cam.with_size(*self.size)
-            K = cam.K
-        elif self.size is None:
-            raise ConfigError(f"{where}: give a preset, or a size with focal_angle_deg or K")
-        elif self.K is not None:
-            K = np.asarray(self.K, dtype=float).reshape(3, 3)
-        elif self.focal_angle_deg is not None:
-            form = _enum(PixelForm, self.form, f"{where}.form")
-            K = from_focal_angle(*self.size, self.focal_angle_deg, form=form).K
-        else:
-            raise ConfigError(f"{where}: needs focal_angle_deg or K besides size")
-        w, h = self.size if self.size is not None else (cam.width_px, cam.height_px)
-        if K[0, 1] != 0.0:
-            raise ConfigError(f"{where}: the renderer needs zero skew (K[0,1] = 0)")
-        return CameraModel(w, h, K, np.asarray(self.dist_coeffs, float), self.camera_name(w, h))
-
-    def camera_name(self, w: int, h: int) -> str:
-        if self.name:
-            return self.name
-        base = self.preset or f"fa{self.focal_angle_deg or 'K'}"
-        return f"{base}-{w}x{h}" + ("-dist" if any(self.dist_coeffs) else "")
-
-
-def _camera_spec(doc: object, where: str) -> CameraSpec:
-    if isinstance(doc, str):
-        doc = {"preset": doc}
-    d = _check_keys(doc, CameraSpec, where)
-    if "size" in d and d["size"] is not None:
-        size = d["size"]
-        if not (isinstance(size, (list, tuple)) and len(size) == 2 and all(isinstance(s, int) for s in size)):
-            raise ConfigError(f"{where}.size: expected [width_px, height_px] integers, got {size!r}")
-        if min(size) < 16:
-            raise ConfigError(f"{where}.size: each side must be at least 16 px, got {size}")
-        d["size"] = (int(size[0]), int(size[1]))
-    if d.get("K") is not None:
-        d["K"] = tuple(float(x) for x in np.ravel(d["K"]))
-        if len(d["K"]) != 9:
-            raise ConfigError(f"{where}.K: expected 9 numbers (3x3 row-major)")
-    d["dist_coeffs"] = tuple(float(x) for x in d.get("dist_coeffs") or ())
-    spec = CameraSpec(**d)
-    spec.model()  # validate now, not in a worker
-    return spec
 
 
 @dataclass(frozen=True)
@@ -194,9 +107,9 @@ class MotionSpec:
 
 
 def _motion_spec(doc: object) -> MotionSpec:
-    d = _check_keys(doc, MotionSpec, "motion")
+    d = check_keys(doc, MotionSpec, "motion")
     if "source" in d:
-        d["source"] = _enum(MotionSource, d["source"], "motion.source")
+        d["source"] = parse_enum(MotionSource, d["source"], "motion.source")
     if "attitudes_deg" in d:
         att = d["attitudes_deg"]
         if not isinstance(att, list) or not att or not all(
@@ -249,7 +162,7 @@ class SensorSpec:
 
 
 def _sensor_spec(doc: object) -> SensorSpec:
-    d = _check_keys(doc, SensorSpec, "sensor")
+    d = check_keys(doc, SensorSpec, "sensor")
     spec = SensorSpec(**d)
     if spec.bit_depth not in (8, 12, 16):
         raise ConfigError(f"sensor.bit_depth: 8, 12 or 16, got {spec.bit_depth!r}")
@@ -277,9 +190,9 @@ class SceneSpec:
 
 
 def _scene_spec(doc: object) -> SceneSpec:
-    d = _check_keys(doc, SceneSpec, "scene")
+    d = check_keys(doc, SceneSpec, "scene")
     if "shading" in d:
-        d["shading"] = _enum(Shading, d["shading"], "scene.shading")
+        d["shading"] = parse_enum(Shading, d["shading"], "scene.shading")
     spec = SceneSpec(**d)
     _positive(spec.freeboard_m, "scene.freeboard_m")
     _positive(spec.sea_half_size_m, "scene.sea_half_size_m")
@@ -329,7 +242,7 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
     cams = doc.get("cameras")
     if not isinstance(cams, list) or not cams:
         raise ConfigError(f"{source}: 'cameras' must be a non-empty list (e.g. [{{preset: 8mp}}])")
-    cameras = tuple(_camera_spec(c, f"cameras[{i}]") for i, c in enumerate(cams))
+    cameras = tuple(camera_spec(c, f"cameras[{i}]") for i, c in enumerate(cams))
     names = [c.model().name for c in cameras]
     if len(set(names)) != len(names):
         raise ConfigError(f"{source}: camera names must be unique, got {names}; set 'name:' per camera")
@@ -351,13 +264,13 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
     cfg = RenderConfig(
         cameras=cameras,
         heights_m=heights_m,
-        lighting=tuple(_enum(Lighting, x, "lighting") for x in light),
+        lighting=tuple(parse_enum(Lighting, x, "lighting") for x in light),
         motion=_motion_spec(doc.get("motion")),
         sensor=_sensor_spec(doc.get("sensor")),
         scene=_scene_spec(doc.get("scene")),
         layout=layout_obj,
         seed=seed,
-        backend=_enum(Backend, doc.get("backend", "egl"), "backend"),
+        backend=parse_enum(Backend, doc.get("backend", "egl"), "backend"),
         name=str(doc.get("name", "dataset")),
     )
     half = cfg.deck_half_size_m()
