@@ -150,3 +150,18 @@ def test_frame_with_every_beacon_out_of_view_is_still_written(tmp_path: Path, eg
     assert frames.n_visible.tolist() == [0]
     assert not beacons.in_image.any() and not beacons.visible.any()
     assert cv2.imread(str(ds / frames.image[0])) is not None
+
+
+def test_parent_process_never_creates_a_gl_context(tmp_path: Path) -> None:
+    """With workers >= 1 the parent does not even import OpenGL; workers make their own context."""
+    code = (
+        "import sys\n"
+        "from deckpose.render.config import config_from_dict\n"
+        "from deckpose.render.dataset import render_dataset\n"
+        f"doc = {tiny_doc(heights_m=[30.0], lighting=['night'])!r}\n"
+        f"render_dataset(config_from_dict(doc), {str(tmp_path / 'ds')!r}, workers=1, progress=False)\n"
+        "print('OpenGL' in sys.modules, 'pyrender' in sys.modules)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120)
+    assert out.stdout.split() == ["False", "False"]
+    assert len(list((tmp_path / "ds" / "images").glob("*.png"))) == 2
