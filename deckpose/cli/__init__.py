@@ -21,6 +21,7 @@ SUBCOMMAND_MODULES: tuple[str, ...] = (
     "deckpose.cli.evaluate_cmd",
     "deckpose.cli.thesis_tables_cmd",
     "deckpose.cli.motion_cmd",
+    "deckpose.cli.render_cmd",
 )
 
 

@@ -1,0 +1,72 @@
+"""A contact sheet of sample frames: one per camera preset and lighting preset.
+
+Each tile is a whole frame shrunk to fit, with an inset at native resolution
+(enlarged, nearest neighbour) around the red bow beacon, so the glow, colour and
+noise are visible. ``python -m deckpose.render.contact_sheet reports/contact_sheet.png``
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from deckpose.atomic_io import atomic_path
+from deckpose.pose import ShipPose
+from deckpose.render.config import Lighting, Shading, config_from_dict
+from deckpose.render.frame import render_frame
+from deckpose.render.plan import FrameSpec
+from deckpose.render.scene import DeckRenderer
+
+PRESETS = ("4mp", "8mp", "16mp", "64mp")
+
+
+def contact_sheet(presets: tuple[str, ...] = PRESETS, *, tile_w: int = 480, height_m: float = 30.0,
+                  seed: int = 1) -> np.ndarray:
+    """Render the sheet; returns a BGR uint8 image (rows = presets, columns = lighting)."""
+    cfg = config_from_dict({"cameras": [{"preset": p} for p in presets], "heights_m": [height_m],
+                            "lighting": [x.value for x in Lighting], "seed": seed})
+    pbr = dataclasses.replace(cfg, scene=dataclasses.replace(cfg.scene, shading=Shading.PBR))
+    flat_r = DeckRenderer(cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
+    pbr_r = DeckRenderer(pbr.layout, pbr.scene, pbr.deck_half_size_m(), pbr.backend)
+    ship = ShipPose(np.radians(4.0), np.radians(-2.5), np.radians(12.0), 0.5, 0.8, -0.6)
+    rows = []
+    for name, cam in cfg.cameras_by_name().items():
+        tiles = []
+        for light in Lighting:
+            c, r = (pbr, pbr_r) if light is Lighting.DAY else (cfg, flat_r)
+            rf = render_frame(c, FrameSpec(0, name, height_m, ship, (), 0.0, light, seed), cam, r)
+            img = np.ascontiguousarray(rf.frame.image[..., ::-1])
+            th = int(round(tile_w * cam.height_px / cam.width_px))
+            tile = cv2.resize(img, (tile_w, th), interpolation=cv2.INTER_AREA)
+            u, v = (int(round(x)) for x in rf.truth.points_px[cfg.layout.bow_id])
+            k = int(max(8.0, 2.5 * rf.truth.apparent_radius_px[cfg.layout.bow_id] + 6))
+            crop = img[max(v - k, 0): v + k, max(u - k, 0): u + k]
+            inset = cv2.resize(crop, (110, 110), interpolation=cv2.INTER_NEAREST)
+            tile[-inset.shape[0] - 4: -4, -inset.shape[1] - 4: -4] = inset
+            cv2.rectangle(tile, (tile_w - inset.shape[1] - 5, th - inset.shape[0] - 5), (tile_w - 4, th - 4),
+                          (255, 255, 255), 1)
+            label = f"{cam.name}  {light.value}{' (pbr)' if light is Lighting.DAY else ''}  h={height_m:g} m"
+            cv2.putText(tile, label, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
+            tiles.append(cv2.copyMakeBorder(tile, 2, 2, 2, 2, cv2.BORDER_CONSTANT, value=(40, 40, 40)))
+        h = max(t.shape[0] for t in tiles)
+        rows.append(np.hstack([cv2.copyMakeBorder(t, 0, h - t.shape[0], 0, 0, cv2.BORDER_CONSTANT) for t in tiles]))
+    return np.vstack(rows)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("out", type=Path, nargs="?", default=Path("reports/contact_sheet.png"))
+    ap.add_argument("--presets", nargs="+", default=list(PRESETS))
+    args = ap.parse_args()
+    sheet = contact_sheet(tuple(args.presets))
+    with atomic_path(args.out) as tmp:
+        cv2.imwrite(str(tmp), sheet)
+    print(f"wrote {args.out} ({sheet.shape[1]}x{sheet.shape[0]})")
+
+
+if __name__ == "__main__":
+    main()

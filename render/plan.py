@@ -1,0 +1,179 @@
+"""The frame plan: every frame of a dataset as a small frozen record, fixed before rendering.
+
+The plan is a pure function of the config: frame ids enumerate cameras x heights x
+lighting x motion samples in that nesting order, and each frame's noise seed is
+derived from ``(config seed, frame_id)`` with :class:`numpy.random.SeedSequence`,
+so the images do not depend on how frames are spread over workers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from deckpose.errors import ConfigError, DeckposeError
+from deckpose.motion import MotionSeries, read_series
+from deckpose.pose import CameraPose, ShipPose
+from deckpose.render.config import Lighting, MotionSource, MotionSpec, RenderConfig
+from deckpose.motion.thesis_series import thesis_motion_table
+from deckpose.rotation import zyx_from_thesis
+
+
+@dataclass(frozen=True)
+class FrameSpec:
+    """What to render for one frame.
+
+    Attributes
+    ----------
+    frame_id : int
+    camera_name : str
+    height_m : float
+        Camera height above the world origin (the nominal deck centre), metres.
+    ship : ShipPose
+        Deck pose at mid-exposure (the ground truth).
+    blur_poses : tuple of ShipPose
+        Deck poses spread over the exposure (empty: no motion blur).
+    t_s : float
+        Time on the motion time base, seconds.
+    lighting : Lighting
+    seed : int
+        Seed of this frame's noise (from the config seed and the frame id).
+    """
+
+    frame_id: int
+    camera_name: str
+    height_m: float
+    ship: ShipPose
+    blur_poses: tuple[ShipPose, ...]
+    t_s: float
+    lighting: Lighting
+    seed: int
+
+    @property
+    def camera_pose(self) -> CameraPose:
+        return CameraPose.nadir(self.height_m)
+
+    @property
+    def stamp_ns(self) -> int:
+        return int(round(self.t_s * 1e9))
+
+
+def thesis_series(path: str | Path | None = None) -> MotionSeries:
+    """The thesis motion series as a :class:`MotionSeries` (ZYX angles, thesis geometry).
+
+    By default the series is regenerated exactly by
+    :func:`deckpose.motion.thesis_series.thesis_motion_table` (no file needed);
+    ``path`` reads a file with the same columns instead. The table holds
+    THESIS-convention degrees and a heave that the thesis *adds* to the camera
+    distance ("camera height = table height + heave"). To render the thesis's
+    geometry, our heave (the deck's upward displacement, which brings it closer)
+    is ``heave_m = -heave_thesis``. Samples are 0.1 s apart; ``t_s`` runs on
+    across the segments.
+    """
+    if path is None:
+        df = thesis_motion_table()
+    else:
+        p = Path(path)
+        try:
+            df = pd.read_csv(p)
+        except OSError as exc:
+            raise ConfigError(f"cannot read the thesis motion series {p}: {exc}") from exc
+        need = {"roll_deg", "pitch_deg", "yaw_deg", "heave_m"}
+        if not need <= set(df.columns):
+            raise ConfigError(f"{p}: thesis series needs columns {sorted(need)}")
+    r, pch, y = zyx_from_thesis(*(np.radians(df[f"{a}_deg"].to_numpy(float)) for a in ("roll", "pitch", "yaw")))
+    return MotionSeries(t_s=0.1 * np.arange(len(df)), roll_rad=r, pitch_rad=pch, yaw_rad=y,
+                        heave_m=-df["heave_m"].to_numpy(float))
+
+
+def load_motion(spec: MotionSpec) -> MotionSeries:
+    """The motion series a config asks for (ConfigError if it cannot be had)."""
+    if spec.source is MotionSource.FIXED:
+        att = np.array([list(a) + [0.0] * (6 - len(a)) for a in spec.attitudes_deg], dtype=float)
+        return MotionSeries(t_s=spec.dt_s * np.arange(len(att)), roll_rad=np.radians(att[:, 0]),
+                            pitch_rad=np.radians(att[:, 1]), yaw_rad=np.radians(att[:, 2]),
+                            heave_m=att[:, 3], surge_m=att[:, 4], sway_m=att[:, 5])
+    if spec.source is MotionSource.THESIS:
+        return thesis_series(spec.path)
+    if spec.source is MotionSource.FILE:
+        try:
+            return read_series(spec.path or "", angles=spec.angles)
+        except DeckposeError as exc:
+            raise ConfigError(f"motion.path: {exc}") from exc
+    from deckpose.motion.config import parse_sea_run
+    from deckpose.motion.irregular import irregular_series
+
+    run = parse_sea_run(dict(spec.params))
+    return irregular_series(run.ship, run.sea, duration_s=run.duration_s, dt_s=run.dt_s,
+                            rng=np.random.default_rng(run.seed))
+
+
+def _interp_pose(series: MotionSeries, t_s: float) -> ShipPose:
+    chans = ("roll_rad", "pitch_rad", "yaw_rad", "heave_m", "surge_m", "sway_m")
+    vals = []
+    for c in chans:
+        v = getattr(series, c)
+        if c.endswith("_rad"):
+            v = np.unwrap(v)
+        vals.append(float(np.interp(t_s, series.t_s, v)))
+    return ShipPose(*vals)
+
+
+def sample_indices(spec: MotionSpec, n: int) -> list[int]:
+    """Indices of the series samples to render."""
+    idx = list(range(spec.start, n, spec.every))
+    if spec.max_samples is not None:
+        idx = idx[: spec.max_samples]
+    if not idx:
+        raise ConfigError(f"motion: start={spec.start} leaves no samples of a {n}-sample series")
+    return idx
+
+
+def _check_camera_above_deck(cfg: RenderConfig, height_m: float, ship: ShipPose, fid: int) -> None:
+    """Camera must be above the deck plane and clear of the deck plate."""
+    n_world = ship.R_world_from_deck[:, 2]
+    cam = np.array([0.0, 0.0, height_m])
+    dist = float((cam - ship.t_world_from_deck) @ n_world)
+    if dist <= 0.5:
+        raise ConfigError(
+            f"frame {fid}: the camera at height {height_m} m is inside or below the deck (distance "
+            f"to the deck plane {dist:.2f} m with heave {ship.heave_m:.2f} m); raise heights_m"
+        )
+
+
+def plan_frames(cfg: RenderConfig, series: MotionSeries | None = None) -> list[FrameSpec]:
+    """Every frame of the job, in frame-id order.
+
+    Parameters
+    ----------
+    cfg : RenderConfig
+    series : MotionSeries, optional
+        Motion to use instead of loading ``cfg.motion`` (tests).
+    """
+    series = load_motion(cfg.motion) if series is None else series
+    idx = sample_indices(cfg.motion, len(series))
+    blur = cfg.motion.exposure_s > 0 and cfg.motion.source is not MotionSource.FIXED
+    names = list(cfg.cameras_by_name())
+    frames: list[FrameSpec] = []
+    fid = 0
+    for cam in names:
+        for h in cfg.heights_m:
+            for light in cfg.lighting:
+                for i in idx:
+                    t = float(series.t_s[i])
+                    ship = series.pose(i)
+                    blur_poses: tuple[ShipPose, ...] = ()
+                    if blur:
+                        k = cfg.motion.blur_steps
+                        ts = t + cfg.motion.exposure_s * ((np.arange(k) + 0.5) / k - 0.5)
+                        blur_poses = tuple(_interp_pose(series, float(x)) for x in ts)
+                    _check_camera_above_deck(cfg, h, ship, fid)
+                    seed = int(np.random.SeedSequence([cfg.seed, fid]).generate_state(1)[0])
+                    frames.append(FrameSpec(fid, cam, float(h), ship, blur_poses, t, light, seed))
+                    fid += 1
+    if not frames:
+        raise ConfigError("the config yields no frames")
+    return frames

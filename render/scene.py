@@ -1,0 +1,337 @@
+"""The rasterised part of a frame: the deck plate and the sea, through pyrender.
+
+What is rasterised and what is not
+----------------------------------
+pyrender draws the deck (a textured plate with a helipad circle, lines and a
+non-skid texture) and the sea (a large tiled, drifting texture) with 4x MSAA.
+The beacons are *not* rasterised: :mod:`deckpose.render.beacons` splats them
+analytically at their exact projected positions, because a rasterised
+sub-pixel emitter is only as good as the rasteriser's coverage sampling
+(4 samples per pixel gives centroid errors of several hundredths of a pixel),
+while an analytic splat is exact, costs nothing at 64 MP and is distortion-aware.
+
+Camera convention
+-----------------
+OpenGL puts pixel centres at ``+0.5`` and its image origin at the bottom-left;
+OpenCV puts them at integers, origin top-left. With pyrender's
+:class:`~pyrender.IntrinsicsCamera`, OpenGL window coordinates are
+``x_w = fx*x/z + cx_gl`` and ``y_w = H - cy_gl + fy*y_gl/(-z_gl)``; pixel ``(col, row)``
+samples ``x_w = col + 0.5`` and ``y_w = H - row - 0.5``. So a frame matches
+``CameraModel.K`` exactly with ``cx_gl = cx + 0.5`` and ``cy_gl = cy + 0.5``
+(tested in ``tests/render/test_scene.py`` to 0.05 px with 4x MSAA).
+
+GL context
+----------
+:class:`DeckRenderer` creates its context on the first :meth:`~DeckRenderer.render`
+call, in the process that renders (a worker), never in a parent. Large frames are
+drawn in horizontal tiles (a shifted principal point per tile) so the multisampled
+framebuffer stays small: a 64 MP frame needs four 16 MP tiles.
+"""
+
+from __future__ import annotations
+
+import atexit
+import math
+import os
+import sys
+import types
+from dataclasses import dataclass
+from typing import Any
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from deckpose.camera import CameraModel
+from deckpose.errors import ConfigError
+from deckpose.layout import DeckLayout
+from deckpose.pose import CameraPose, ShipPose
+from deckpose.render.config import Backend, Lighting, SceneSpec, Shading
+
+#: OpenCV camera frame to OpenGL camera frame (y and z flipped).
+_CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
+#: Largest tile the renderer allocates, pixels (MSAA framebuffers scale with it).
+MAX_TILE_PX = 16_000_000
+#: Texture seed: the scene is the same in every worker and every run.
+_TEXTURE_SEED = 20240611
+
+
+@dataclass(frozen=True)
+class LightPreset:
+    """Light levels of one preset (linear radiance scale, white = 1)."""
+
+    level: float
+    tint: tuple[float, float, float]
+    sky_rgb: tuple[float, float, float]
+    ambient: float
+    sun_intensity: float
+
+
+PRESETS: dict[Lighting, LightPreset] = {
+    Lighting.NIGHT: LightPreset(0.04, (0.8, 0.85, 1.0), (0.0, 0.0, 0.01), 0.04, 0.0),
+    Lighting.DUSK: LightPreset(0.25, (1.0, 0.78, 0.6), (0.25, 0.15, 0.12), 0.2, 0.8),
+    Lighting.DAY: LightPreset(0.85, (1.0, 1.0, 1.0), (0.6, 0.7, 0.85), 0.5, 3.0),
+}
+
+
+def use_backend(backend: Backend) -> None:
+    """Select the headless GL platform before pyrender is imported in this process.
+
+    Raises
+    ------
+    ConfigError
+        If OpenGL is already loaded here with another platform.
+    """
+    want = backend.value
+    have = os.environ.get("PYOPENGL_PLATFORM")
+    if "OpenGL" in sys.modules and have != want:
+        raise ConfigError(
+            f"backend {want!r} requested but this process already loaded OpenGL for {have!r}; "
+            "render with workers >= 1 (fresh worker processes) to switch backends"
+        )
+    os.environ["PYOPENGL_PLATFORM"] = want
+
+
+def gl_intrinsics(camera: CameraModel, row0: int, tile_h: int) -> tuple[float, float, float, float]:
+    """``(fx, fy, cx_gl, cy_gl)`` for pyrender's IntrinsicsCamera drawing rows ``row0..row0+tile_h``.
+
+    OpenGL samples pixel centres at ``+0.5`` with rows counted from the bottom, so
+    ``cx_gl = cx + 0.5`` and ``cy_gl = cy - row0 + 0.5`` reproduce
+    ``camera.K`` (OpenCV, centres at integers) exactly.
+    """
+    return camera.fx, camera.fy, camera.cx + 0.5, camera.cy - row0 + 0.5
+
+
+def gl_camera_pose(camera_pose: CameraPose) -> NDArray[np.float64]:
+    """pyrender camera-node pose (OpenGL camera: y up, looking along -z), (4, 4)."""
+    return camera_pose.T_world_from_cam @ _CV_TO_GL
+
+
+def deck_texture(layout: DeckLayout, half_size_m: float, size_px: int) -> NDArray[np.uint8]:
+    """RGB texture of the deck plate: non-skid grey, helipad circle and 'H', edge and centre lines.
+
+    Row 0 is the bow edge (deck +x), column 0 the port edge (deck +y).
+    """
+    rng = np.random.default_rng(_TEXTURE_SEED)
+    s = size_px
+    base = 0.42 + 0.05 * rng.standard_normal((s // 8, s // 8))
+    base = cv2.resize(base.astype(np.float32), (s, s), interpolation=cv2.INTER_CUBIC)
+    base += 0.03 * rng.standard_normal((s, s)).astype(np.float32)
+    img = np.repeat(np.clip(base, 0, 1)[..., None], 3, axis=2) * np.array([1.0, 1.0, 0.97], np.float32)
+    img = (img * 255).astype(np.uint8)
+    px_per_m = s / (2.0 * half_size_m)
+
+    def pt(x_m: float, y_m: float) -> tuple[int, int]:
+        return int(round((half_size_m - y_m) * px_per_m * 16)), int(round((half_size_m - x_m) * px_per_m * 16))
+
+    def w(m: float) -> int:
+        return max(1, int(round(m * px_per_m)))
+
+    white, yellow = (235, 235, 230), (230, 200, 40)
+    r_pad = 0.6 * layout.radius_m
+    cv2.circle(img, pt(0, 0), int(r_pad * px_per_m * 16), yellow, w(0.3), cv2.LINE_AA, 4)
+    e = 0.97 * half_size_m
+    cv2.rectangle(img, pt(e, e), pt(-e, -e), white, w(0.25), cv2.LINE_AA, 4)
+    cv2.line(img, pt(e, 0), pt(r_pad + 0.5, 0), white, w(0.15), cv2.LINE_AA, 4)
+    cv2.line(img, pt(-r_pad - 0.5, 0), pt(-e, 0), white, w(0.15), cv2.LINE_AA, 4)
+    hh = 0.3 * r_pad
+    for y in (hh * 0.6, -hh * 0.6):
+        cv2.line(img, pt(hh, y), pt(-hh, y), white, w(0.35), cv2.LINE_AA, 4)
+    cv2.line(img, pt(0, hh * 0.6), pt(0, -hh * 0.6), white, w(0.35), cv2.LINE_AA, 4)
+    for b in layout.positions_deck_m():  # dark fitting under each beacon
+        cv2.circle(img, pt(b[0], b[1]), int(3 * layout.beacon_radius_m * px_per_m * 16), (40, 40, 40),
+                   -1, cv2.LINE_AA, 4)
+    return img
+
+
+def sea_texture(size_px: int) -> NDArray[np.uint8]:
+    """Tileable RGB sea texture (periodic noise, so it repeats without seams)."""
+    rng = np.random.default_rng(_TEXTURE_SEED + 1)
+    s = size_px
+    spec = rng.standard_normal((s, s)) + 1j * rng.standard_normal((s, s))
+    k = np.fft.fftfreq(s)[:, None] ** 2 + np.fft.fftfreq(s)[None, :] ** 2
+    spec *= np.exp(-k * (s / 24.0) ** 2) * (k > 0)
+    waves = np.real(np.fft.ifft2(spec))
+    waves = (waves - waves.mean()) / (waves.std() + 1e-12)
+    base = np.array([0.05, 0.16, 0.24])
+    img = base + 0.05 * np.tanh(waves)[..., None] * np.array([0.6, 0.9, 1.0])
+    return (np.clip(img, 0, 1) * 255).astype(np.uint8)
+
+
+def _plane(half_x: float, half_y: float, z: float, uv_scale: float) -> dict[str, np.ndarray]:
+    pos = np.array([[half_x, half_y, z], [-half_x, half_y, z], [-half_x, -half_y, z], [half_x, -half_y, z]],
+                   dtype=np.float32)
+    uv = np.array([[0, 0], [0, 1], [1, 1], [1, 0]], dtype=np.float32) * uv_scale
+    return {"positions": pos, "normals": np.tile(np.float32([0, 0, 1]), (4, 1)), "texcoord_0": uv,
+            "indices": np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32)}
+
+
+class DeckRenderer:
+    """A pyrender scene of deck and sea with its offscreen renderers (a real GL resource).
+
+    Parameters
+    ----------
+    layout : DeckLayout
+    scene : SceneSpec
+    deck_half_size_m : float
+    backend : Backend
+    """
+
+    def __init__(self, layout: DeckLayout, scene: SceneSpec, deck_half_size_m: float,
+                 backend: Backend) -> None:
+        self.layout = layout
+        self.spec = scene
+        self.half_m = deck_half_size_m
+        self.backend = backend
+        self._pr: Any = None
+        self._scene: Any = None
+        self._nodes: dict[str, Any] = {}
+        self._sea_tile_m = 40.0
+
+    def _build(self) -> None:
+        use_backend(self.backend)
+        import pyrender  # noqa: PLC0415 - only in the rendering process
+
+        self._pr = pyrender
+        pbr = self.spec.shading is Shading.PBR
+        deck_tex = pyrender.Texture(source=deck_texture(self.layout, self.half_m, self.spec.texture_px),
+                                    source_channels="RGB")
+        sea_tex = pyrender.Texture(source=sea_texture(512), source_channels="RGB",
+                                   sampler=pyrender.Sampler(wrapS=10497, wrapT=10497))
+        deck_mat = pyrender.MetallicRoughnessMaterial(baseColorTexture=deck_tex, metallicFactor=0.0,
+                                                      roughnessFactor=0.8)
+        sea_mat = pyrender.MetallicRoughnessMaterial(baseColorTexture=sea_tex, metallicFactor=0.3 if pbr else 0.0,
+                                                     roughnessFactor=0.15)
+        deck = pyrender.Mesh([pyrender.Primitive(**_plane(self.half_m, self.half_m, 0.0, 1.0), material=deck_mat)])
+        L = self.spec.sea_half_size_m
+        sea = pyrender.Mesh([pyrender.Primitive(**_plane(L, L, 0.0, 2 * L / self._sea_tile_m), material=sea_mat)])
+        s = pyrender.Scene(bg_color=[0, 0, 0, 1], ambient_light=[0.3] * 3)
+        self._nodes["deck"] = s.add(deck)
+        self._nodes["sea"] = s.add(sea)
+        self._nodes["sun"] = s.add(pyrender.DirectionalLight(color=np.ones(3), intensity=1.0))
+        self._scene = s
+
+    def _renderer(self, width: int, height: int) -> Any:
+        return _offscreen(self._pr, width, height)
+
+    def offscreen(self, width: int, height: int) -> Any:
+        """This renderer's pyrender OffscreenRenderer, sized ``width x height``.
+
+        For drawing other scenes in the same GL context (tests): pyrender's EGL
+        platform terminates the process-wide display when a renderer is deleted,
+        so a process must keep to one context.
+        """
+        if self._scene is None:
+            self._build()
+        return self._renderer(width, height)
+
+    def render(self, camera: CameraModel, camera_pose: CameraPose, ship: ShipPose, t_s: float,
+               lighting: Lighting) -> NDArray[np.uint8]:
+        """Rasterise deck and sea for one frame (undistorted pinhole image through ``camera.K``).
+
+        Returns
+        -------
+        (H, W, 3) array of uint8
+            Display-referred RGB; :func:`radiance_scale` turns it into radiance.
+        """
+        if self._scene is None:
+            self._build()
+        pr, s = self._pr, self._scene
+        light = PRESETS[lighting]
+        pbr = self.spec.shading is Shading.PBR
+        s.set_pose(self._nodes["deck"], ship.T_world_from_deck)
+        drift = (self.spec.sea_drift_m_per_s * t_s) % self._sea_tile_m
+        T_sea = np.eye(4)
+        T_sea[:3, 3] = [drift, 0.3 * drift, -self.spec.freeboard_m]
+        s.set_pose(self._nodes["sea"], T_sea)
+        s.bg_color = np.array([*light.sky_rgb, 1.0]) * (1.0 if pbr else 1.0 / max(light.level, 1e-6))
+        s.ambient_light = np.full(3, light.ambient) * np.array(light.tint)
+        sun = self._nodes["sun"]
+        sun.light.intensity = light.sun_intensity
+        sun.light.color = np.array(light.tint)
+        az = math.radians(35.0)
+        d = np.array([math.cos(az) * 0.5, math.sin(az) * 0.5, -0.7])  # sun direction (travel)
+        z = -d / np.linalg.norm(d)
+        x = np.cross([0.0, 0.0, 1.0], z)
+        x /= np.linalg.norm(x)
+        T_sun = np.eye(4)
+        T_sun[:3, :3] = np.stack([x, np.cross(z, x), z], 1)
+        s.set_pose(sun, T_sun)
+        flags = 0 if pbr else pr.RenderFlags.FLAT
+        W, H = camera.width_px, camera.height_px
+        n_tiles = max(1, math.ceil(W * H / MAX_TILE_PX))
+        tile_h = math.ceil(H / n_tiles)
+        out = np.empty((H, W, 3), np.uint8)
+        T_cam = gl_camera_pose(camera_pose)
+        far = 2.5 * self.spec.sea_half_size_m
+        for k in range(n_tiles):
+            r0 = k * tile_h
+            r1 = min(H, r0 + tile_h)
+            cam = pr.IntrinsicsCamera(*gl_intrinsics(camera, r0, tile_h), znear=0.2, zfar=far)
+            node = s.add(cam, pose=T_cam)
+            s.main_camera_node = node
+            try:
+                color, _ = self._renderer(W, tile_h).render(s, flags=flags)
+            finally:
+                s.remove_node(node)
+            out[r0:r1] = color[: r1 - r0]
+        return out
+
+    def close(self) -> None:
+        """Forget this scene (the process's GL context lives until the process exits)."""
+        self._scene = None
+        self._nodes.clear()
+
+
+_OFFSCREEN: list[Any] = []
+
+
+def _offscreen(pr: Any, width: int, height: int) -> Any:
+    """The process's single OffscreenRenderer, resized to ``width x height``.
+
+    One GL context per process: pyrender's EGL platform terminates the shared
+    display when any renderer is deleted, so two contexts in one process break each
+    other. Scenes share the context; the framebuffer is re-made when the size changes.
+    """
+    if not _OFFSCREEN:
+        r = pr.OffscreenRenderer(width, height)
+        r._renderer._read_main_framebuffer = types.MethodType(_read_colour_only, r._renderer)
+        _OFFSCREEN.append(r)
+        atexit.register(_delete_offscreen)
+    r = _OFFSCREEN[0]
+    r.viewport_width = width
+    r.viewport_height = height
+    return r
+
+
+def _read_colour_only(self: Any, scene: Any, flags: int) -> tuple[np.ndarray, None]:
+    """pyrender's framebuffer read without the depth buffer (we never use it).
+
+    Replaces ``Renderer._read_main_framebuffer`` on our one renderer: resolves the
+    multisampled colour buffer and reads RGB bytes only, skipping pyrender's
+    float depth read-back and linearisation (a third of the time of a 64 MP frame).
+    """
+    from OpenGL import GL
+
+    width, height = self._main_fb_dims[0], self._main_fb_dims[1]
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
+    GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+    GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_LINEAR)
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
+    GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+    buf = GL.glReadPixels(0, 0, width, height, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
+    colour = np.frombuffer(buf, dtype=np.uint8).reshape((height, width, 3))
+    return colour[::-1], None
+
+
+def _delete_offscreen() -> None:
+    while _OFFSCREEN:
+        _OFFSCREEN.pop().delete()
+
+
+def radiance_scale(lighting: Lighting, shading: Shading) -> NDArray[np.float32]:
+    """Per-channel factor from raster value / 255 to scene radiance (white = 1)."""
+    light = PRESETS[lighting]
+    if shading is Shading.PBR:
+        return np.full(3, 1.0 / 255.0, np.float32)
+    return (np.array(light.tint) * light.level / 255.0).astype(np.float32)

@@ -1,0 +1,131 @@
+"""The sensor after the lens: distortion, beacon light, exposure, noise, saturation, bit depth.
+
+Order of operations for one frame:
+
+1. the rasterised pinhole image is warped to the distorted image with
+   ``cv2.remap`` (map from :func:`cv2.initInverseRectificationMap`: for every
+   distorted pixel, where it comes from in the pinhole image);
+2. beacon splats are added at their *distorted* projected centres (so ground
+   truth and image agree, see :mod:`deckpose.render.beacons`);
+3. radiance is turned into electrons (``exposure * full_well_e`` for white),
+   photon shot noise and read noise are added as one Gaussian of variance
+   ``signal + read_noise^2`` (the Poisson law's normal limit; exact enough above
+   a few electrons), the well saturates, and the result is quantised to
+   ``bit_depth`` bits.
+
+The work is done in horizontal strips so a 64 MP frame never holds more than one
+float copy of a strip. Normal deviates come from OpenCV's generator (``cv2.randn``,
+five times faster than numpy's here), re-seeded for every strip from the frame's
+:class:`numpy.random.Generator`, so results are identical for any number of workers.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from numpy.typing import NDArray
+
+from deckpose.camera import CameraModel
+from deckpose.render.beacons import Splat, add_splats
+from deckpose.render.config import SensorSpec
+
+#: Rows per processing strip.
+STRIP_ROWS = 256
+_LUMA = np.array([0.299, 0.587, 0.114], np.float32)
+
+_MAP_CACHE: dict[tuple[object, ...], tuple[np.ndarray, np.ndarray]] = {}
+
+
+def distortion_maps(camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
+    """Maps for ``cv2.remap`` from the pinhole image to the distorted image (cached per camera)."""
+    key = (camera.width_px, camera.height_px, camera.K.tobytes(), camera.dist_coeffs.tobytes())
+    if key not in _MAP_CACHE:
+        _MAP_CACHE.clear()
+        # Float maps, then OpenCV's compact fixed-point form: asking initInverseRectificationMap
+        # for CV_16SC2 directly returned an uninitialised interpolation table here (OpenCV 5.0).
+        mx, my = cv2.initInverseRectificationMap(
+            camera.K, camera.dist_coeffs, np.eye(3), camera.K, (camera.width_px, camera.height_px),
+            cv2.CV_32FC1)
+        _MAP_CACHE[key] = cv2.convertMaps(mx, my, cv2.CV_16SC2)
+    return _MAP_CACHE[key]
+
+
+def distort(raster: NDArray[np.uint8], camera: CameraModel) -> NDArray[np.uint8]:
+    """Warp a pinhole raster into the camera's distorted image (identity without distortion)."""
+    if not camera.has_distortion:
+        return raster
+    m1, m2 = distortion_maps(camera)
+    return cv2.remap(raster, m1, m2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+
+
+def _luts(scale_e: np.ndarray, sensor: SensorSpec, dn_per_e: float) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and noise sigma in DN for every raster value (256,) per channel, as cv2.LUT tables."""
+    v = np.arange(256, dtype=np.float64)[:, None] * scale_e[None, :]  # electrons, (256, C)
+    mean = (v * dn_per_e).astype(np.float32)
+    sigma = (np.sqrt(v + sensor.read_noise_e ** 2) * dn_per_e).astype(np.float32)
+    C = scale_e.size
+    return mean.reshape(1, 256, C), sigma.reshape(1, 256, C)
+
+
+def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: list[Splat],
+           sensor: SensorSpec, rng: np.random.Generator) -> np.ndarray:
+    """Raster plus beacons to a quantised sensor image.
+
+    The background's mean and noise sigma depend only on its 8-bit raster value, so
+    they come from two 256-entry tables (``cv2.LUT``); inside beacon windows sigma is
+    recomputed from the actual signal. ``cv2.add(..., dtype=CV_8U/CV_16U)`` fuses the
+    sum, rounding and saturation.
+
+    Parameters
+    ----------
+    raster : (H, W, 3) array of uint8
+        Rasterised (and distorted) deck and sea.
+    scale_rgb : (3,) array of float32
+        Raster value to radiance, per channel.
+    splats : list of Splat
+        Beacon light, radiance.
+    sensor : SensorSpec
+    rng : numpy.random.Generator
+        The frame's noise generator (unused when ``sensor.noise`` is false).
+
+    Returns
+    -------
+    (H, W, 3) or (H, W) array of uint8 (8-bit) or uint16 (12/16-bit)
+        RGB, or mono when ``sensor.color == "mono"``.
+    """
+    H, W = raster.shape[:2]
+    mono = sensor.color == "mono"
+    dn_max = float(2 ** sensor.bit_depth - 1)
+    dn_per_e = dn_max / sensor.full_well_e
+    e_per_rad = sensor.exposure * sensor.full_well_e
+    scale = np.asarray(scale_rgb, np.float64) * e_per_rad  # electrons per raster unit
+    if mono:
+        scale = np.array([scale @ _LUMA])
+    lut_mean, lut_sigma = _luts(scale, sensor, dn_per_e)
+    src = cv2.cvtColor(raster, cv2.COLOR_RGB2GRAY) if mono else raster
+    C = 1 if mono else 3
+    depth = cv2.CV_8U if sensor.bit_depth == 8 else cv2.CV_16U
+    out = np.empty((H, W) if mono else (H, W, C), np.uint8 if sensor.bit_depth == 8 else np.uint16)
+    read2 = np.float32(sensor.read_noise_e ** 2)
+    for r0 in range(0, H, STRIP_ROWS):
+        r1 = min(H, r0 + STRIP_ROWS)
+        block = src[r0:r1]
+        mean = cv2.LUT(block, lut_mean).reshape(r1 - r0, W, C)
+        touched = add_splats(mean, splats, r0, gain=e_per_rad * dn_per_e)
+        if sensor.noise:
+            sigma = cv2.LUT(block, lut_sigma).reshape(r1 - r0, W, C)
+            for rr, cc in touched:  # shot noise of the beacon light itself
+                m = mean[rr, cc]
+                sigma[rr, cc] = np.sqrt(np.maximum(m, 0) / np.float32(dn_per_e) + read2) * np.float32(dn_per_e)
+            noise = np.empty(mean.shape, np.float32)
+            cv2.setRNGSeed(int(rng.integers(2**31 - 1)))  # OpenCV's fast normal stream, seeded from rng
+            cv2.randn(noise.reshape(r1 - r0, -1), 0.0, 1.0)  # 2-D view: one channel, all of it
+            noise *= sigma
+            shape = out[r0:r1].shape
+            cv2.add(mean.reshape(shape), noise.reshape(shape), dst=out[r0:r1], dtype=depth)
+        else:
+            np.clip(np.rint(mean), 0.0, dn_max, out=mean)
+            out[r0:r1] = mean.reshape(out[r0:r1].shape)
+    if sensor.bit_depth == 12:
+        np.minimum(out, np.uint16(dn_max), out=out)
+    return out

@@ -1,0 +1,167 @@
+"""Datasets on disk: contract, determinism across workers, resume after SIGKILL, Dask, OSMesa."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from deckpose.camera_info import read_camera_info
+from deckpose.errors import ConfigError
+from deckpose.render.config import Backend, config_from_dict
+from deckpose.render.dataset import FORMAT, render_dataset
+
+from .conftest import tiny_doc
+
+FRAME_COLS = ["frame_id", "image", "camera", "stamp_ns", "t_s", "camera_height_m", "roll_rad", "pitch_rad",
+              "yaw_rad", "heave_m", "surge_m", "sway_m", "thesis_roll_deg", "thesis_pitch_deg",
+              "thesis_yaw_deg", "lighting", "seed", "n_visible", *[f"r{i}{j}" for i in range(3) for j in range(3)],
+              "cam_x_m", "cam_y_m", "cam_z_m"]
+BEACON_COLS = ["frame_id", "beacon_id", "u_px", "v_px", "visible", "in_image", "facing", "apparent_radius_px"]
+
+
+def _images(ds: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted((ds / "images").glob("*.png"))}
+
+
+def assert_same_dataset(a: Path, b: Path) -> None:
+    assert _images(a) == _images(b)
+    for t in ("frames.parquet", "beacons.parquet"):
+        pd.testing.assert_frame_equal(pd.read_parquet(a / t), pd.read_parquet(b / t))
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory: pytest.TempPathFactory, egl_renderer_factory) -> Path:
+    egl_renderer_factory(config_from_dict(tiny_doc()))  # select EGL in this process
+    return render_dataset(config_from_dict(tiny_doc()), tmp_path_factory.mktemp("ref") / "ds", workers=0,
+                          progress=False)
+
+
+def test_dataset_follows_the_contract(reference: Path) -> None:
+    man = json.loads((reference / "manifest.json").read_text())
+    assert man["format"] == FORMAT and man["complete"] and man["seed"] == 3 and man["n_frames"] == 8
+    assert {"numpy", "scikit-robot-pyrender", "PyOpenGL"} <= set(man["versions"])
+    assert man["layout"]["n_ring"] == 12
+    cam = read_camera_info(reference / man["cameras"][0]["file"])
+    assert (cam.width_px, cam.height_px) == (320, 240)
+    frames = pd.read_parquet(reference / "frames.parquet")
+    beacons = pd.read_parquet(reference / "beacons.parquet")
+    assert list(frames.columns) == FRAME_COLS and list(beacons.columns) == BEACON_COLS
+    assert frames["frame_id"].dtype == np.int64 and frames["stamp_ns"].dtype == np.int64
+    assert len(frames) == 8 and len(beacons) == 8 * 13
+    for row in frames.itertuples():
+        img = cv2.imread(str(reference / row.image), cv2.IMREAD_UNCHANGED)
+        assert img.shape == (240, 320, 3) and img.dtype == np.uint8
+        b = beacons[beacons.frame_id == row.frame_id]
+        assert row.n_visible == b.visible.sum()
+    # the bow beacon (id 0) is red, the others white: check the pixel at its projection
+    f0 = frames.iloc[0]
+    img = cv2.imread(str(reference / f0.image))  # BGR
+    b = beacons[beacons.frame_id == f0.frame_id].set_index("beacon_id")
+    bow = img[int(round(b.loc[0, "v_px"])), int(round(b.loc[0, "u_px"]))].astype(int)
+    other = img[int(round(b.loc[3, "v_px"])), int(round(b.loc[3, "u_px"]))].astype(int)
+    assert bow[2] > 200 and bow[0] < bow[2] - 80  # red dominates blue
+    assert abs(other[2] - other[0]) < 40
+
+
+def test_same_images_and_tables_for_any_number_of_workers(reference: Path, tmp_path: Path) -> None:
+    two = render_dataset(config_from_dict(tiny_doc()), tmp_path / "w2", workers=2, progress=False)
+    assert_same_dataset(reference, two)
+
+
+def test_existing_dataset_needs_resume(reference: Path) -> None:
+    with pytest.raises(ConfigError, match="--resume"):
+        render_dataset(config_from_dict(tiny_doc()), reference, workers=0, progress=False)
+    with pytest.raises(ConfigError, match="another config"):
+        render_dataset(config_from_dict(tiny_doc(seed=4)), reference, workers=0, resume=True, progress=False)
+
+
+def test_resume_after_sigkill(tmp_path: Path, egl_renderer_factory) -> None:
+    doc = tiny_doc(heights_m=[25.0, 40.0, 60.0],
+                   motion={"source": "fixed", "attitudes_deg": [[i, -i / 2, 3 * i] for i in range(10)]})
+    cfg_path = tmp_path / "cfg.yaml"
+    cfg_path.write_text(yaml.safe_dump(doc))
+    out = tmp_path / "killed"
+    proc = subprocess.Popen([sys.executable, "-m", "deckpose", "render", str(cfg_path), str(out), "--workers", "1",
+                             "--no-progress"], start_new_session=True, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 60
+    n_total = 3 * 2 * 10
+    while time.monotonic() < deadline:
+        parts = list((out / ".parts").glob("*.json")) if (out / ".parts").exists() else []
+        if len(parts) >= 5:
+            break
+        time.sleep(0.02)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    done = len(list((out / ".parts").glob("*.json")))
+    assert 5 <= done < n_total, "the run should have been killed midway"
+    assert not (out / "frames.parquet").exists()
+    for p in (out / "images").glob("[0-9]*.png"):  # every complete-named file is whole
+        assert cv2.imread(str(p)) is not None, p
+    for p in (out / ".parts").glob("[0-9]*.json"):
+        json.loads(p.read_text())
+    egl_renderer_factory(config_from_dict(doc))
+    render_dataset(config_from_dict(doc), out, workers=0, resume=True, progress=False)
+    assert not list(out.rglob(".*.tmp*"))
+    fresh = render_dataset(config_from_dict(doc), tmp_path / "fresh", workers=0, progress=False)
+    assert_same_dataset(out, fresh)
+
+
+def test_dask_local_cluster(reference: Path, tmp_path: Path) -> None:
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as lc:
+        ds = render_dataset(config_from_dict(tiny_doc()), tmp_path / "dask", scheduler=lc.scheduler_address,
+                            progress=False)
+    assert_same_dataset(reference, ds)
+
+
+def test_osmesa_backend_renders_the_same_scene(reference: Path, tmp_path: Path) -> None:
+    cfg = dataclasses.replace(config_from_dict(tiny_doc()), backend=Backend.OSMESA)
+    ds = render_dataset(cfg, tmp_path / "osmesa", workers=1, progress=False)
+    a, b = _images(reference), _images(ds)
+    assert a.keys() == b.keys()
+    for k in a:
+        ia = cv2.imdecode(np.frombuffer(a[k], np.uint8), cv2.IMREAD_UNCHANGED).astype(int)
+        ib = cv2.imdecode(np.frombuffer(b[k], np.uint8), cv2.IMREAD_UNCHANGED).astype(int)
+        assert np.abs(ia - ib).mean() < 0.5
+    pd.testing.assert_frame_equal(pd.read_parquet(reference / "beacons.parquet"),
+                                  pd.read_parquet(ds / "beacons.parquet"))
+
+
+def test_frame_with_every_beacon_out_of_view_is_still_written(tmp_path: Path, egl_renderer_factory) -> None:
+    doc = tiny_doc(heights_m=[30.0], lighting=["dusk"],
+                   motion={"source": "fixed", "attitudes_deg": [[0, 0, 0, 0.0, 400.0, 0.0]]})
+    egl_renderer_factory(config_from_dict(doc))
+    ds = render_dataset(config_from_dict(doc), tmp_path / "empty", workers=0, progress=False)
+    frames = pd.read_parquet(ds / "frames.parquet")
+    beacons = pd.read_parquet(ds / "beacons.parquet")
+    assert frames.n_visible.tolist() == [0]
+    assert not beacons.in_image.any() and not beacons.visible.any()
+    assert cv2.imread(str(ds / frames.image[0])) is not None
+
+
+def test_parent_process_never_creates_a_gl_context(tmp_path: Path) -> None:
+    """With workers >= 1 the parent does not even import OpenGL; workers make their own context."""
+    code = (
+        "import sys\n"
+        "from deckpose.render.config import config_from_dict\n"
+        "from deckpose.render.dataset import render_dataset\n"
+        f"doc = {tiny_doc(heights_m=[30.0], lighting=['night'])!r}\n"
+        f"render_dataset(config_from_dict(doc), {str(tmp_path / 'ds')!r}, workers=1, progress=False)\n"
+        "print('OpenGL' in sys.modules, 'pyrender' in sys.modules)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120)
+    assert out.stdout.split() == ["False", "False"]
+    assert len(list((tmp_path / "ds" / "images").glob("*.png"))) == 2
