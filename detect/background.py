@@ -1,0 +1,106 @@
+"""Per-frame background level, noise and saturation: the numbers every threshold adapts to.
+
+All statistics are robust (median, MAD) and computed on a strided subsample of
+the frame, so a few bright beacons do not move them and a 64 MP frame costs a
+few milliseconds. Colour frames are measured on the sum of their channels, the
+mono signal the detectors work on.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Noise floor, DN: integer images hold at least quantisation noise (1/sqrt(12) DN).
+MIN_NOISE_DN = 1.0 / math.sqrt(12.0)
+#: Scale from median absolute deviation to standard deviation for Gaussian noise.
+MAD_TO_SIGMA = 1.4826
+
+
+@dataclass(frozen=True)
+class FrameStats:
+    """Robust statistics of one frame (mono = sum of channels).
+
+    Attributes
+    ----------
+    background_dn : float
+        Median pixel value, DN.
+    noise_dn : float
+        Robust standard deviation of the background, DN.
+    saturation_dn : float
+        Value at which a single channel saturates (dtype maximum), DN.
+    saturated_fraction : float
+        Fraction of sampled pixels with a channel at ``saturation_dn``.
+    max_dn : float
+        Brightest sampled mono value, DN.
+    """
+
+    background_dn: float
+    noise_dn: float
+    saturation_dn: float
+    saturated_fraction: float
+    max_dn: float
+
+
+def saturation_level(image: np.ndarray) -> float:
+    """The dtype maximum of an integer image (inf for float images)."""
+    if np.issubdtype(image.dtype, np.integer):
+        return float(np.iinfo(image.dtype).max)
+    return math.inf
+
+
+def mono(pixels: np.ndarray) -> np.ndarray:
+    """Float64 mono signal of an (h, w) or (h, w, 3) block: the sum of its channels."""
+    a = np.asarray(pixels)
+    if a.ndim == 3:
+        return a.sum(axis=2, dtype=np.float64)
+    return a.astype(np.float64)
+
+
+def robust_stats(values: np.ndarray) -> tuple[float, float]:
+    """Median and MAD-based standard deviation (floored at :data:`MIN_NOISE_DN`)."""
+    v = np.asarray(values, dtype=np.float64).ravel()
+    med = float(np.median(v))
+    sigma = MAD_TO_SIGMA * float(np.median(np.abs(v - med)))
+    if sigma < MIN_NOISE_DN:
+        # Heavily quantised noise: the MAD can be 0; fall back to the standard deviation
+        # of the central 80 % of the distribution.
+        lo, hi = np.percentile(v, [10, 90])
+        core = v[(v >= lo) & (v <= hi)]
+        sigma = max(float(core.std()) if core.size else 0.0, MIN_NOISE_DN)
+    return med, sigma
+
+
+def frame_stats(image: np.ndarray, *, samples: int = 250_000) -> FrameStats:
+    """Background, noise and saturation of a frame from a strided subsample.
+
+    Parameters
+    ----------
+    image : (H, W) or (H, W, 3) array
+    samples : int
+        About how many pixels to sample.
+
+    Returns
+    -------
+    FrameStats
+    """
+    H, W = image.shape[:2]
+    step = max(1, int(math.sqrt(H * W / samples)))
+    sub = image[::step, ::step]
+    sat = saturation_level(image)
+    m = mono(sub)
+    saturated = (sub >= sat).any(axis=2) if sub.ndim == 3 else sub >= sat
+    bg, noise = robust_stats(m)
+    return FrameStats(bg, noise, sat, float(saturated.mean()), float(m.max()))
+
+
+def frame_problem(stats: FrameStats, *, max_saturated_fraction: float = 0.25) -> str:
+    """Why a frame cannot be measured at all ("" when it can)."""
+    if stats.saturated_fraction > max_saturated_fraction:
+        return (
+            f"saturated frame: {100 * stats.saturated_fraction:.0f}% of pixels at the maximum "
+            f"value {stats.saturation_dn:g} DN; reduce exposure or gain"
+        )
+    return ""
