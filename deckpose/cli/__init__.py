@@ -15,6 +15,8 @@ from deckpose.errors import DeckposeError
 
 #: Modules that register a subcommand, in the order ``--help`` lists them.
 SUBCOMMAND_MODULES: tuple[str, ...] = (
+    "deckpose.cli.detect_cmd",
+    "deckpose.cli.bench_detectors_cmd",
 )
 
 

@@ -1,0 +1,107 @@
+"""Batch detection over a :class:`~deckpose.detect.sources.FrameSet`, written to an output folder.
+
+The output folder holds what ``deckpose estimate`` needs and nothing else:
+``detections.parquet``, ``detect_frames.parquet``, ``cameras/<name>.yaml`` and
+``detect_run.json`` (format ``deckpose-detections/1``: detector, options,
+layout, source, package versions). A bad frame is a row with ``ok = False``
+and a reason; the batch goes on.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import platform
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from deckpose.atomic_io import atomic_open
+from deckpose.camera_info import write_camera_info
+from deckpose.detect.identify import IdentifyOptions
+from deckpose.detect.pipeline import FrameDetections, detect_frame
+from deckpose.detect.registry import DetectorOptions
+from deckpose.detect.sources import FrameSet, load_frame
+from deckpose.detect.tables import DETECTION_COLUMNS, detection_rows, write_tables
+from deckpose.layout import layout_to_dict
+
+RUN_FORMAT = "deckpose-detections/1"
+
+
+def detect_frames(
+    frameset: FrameSet,
+    detector: str,
+    *,
+    options: DetectorOptions = DetectorOptions(),
+    identify_options: IdentifyOptions = IdentifyOptions(),
+    progress: bool = False,
+) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Detect in every frame; returns ``(detections table, frames table)``."""
+    from tqdm import tqdm
+
+    det_parts, frame_rows = [], []
+    it = tqdm(frameset.sources, desc=f"detect {detector}", unit="frame", disable=not progress)
+    for src in it:
+        frame = load_frame(src, frameset.cameras[src.camera_name])
+        if isinstance(frame, str):
+            fd = FrameDetections.failed(src.frame_id, detector, frame)
+        else:
+            fd = detect_frame(frame, detector, frameset.layout, options=options,
+                              identify_options=identify_options)
+        det_parts.append(detection_rows(fd))
+        frame_rows.append({
+            "frame_id": src.frame_id, "ok": fd.ok, "reason": fd.reason,
+            "n_detections": len(fd.detections),
+            "seconds": fd.seconds,
+            "n_identified": int((fd.detections.beacon_ids >= 0).sum()),
+            "camera": src.camera_name, "stamp_ns": src.stamp_ns,
+            "image": os.path.relpath(src.image_path, frameset.root),
+        })
+    dets = pd.concat(det_parts, ignore_index=True) if det_parts else pd.DataFrame(columns=list(DETECTION_COLUMNS))
+    return dets, pd.DataFrame(frame_rows)
+
+
+def write_run(
+    out_dir: str | os.PathLike[str],
+    frameset: FrameSet,
+    detector: str,
+    detections: pd.DataFrame,
+    frames: pd.DataFrame,
+    options: DetectorOptions,
+    identify_options: IdentifyOptions,
+) -> Path:
+    """Write the tables, the cameras and ``detect_run.json`` into ``out_dir``."""
+    out = Path(out_dir)
+    write_tables(out, detections, frames)
+    for name, cam in frameset.cameras.items():
+        write_camera_info(cam, out / "cameras" / f"{name}.yaml")
+    meta: dict[str, Any] = {
+        "format": RUN_FORMAT,
+        "detector": detector,
+        "detector_options": dataclasses.asdict(options),
+        "identify_options": dataclasses.asdict(identify_options),
+        "layout": layout_to_dict(frameset.layout),
+        "source": str(frameset.root.resolve()),
+        "source_kind": frameset.kind,
+        "cameras": {name: f"cameras/{name}.yaml" for name in frameset.cameras},
+        "n_frames": int(len(frames)),
+        "n_frames_ok": int(frames["ok"].sum()) if len(frames) else 0,
+        "versions": _versions(),
+    }
+    with atomic_open(out / "detect_run.json", "w") as fh:
+        json.dump(meta, fh, indent=2)
+    return out
+
+
+def _versions() -> dict[str, str]:
+    import cv2
+    import numpy
+    import scipy
+    import skimage
+
+    from deckpose import __version__
+
+    return {"deckpose": __version__, "python": platform.python_version(), "numpy": numpy.__version__,
+            "scipy": scipy.__version__, "opencv": cv2.__version__, "scikit-image": skimage.__version__}
