@@ -73,7 +73,7 @@ def robust_stats(values: np.ndarray) -> tuple[float, float]:
     return med, sigma
 
 
-def frame_stats(image: np.ndarray, *, samples: int = 250_000) -> FrameStats:
+def frame_stats(image: np.ndarray, *, samples: int = 60_000) -> FrameStats:
     """Background, noise and saturation of a frame from a strided subsample.
 
     Parameters

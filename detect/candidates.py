@@ -138,7 +138,7 @@ def coarse_boxes(
     """
     f = coarse_factor(image.shape[:2], options.coarse_max_px)
     small = coarse_image(image, f)
-    step = max(1, int(math.sqrt(small.size / 250_000)))
+    step = max(1, int(math.sqrt(small.size / 60_000)))
     bg, noise = robust_stats(small[::step, ::step])
     mask = (small > bg + options.threshold_sigma * noise).astype(np.uint8)
     n, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)

@@ -38,36 +38,51 @@ def binary_centroid(cand: Candidate) -> Row:
     return base[:2] + (base[2] + np.eye(2) * quant,) + base[3:]
 
 
-def cog_centroid(cand: Candidate, window_sigma: float = 3.0, max_iter: int = 20) -> Row | None:
-    """Iterated, soft-windowed intensity centroid of one candidate (``None`` if degenerate)."""
-    s = cand.signal()
-    uu, vv = cand.grid()
-    ms = np.where(cand.mask, s, 0.0)
+def cog_centroid(cand: Candidate, window_sigma: float = 3.0, max_iter: int = 30,
+                 tol_px: float = 1e-4) -> Row | None:
+    """Iterated, soft-windowed intensity centroid of one candidate (``None`` if degenerate).
+
+    The window is a disc of radius ``window_sigma * sigma`` whose edge pixels are
+    weighted by their approximate coverage; ``sigma`` is re-estimated from the
+    windowed second moment (corrected for the truncation) at each iteration.
+    """
+    s_full = cand.signal()
+    h, w = s_full.shape
+    ms = np.where(cand.mask, s_full, 0.0)
     F = ms.sum()
     if not F > 0:
         return None
-    u, v = float((ms * uu).sum() / F), float((ms * vv).sum() / F)
+    vv0, uu0 = np.nonzero(cand.mask)
+    wts = ms[vv0, uu0]
+    u = float((wts * uu0).sum() / F) + cand.u0
+    v = float((wts * vv0).sum() / F) + cand.v0
     sigma = cand.mask_moments()[2]
-    sigma_max = 0.5 * min(s.shape) / window_sigma + 1.0
+    sigma_max = 0.5 * min(h, w) / window_sigma + 1.0
     m2_frac = truncated_m2_fraction(window_sigma)
-    w = ws = np.zeros_like(s)
-    for _ in range(max_iter):
+    for it in range(max_iter + 1):
         R = window_sigma * sigma
-        d = np.hypot(uu - u, vv - v)
-        w = np.clip(R + 0.5 - d, 0.0, 1.0)
-        ws = w * s
+        # Work on the square around the current window only.
+        c0 = max(0, int(np.floor(u - cand.u0 - R - 1)))
+        c1 = min(w, int(np.ceil(u - cand.u0 + R + 2)))
+        r0 = max(0, int(np.floor(v - cand.v0 - R - 1)))
+        r1 = min(h, int(np.ceil(v - cand.v0 + R + 2)))
+        s = s_full[r0:r1, c0:c1]
+        du = (np.arange(c0, c1, dtype=float) + cand.u0 - u)[None, :]
+        dv = (np.arange(r0, r1, dtype=float) + cand.v0 - v)[:, None]
+        win = np.clip(R + 0.5 - np.sqrt(du * du + dv * dv), 0.0, 1.0)
+        ws = win * s
         F = ws.sum()
         if not F > 0:
             return None
-        un, vn = float((ws * uu).sum() / F), float((ws * vv).sum() / F)
-        m2 = float((ws * ((uu - un) ** 2 + (vv - vn) ** 2)).sum() / F) / 2.0
-        sigma = float(np.clip(math.sqrt(max(m2, 0.0) / m2_frac), 0.5, sigma_max))
-        shift = math.hypot(un - u, vn - v)
-        u, v = un, vn
-        if shift < 1e-5:
+        su, sv = float((ws * du).sum() / F), float((ws * dv).sum() / F)
+        if it == max_iter or math.hypot(su, sv) < tol_px:
             break
-    var = cand.variance(s) * w**2
-    du, dv = uu - u, vv - v
+        m2 = float((ws * (du * du + dv * dv)).sum() / F) / 2.0 - (su * su + sv * sv) / 2.0
+        sigma = float(np.clip(math.sqrt(max(m2, 0.0) / m2_frac), 0.5, sigma_max))
+        u, v = u + su, v + sv
+    u, v = u + su, v + sv
+    du, dv = du - su, dv - sv
+    var = cand.variance(s) * win**2
     cov = np.array([[(var * du * du).sum(), (var * du * dv).sum()],
                     [(var * du * dv).sum(), (var * dv * dv).sum()]]) / F**2
     return cand.blob(u, v, flux_dn=float(F), size_px=sigma, cov_px2=cov)

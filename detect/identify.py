@@ -56,7 +56,8 @@ class IdentifyOptions:
     min_red_margin : float
         The bow's red share must exceed the median of the other ring blobs by this.
     max_ransac : int
-        RANSAC samples; fewer 5-subsets than this are tried exhaustively.
+        Most RANSAC samples (adaptive stopping usually needs far fewer; up to 100
+        5-subsets are tried exhaustively).
     seed : int
         Seed of the RANSAC sampler (identification is deterministic per frame).
     """
@@ -121,11 +122,14 @@ def ransac_ellipse(points: FloatArray, opts: IdentifyOptions, max_inliers: int) 
     n = points.shape[0]
     best = np.zeros(n, bool)
     best_cost = math.inf
-    if math.comb(n, 5) <= opts.max_ransac:
+    exhaustive = math.comb(n, 5) <= 100
+    if exhaustive:
         samples: object = itertools.combinations(range(n), 5)
     else:
         rng = np.random.default_rng(opts.seed)
         samples = (rng.choice(n, 5, replace=False) for _ in range(opts.max_ransac))
+    needed = opts.max_ransac
+    tried = 0
     for s in samples:  # type: ignore[attr-defined]
         c = cn.fit_conic(points[list(s)])
         inl, d, tol = _ellipse_inliers(c, points, opts)
@@ -143,6 +147,12 @@ def ransac_ellipse(points: FloatArray, opts: IdentifyOptions, max_inliers: int) 
         cost = -k + float(np.sum(np.minimum(d, tol))) / (tol * (n + 1))
         if cost < best_cost:
             best, best_cost = inl, cost
+            # Adaptive stopping: samples needed to draw one all-inlier 5-set with 99.9 %.
+            w5 = (k / n) ** 5
+            needed = int(math.ceil(math.log(1e-3) / math.log1p(-w5))) if w5 < 1 else 1
+        tried += 1
+        if not exhaustive and tried >= max(needed, 20):
+            break
     return best
 
 

@@ -28,14 +28,14 @@ def log_boxes(
     """Full-resolution boxes around LoG blobs of the coarse frame."""
     f = coarse_factor(image.shape[:2], min(options.coarse_max_px, LOG_MAX_PX))
     small = coarse_image(image, f)
-    step = max(1, int(math.sqrt(small.size / 250_000)))
+    step = max(1, int(math.sqrt(small.size / 60_000)))
     bg, noise = robust_stats(small[::step, ::step])
     sig = np.clip((small - bg) / noise, 0.0, None).astype(np.float32)
-    # The scale-normalised LoG of white noise of unit variance has a standard
-    # deviation of about 0.28 (at sigma = 1, falling with scale): threshold_sigma
-    # noise sigmas of the image is a generous margin over it.
-    found = blob_log(sig, min_sigma=0.7, max_sigma=max(2.0, min(sig.shape) / 20.0), num_sigma=8,
-                     threshold=0.3 * options.threshold_sigma, overlap=0.5)
+    # The scale-normalised LoG of unit-variance white noise has a standard deviation
+    # of 0.40 at sigma = 1 (0.20 at 2, 0.10 at 4): the threshold is threshold_sigma
+    # times that at the smallest scale searched.
+    found = blob_log(sig, min_sigma=1.0, max_sigma=max(2.0, min(sig.shape) / 20.0), num_sigma=8,
+                     threshold=0.40 * options.threshold_sigma, overlap=0.5)
     if len(found) > options.max_blobs:
         return [], f"{len(found)} LoG blobs exceed max_blobs={options.max_blobs}"
     H, W = image.shape[:2]

@@ -1,0 +1,118 @@
+"""Detector benchmarks that print their figures.
+
+1. Speed: ``cog`` (and the others) on one 8 MP and one 64 MP synthetic mono
+   frame with the 13 beacons of the standard layout, image already decoded,
+   OpenCV restricted to one thread; median of ``--repeat`` runs.
+2. Accuracy: Monte Carlo centroid error of every detector on analytic spots
+   (:mod:`deckpose.detect.synthetic`) against the centroid Cramér–Rao bound,
+   over spot sizes and fluxes.
+3. Optionally (``--dataset DIR``) the full ``bench-detectors`` report on a dataset.
+
+Usage::
+
+    .venv/bin/python benchmarks/bench_detectors.py [--repeat 5] [--trials 200]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+from deckpose.camera import preset  # noqa: E402
+from deckpose.detect import registry  # noqa: E402
+from deckpose.detect.crb import centroid_crb_px2  # noqa: E402
+from deckpose.detect.registry import DetectorOptions  # noqa: E402
+from deckpose.detect.synthetic import SensorModel, render_spots  # noqa: E402
+from deckpose.layout import DeckLayout  # noqa: E402
+from deckpose.pose import CameraPose, ShipPose  # noqa: E402
+from deckpose.projection import project_layout  # noqa: E402
+from deckpose.records import Frame  # noqa: E402
+
+
+def speed(repeat: int, detectors: list[str]) -> None:
+    sensor = SensorModel(gain_dn_per_e=1.0, read_noise_e=3.0, background_e=20.0, bit_depth=16)
+    rng = np.random.default_rng(0)
+    for cam_name, height in (("8mp", 30.0), ("64mp", 60.0)):
+        cam = preset(cam_name)
+        pr = project_layout(DeckLayout(), ShipPose(0.03, -0.02, 0.4), CameraPose.nadir(height), cam)
+        sigma = np.sqrt(pr.apparent_radius_px**2 / 4 + 0.7**2)
+        flux = 3000.0 * np.pi * pr.apparent_radius_px**2
+        img = render_spots((cam.height_px, cam.width_px), pr.points_px, sigma, flux, sensor, rng)
+        frame = Frame(img, cam)
+        print(f"\n{cam_name} frame {cam.width_px}x{cam.height_px} uint16 mono, 13 spots of radius "
+              f"{pr.apparent_radius_px.mean():.1f} px; one OpenCV thread; median of {repeat}")
+        for name in detectors:
+            fn = registry.get(name)
+            times = []
+            for _ in range(repeat):
+                t0 = time.perf_counter()
+                blobs = fn(frame, DetectorOptions())
+                times.append(time.perf_counter() - t0)
+            print(f"  {name:12s} {1000 * np.median(times):8.1f} ms/frame  ({len(blobs)} blobs)")
+        del img, frame
+
+
+def accuracy(trials: int, detectors: list[str]) -> None:
+    sensor = SensorModel(gain_dn_per_e=1.0, read_noise_e=3.0, background_e=20.0, bit_depth=16)
+    cam = preset("8mp").with_size(480, 320)
+    rng = np.random.default_rng(1)
+    print(f"\naccuracy on analytic spots: {trials} frames x 6 spots per case; sensor {sensor}")
+    print("per-axis RMS error / CRB (and RMS in px); 'FWHM' = 2.355 sigma")
+    print(f"{'sigma px':>8} {'FWHM px':>8} {'flux e':>9} {'CRB px':>8} " + " ".join(f"{d:>16}" for d in detectors))
+    for sigma, flux in ((0.85, 5e3), (0.85, 5e4), (1.5, 2e4), (1.5, 2e5), (3.0, 5e4), (3.0, 5e5), (0.5, 2e4)):
+        errs = {d: [] for d in detectors}
+        crb = []
+        for _ in range(trials):
+            pts = np.array([[60 + 160 * i, 80 + 160 * j] for i in range(3) for j in range(2)], float)
+            pts += rng.uniform(-0.5, 0.5, pts.shape)
+            img = render_spots((320, 480), pts, sigma, flux, sensor, rng)
+            fr = Frame(img, cam)
+            crb += [np.trace(centroid_crb_px2(u, v, sigma, flux, sensor)) / 2 for u, v in pts]
+            for d in detectors:
+                b = registry.get(d)(fr, DetectorOptions())
+                if len(b) == 0:
+                    continue
+                dist = np.linalg.norm(b.points_px[None] - pts[:, None], axis=2)
+                ok = dist.min(1) < 3
+                errs[d].append((b.points_px[dist.argmin(1)] - pts)[ok])
+        c = float(np.sqrt(np.mean(crb)))
+        cells = []
+        for d in detectors:
+            e = np.concatenate(errs[d]) if errs[d] else np.zeros((0, 2))
+            rms = float(np.sqrt(np.mean(e**2))) if len(e) else float("nan")
+            cells.append(f"{rms / c:6.2f} ({rms:.4f})")
+        print(f"{sigma:8.2f} {2.355 * sigma:8.2f} {flux:9.0f} {c:8.4f} " + " ".join(f"{x:>16}" for x in cells))
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--trials", type=int, default=100)
+    ap.add_argument("--detectors", default=",".join(registry.names()))
+    ap.add_argument("--skip-speed", action="store_true")
+    ap.add_argument("--skip-accuracy", action="store_true")
+    ap.add_argument("--dataset", help="also run the bench-detectors report on this dataset")
+    ap.add_argument("--out", help="report folder for --dataset")
+    args = ap.parse_args()
+    cv2.setNumThreads(1)
+    dets = args.detectors.split(",")
+    if not args.skip_speed:
+        speed(args.repeat, dets)
+    if not args.skip_accuracy:
+        accuracy(args.trials, dets)
+    if args.dataset:
+        from deckpose.cli import main as cli
+
+        cli(["bench-detectors", args.dataset, "--detectors", ",".join(dets), "--no-progress"]
+            + (["--out", args.out] if args.out else []))
+
+
+if __name__ == "__main__":
+    main()
