@@ -182,6 +182,11 @@ def register(name: str) -> Callable[[DetectorFn], DetectorFn]:
     return deco
 
 
+def unregister(name: str) -> None:
+    """Remove detector ``name`` (for tests and interactive sessions)."""
+    _REGISTRY.pop(name, None)
+
+
 def _load_builtins() -> None:
     global _loaded
     if _loaded:
