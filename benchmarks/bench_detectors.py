@@ -6,7 +6,8 @@
 2. Accuracy: Monte Carlo centroid error of every detector on analytic spots
    (:mod:`deckpose.detect.synthetic`) against the centroid Cramér–Rao bound,
    over spot sizes and fluxes.
-3. Optionally (``--dataset DIR``) the full ``bench-detectors`` report on a dataset.
+3. Optionally (``--dataset DIR``) the full ``bench-detectors`` report on a dataset;
+   ``--make-dataset CONFIG DIR`` writes the synthetic dataset of a config first.
 
 Usage::
 
@@ -46,8 +47,10 @@ def speed(repeat: int, detectors: list[str]) -> None:
         flux = 3000.0 * np.pi * pr.apparent_radius_px**2
         img = render_spots((cam.height_px, cam.width_px), pr.points_px, sigma, flux, sensor, rng)
         frame = Frame(img, cam)
-        print(f"\n{cam_name} frame {cam.width_px}x{cam.height_px} uint16 mono, 13 spots of radius "
-              f"{pr.apparent_radius_px.mean():.1f} px; one OpenCV thread; median of {repeat}")
+        print(
+            f"\n{cam_name} frame {cam.width_px}x{cam.height_px} uint16 mono, 13 spots of radius "
+            f"{pr.apparent_radius_px.mean():.1f} px; one OpenCV thread; median of {repeat}"
+        )
         for name in detectors:
             fn = registry.get(name)
             times = []
@@ -65,12 +68,25 @@ def accuracy(trials: int, detectors: list[str]) -> None:
     rng = np.random.default_rng(1)
     print(f"\naccuracy on analytic spots: {trials} frames x 6 spots per case; sensor {sensor}")
     print("per-axis RMS error / CRB (and RMS in px); 'FWHM' = 2.355 sigma")
-    print(f"{'sigma px':>8} {'FWHM px':>8} {'flux e':>9} {'CRB px':>8} " + " ".join(f"{d:>16}" for d in detectors))
-    for sigma, flux in ((0.85, 5e3), (0.85, 5e4), (1.5, 2e4), (1.5, 2e5), (3.0, 5e4), (3.0, 5e5), (0.5, 2e4)):
+    print(
+        f"{'sigma px':>8} {'FWHM px':>8} {'flux e':>9} {'CRB px':>8} "
+        + " ".join(f"{d:>16}" for d in detectors)
+    )
+    for sigma, flux in (
+        (0.85, 5e3),
+        (0.85, 5e4),
+        (1.5, 2e4),
+        (1.5, 2e5),
+        (3.0, 5e4),
+        (3.0, 5e5),
+        (0.5, 2e4),
+    ):
         errs = {d: [] for d in detectors}
         crb = []
         for _ in range(trials):
-            pts = np.array([[60 + 160 * i, 80 + 160 * j] for i in range(3) for j in range(2)], float)
+            pts = np.array(
+                [[60 + 160 * i, 80 + 160 * j] for i in range(3) for j in range(2)], float
+            )
             pts += rng.uniform(-0.5, 0.5, pts.shape)
             img = render_spots((320, 480), pts, sigma, flux, sensor, rng)
             fr = Frame(img, cam)
@@ -88,11 +104,16 @@ def accuracy(trials: int, detectors: list[str]) -> None:
             e = np.concatenate(errs[d]) if errs[d] else np.zeros((0, 2))
             rms = float(np.sqrt(np.mean(e**2))) if len(e) else float("nan")
             cells.append(f"{rms / c:6.2f} ({rms:.4f})")
-        print(f"{sigma:8.2f} {2.355 * sigma:8.2f} {flux:9.0f} {c:8.4f} " + " ".join(f"{x:>16}" for x in cells))
+        print(
+            f"{sigma:8.2f} {2.355 * sigma:8.2f} {flux:9.0f} {c:8.4f} "
+            + " ".join(f"{x:>16}" for x in cells)
+        )
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     ap.add_argument("--repeat", type=int, default=5)
     ap.add_argument("--trials", type=int, default=100)
     ap.add_argument("--detectors", default=",".join(registry.names()))
@@ -100,7 +121,21 @@ def main() -> None:
     ap.add_argument("--skip-accuracy", action="store_true")
     ap.add_argument("--dataset", help="also run the bench-detectors report on this dataset")
     ap.add_argument("--out", help="report folder for --dataset")
+    ap.add_argument("--note", default="", help="line of text for the top of the --dataset report")
+    ap.add_argument(
+        "--make-dataset",
+        nargs=2,
+        metavar=("CONFIG", "DIR"),
+        help="write the synthetic dataset of CONFIG (YAML) to DIR and exit",
+    )
     args = ap.parse_args()
+    if args.make_dataset:
+        from deckpose.detect.synthetic_dataset import read_config, write_synthetic_dataset
+
+        t0 = time.perf_counter()
+        out = write_synthetic_dataset(read_config(args.make_dataset[0]), args.make_dataset[1])
+        print(f"wrote {out} in {time.perf_counter() - t0:.0f} s")
+        return
     cv2.setNumThreads(1)
     dets = args.detectors.split(",")
     if not args.skip_speed:
@@ -110,8 +145,18 @@ def main() -> None:
     if args.dataset:
         from deckpose.cli import main as cli
 
-        cli(["bench-detectors", args.dataset, "--detectors", ",".join(dets), "--no-progress"]
-            + (["--out", args.out] if args.out else []))
+        cli(
+            [
+                "bench-detectors",
+                args.dataset,
+                "--detectors",
+                ",".join(dets),
+                "--no-progress",
+                "--note",
+                args.note,
+            ]
+            + (["--out", args.out] if args.out else [])
+        )
 
 
 if __name__ == "__main__":

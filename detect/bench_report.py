@@ -30,7 +30,9 @@ def dataset_sensor(frameset: FrameSet) -> SensorModel | None:
     doc = frameset.manifest.get("sensor")
     if not isinstance(doc, dict):
         return None
-    return summed_channels_sensor(SensorModel(**doc), int(frameset.manifest.get("sensor_channels", 1)))
+    return summed_channels_sensor(
+        SensorModel(**doc), int(frameset.manifest.get("sensor_channels", 1))
+    )
 
 
 def run_benchmark(
@@ -49,12 +51,18 @@ def run_benchmark(
     summaries, matches = [], []
     crb_cache: pd.Series | None = None
     for name in detectors:
-        dets, fout = detect_frames(fs, name, options=options, identify_options=IdentifyOptions(),
-                                   progress=progress)
+        dets, fout = detect_frames(
+            fs, name, options=options, identify_options=IdentifyOptions(), progress=progress
+        )
         m = match_run(dets, fout, beacons, frames)
         if crb_cache is None:
-            crb_cache = pd.Series(crb_per_beacon(m, sensor), index=pd.MultiIndex.from_frame(m[["frame_id", "beacon_id"]]))
-        m["crb_var_px2"] = crb_cache.reindex(pd.MultiIndex.from_frame(m[["frame_id", "beacon_id"]])).to_numpy()
+            crb_cache = pd.Series(
+                crb_per_beacon(m, sensor),
+                index=pd.MultiIndex.from_frame(m[["frame_id", "beacon_id"]]),
+            )
+        m["crb_var_px2"] = crb_cache.reindex(
+            pd.MultiIndex.from_frame(m[["frame_id", "beacon_id"]])
+        ).to_numpy()
         m["detector"] = name
         summaries.append(summarise(name, m, dets, fout, frames))
         matches.append(m)
@@ -67,14 +75,17 @@ def _fmt(x: float, nd: int = 3) -> str:
 
 def markdown_table(summary: pd.DataFrame) -> str:
     """The summary as a Markdown table."""
-    head = ("| detector | camera | height m | radius px | RMS px | CRB px | RMS/CRB | bias px | p95 px "
-            "| recall | precision | id acc. | ms/frame |")
+    head = (
+        "| detector | camera | height m | radius px | RMS px | CRB px | RMS/CRB | bias px | p95 px "
+        "| recall | precision | id acc. | ms/frame |"
+    )
     lines = [head, "|" + "|".join(["---"] * 13) + "|"]
     for r in summary.sort_values(["camera", "height_m", "detector"]).itertuples():
         lines.append(
-            f"| {r.detector} | {r.camera} | {r.height_m:g} | {r.radius_px:.2f} | {_fmt(r.rms_px, 4)} | "
-            f"{_fmt(r.crb_px, 4)} | {_fmt(r.rms_over_crb, 2)} | {_fmt(r.bias_px, 4)} | {_fmt(r.p95_px, 4)} | "
-            f"{_fmt(r.recall, 3)} | {_fmt(r.precision, 3)} | {_fmt(r.id_accuracy, 3)} | {_fmt(r.ms_per_frame, 1)} |"
+            f"| {r.detector} | {r.camera} | {r.height_m:g} | {r.radius_px:.2f} | "
+            f"{_fmt(r.rms_px, 4)} | {_fmt(r.crb_px, 4)} | {_fmt(r.rms_over_crb, 2)} | "
+            f"{_fmt(r.bias_px, 4)} | {_fmt(r.p95_px, 4)} | {_fmt(r.recall, 3)} | "
+            f"{_fmt(r.precision, 3)} | {_fmt(r.id_accuracy, 3)} | {_fmt(r.ms_per_frame, 1)} |"
         )
     return "\n".join(lines)
 
@@ -128,8 +139,16 @@ def plot_error_vs_size(matches: pd.DataFrame, path: Path) -> None:
     if np.isfinite(m["crb_var_px2"]).any():
         g = m.drop_duplicates(["frame_id", "beacon_id"])
         idx = np.clip(np.digitize(g["apparent_radius_px"], edges) - 1, 0, len(edges) - 2)
-        xs = [g[idx == b]["apparent_radius_px"].mean() for b in range(len(edges) - 1) if (idx == b).any()]
-        ys = [np.sqrt(g[idx == b]["crb_var_px2"].mean()) for b in range(len(edges) - 1) if (idx == b).any()]
+        xs = [
+            g[idx == b]["apparent_radius_px"].mean()
+            for b in range(len(edges) - 1)
+            if (idx == b).any()
+        ]
+        ys = [
+            np.sqrt(g[idx == b]["crb_var_px2"].mean())
+            for b in range(len(edges) - 1)
+            if (idx == b).any()
+        ]
         ax.plot(xs, ys, "k--", label="CRB")
     ax.set_xscale("log")
     ax.set_yscale("log")
@@ -172,10 +191,11 @@ def write_report(
         "",
         markdown_table(summary),
         "",
-        "RMS = per-axis RMS centroid error against the exact projected beacon centre; CRB = per-axis RMS "
-        "of the centroid Cramér–Rao bound (unknown centre, width, flux and background; Poisson + read + "
-        "quantisation noise), '—' where the dataset does not declare its spot model and sensor; "
-        "bias = length of the mean error vector; p95 = 95th percentile of the radial error; recall and "
+        "RMS = per-axis RMS centroid error against the exact projected beacon centre; "
+        "CRB = per-axis RMS of the centroid Cramér–Rao bound (unknown centre, width, flux and "
+        "background; Poisson + read + quantisation noise), '—' where the dataset does not "
+        "declare its spot model and sensor; bias = length of the mean error vector; "
+        "p95 = 95th percentile of the radial error; recall and "
         "precision from one-to-one matching within max(3 px, 2 apparent radii); id acc. = matched "
         "detections with the right beacon id; ms/frame = median detection + identification time "
         "(decoded image, this machine).",

@@ -24,20 +24,12 @@ A detection matches the nearest visible beacon within
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 
 import numpy as np
 import pandas as pd
 
 from deckpose.detect.crb import centroid_crb_px2
 from deckpose.detect.synthetic import SensorModel
-
-
-@dataclass(frozen=True)
-class MatchResult:
-    """Per-beacon rows of the matching of one detector's output against truth."""
-
-    beacons: pd.DataFrame
 
 
 def match_frame(det: pd.DataFrame, gt: pd.DataFrame) -> pd.DataFrame:
@@ -67,9 +59,13 @@ def match_frame(det: pd.DataFrame, gt: pd.DataFrame) -> pd.DataFrame:
     G = gt[["u_px", "v_px"]].to_numpy(float)
     gate = np.maximum(3.0, 2.0 * np.nan_to_num(gt["apparent_radius_px"].to_numpy(float), nan=1.0))
     d = np.linalg.norm(G[:, None, :] - P[None], axis=2)
-    pairs = sorted((d[i, j], i, j) for i in range(len(G)) for j in range(len(P)) if d[i, j] < gate[i])
+    pairs = sorted(
+        (d[i, j], i, j) for i in range(len(G)) for j in range(len(P)) if d[i, j] < gate[i]
+    )
     used_g, used_d = set(), set()
-    cols = {c: out.columns.get_loc(c) for c in ("matched", "du_px", "dv_px", "det_beacon_id", "size_px")}
+    cols = {
+        c: out.columns.get_loc(c) for c in ("matched", "du_px", "dv_px", "det_beacon_id", "size_px")
+    }
     for _, i, j in pairs:
         if i in used_g or j in used_d:
             continue
@@ -90,7 +86,14 @@ def crb_per_beacon(beacons: pd.DataFrame, sensor: SensorModel | None) -> np.ndar
         return out
     for k, r in enumerate(beacons.itertuples(index=False)):
         if r.spot_flux_e > 0 and r.spot_sigma_px > 0:
-            out[k] = float(np.trace(centroid_crb_px2(r.u_px, r.v_px, r.spot_sigma_px, r.spot_flux_e, sensor))) / 2
+            out[k] = (
+                float(
+                    np.trace(
+                        centroid_crb_px2(r.u_px, r.v_px, r.spot_sigma_px, r.spot_flux_e, sensor)
+                    )
+                )
+                / 2
+            )
     return out
 
 
@@ -132,17 +135,26 @@ def summarise(
         crb = m["crb_var_px2"].to_numpy(float) if "crb_var_px2" in m else np.full(len(m), np.nan)
         rms = math.sqrt(np.mean((du**2 + dv**2) / 2)) if len(m) else math.nan
         crb_rms = math.sqrt(np.mean(crb)) if len(m) and np.all(np.isfinite(crb)) else math.nan
-        rows.append({
-            "detector": detector, "camera": cam, "height_m": float(h), "frames": len(fids),
-            "beacons": len(g), "radius_px": float(g["apparent_radius_px"].mean()),
-            "rms_px": rms,
-            "bias_px": float(math.hypot(du.mean(), dv.mean())) if len(m) else math.nan,
-            "p95_px": float(np.percentile(np.hypot(du, dv), 95)) if len(m) else math.nan,
-            "crb_px": crb_rms, "rms_over_crb": rms / crb_rms if crb_rms > 0 else math.nan,
-            "recall": len(m) / len(g) if len(g) else math.nan,
-            "precision": len(m) / n_det if n_det else math.nan,
-            "id_accuracy": float((m["det_beacon_id"] == m["beacon_id"]).mean()) if len(m) else math.nan,
-            "frames_ok": int(f["ok"].sum()),
-            "ms_per_frame": 1000.0 * float(f["seconds"].median()) if len(f) else math.nan,
-        })
+        rows.append(
+            {
+                "detector": detector,
+                "camera": cam,
+                "height_m": float(h),
+                "frames": len(fids),
+                "beacons": len(g),
+                "radius_px": float(g["apparent_radius_px"].mean()),
+                "rms_px": rms,
+                "bias_px": float(math.hypot(du.mean(), dv.mean())) if len(m) else math.nan,
+                "p95_px": float(np.percentile(np.hypot(du, dv), 95)) if len(m) else math.nan,
+                "crb_px": crb_rms,
+                "rms_over_crb": rms / crb_rms if crb_rms > 0 else math.nan,
+                "recall": len(m) / len(g) if len(g) else math.nan,
+                "precision": len(m) / n_det if n_det else math.nan,
+                "id_accuracy": float((m["det_beacon_id"] == m["beacon_id"]).mean())
+                if len(m)
+                else math.nan,
+                "frames_ok": int(f["ok"].sum()),
+                "ms_per_frame": 1000.0 * float(f["seconds"].median()) if len(f) else math.nan,
+            }
+        )
     return pd.DataFrame(rows)

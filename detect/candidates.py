@@ -151,12 +151,20 @@ def coarse_boxes(
     pad = f + 2
     boxes = []
     for x, y, w, h, _area in stats[1:]:
-        boxes.append((max(0, x * f - pad), max(0, y * f - pad),
-                      min(W, (x + w) * f + pad), min(H, (y + h) * f + pad)))
+        boxes.append(
+            (
+                max(0, x * f - pad),
+                max(0, y * f - pad),
+                min(W, (x + w) * f + pad),
+                min(H, (y + h) * f + pad),
+            )
+        )
     return boxes, ""
 
 
-def _window(image: np.ndarray, box: tuple[int, int, int, int], sat: float) -> tuple[np.ndarray, np.ndarray]:
+def _window(
+    image: np.ndarray, box: tuple[int, int, int, int], sat: float
+) -> tuple[np.ndarray, np.ndarray]:
     u0, v0, u1, v1 = box
     block = image[v0:v1, u0:u1]
     saturated = (block >= sat).any(axis=2) if block.ndim == 3 else block >= sat
@@ -164,7 +172,9 @@ def _window(image: np.ndarray, box: tuple[int, int, int, int], sat: float) -> tu
 
 
 def _border_median(pixels: np.ndarray) -> float:
-    return float(np.median(np.concatenate([pixels[0], pixels[-1], pixels[1:-1, 0], pixels[1:-1, -1]])))
+    return float(
+        np.median(np.concatenate([pixels[0], pixels[-1], pixels[1:-1, 0], pixels[1:-1, -1]]))
+    )
 
 
 BoxesFn = Callable[[np.ndarray, DetectorOptions], "tuple[list[tuple[int, int, int, int]], str]"]
@@ -205,7 +215,9 @@ def find_candidates(
             if area < options.min_area_px:
                 continue
             comp = labels[y : y + h, x : x + w] == lab
-            peak = np.unravel_index(np.argmax(np.where(comp, pix[y : y + h, x : x + w], -np.inf)), comp.shape)
+            peak = np.unravel_index(
+                np.argmax(np.where(comp, pix[y : y + h, x : x + w], -np.inf)), comp.shape
+            )
             key = (box[1] + y + int(peak[0]), box[0] + x + int(peak[1]))
             if key in seen:  # the same blob reached from two overlapping coarse boxes
                 continue
@@ -213,7 +225,12 @@ def find_candidates(
             r_eq = math.sqrt(area / math.pi)
             pad = int(math.ceil(options.window_sigma * max(r_eq, 1.0))) + 3
             gu0, gv0 = box[0] + x, box[1] + y
-            wb = (max(0, gu0 - pad), max(0, gv0 - pad), min(W, gu0 + w + pad), min(H, gv0 + h + pad))
+            wb = (
+                max(0, gu0 - pad),
+                max(0, gv0 - pad),
+                min(W, gu0 + w + pad),
+                min(H, gv0 + h + pad),
+            )
             wpix, wsat = _window(image, wb, st.saturation_dn)
             mask = np.zeros(wpix.shape, bool)
             mask[gv0 - wb[1] : gv0 - wb[1] + h, gu0 - wb[0] : gu0 - wb[0] + w] = comp
@@ -223,8 +240,10 @@ def find_candidates(
             f"dark frame: no blob above {thr:.1f} DN (background {st.background_dn:.1f} DN, "
             f"noise {st.noise_dn:.2f} DN, brightest sample {st.max_dn:.0f} DN)"
         )
-    cands = [Candidate(p, m, s, u0, v0, bg, st.noise_dn, options.gain_dn_per_e or 1.0, thr)
-             for p, m, s, u0, v0, bg in raw]
+    cands = [
+        Candidate(p, m, s, u0, v0, bg, st.noise_dn, options.gain_dn_per_e or 1.0, thr)
+        for p, m, s, u0, v0, bg in raw
+    ]
     if options.gain_dn_per_e is None:
         from deckpose.detect.gain import estimate_gain  # gain uses cog, which uses this module
 

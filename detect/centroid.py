@@ -38,8 +38,9 @@ def binary_centroid(cand: Candidate) -> Row:
     return base[:2] + (base[2] + np.eye(2) * quant,) + base[3:]
 
 
-def cog_centroid(cand: Candidate, window_sigma: float = 3.0, max_iter: int = 30,
-                 tol_px: float = 1e-4) -> Row | None:
+def cog_centroid(
+    cand: Candidate, window_sigma: float = 3.0, max_iter: int = 30, tol_px: float = 1e-4
+) -> Row | None:
     """Iterated, soft-windowed intensity centroid of one candidate (``None`` if degenerate).
 
     The window is a disc of radius ``window_sigma * sigma`` whose edge pixels are
@@ -83,8 +84,15 @@ def cog_centroid(cand: Candidate, window_sigma: float = 3.0, max_iter: int = 30,
     u, v = u + su, v + sv
     du, dv = du - su, dv - sv
     var = cand.variance(s) * win**2
-    cov = np.array([[(var * du * du).sum(), (var * du * dv).sum()],
-                    [(var * du * dv).sum(), (var * dv * dv).sum()]]) / F**2
+    cov = (
+        np.array(
+            [
+                [(var * du * du).sum(), (var * du * dv).sum()],
+                [(var * du * dv).sum(), (var * dv * dv).sum()],
+            ]
+        )
+        / F**2
+    )
     return cand.blob(u, v, flux_dn=float(F), size_px=sigma, cov_px2=cov)
 
 

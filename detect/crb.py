@@ -28,8 +28,10 @@ FloatArray = NDArray[np.float64]
 _INV_SQRT_2PI = 1.0 / math.sqrt(2.0 * math.pi)
 
 
-def gaussian_pixel_terms(centre: float, sigma: float, x: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
-    """Pixel fractions ``E``, ``dE/dcentre`` and ``dE/dsigma`` of a 1-D Gaussian over unit pixels ``x``, each (M,)."""
+def gaussian_pixel_terms(
+    centre: float, sigma: float, x: FloatArray
+) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """``E``, ``dE/dcentre``, ``dE/dsigma`` of a 1-D Gaussian over unit pixels ``x``, each (M,)."""
     a_hi = (x + 0.5 - centre) / sigma
     a_lo = (x - 0.5 - centre) / sigma
     E = 0.5 * (erf(a_hi / math.sqrt(2.0)) - erf(a_lo / math.sqrt(2.0)))

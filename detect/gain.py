@@ -32,8 +32,10 @@ def estimate_gain(cands: list[Candidate], window_sigma: float = 3.0) -> float:
         # The moments of a pixel-integrated Gaussian include the pixel's own 1/12 px^2.
         sigma = float(np.sqrt(max(sigma_mom**2 - 1.0 / 12.0, 0.04)))
         h, w = c.pixels.shape
-        model = flux * np.outer(pixel_fractions(v, sigma, np.arange(h) + c.v0),
-                                pixel_fractions(u, sigma, np.arange(w) + c.u0))
+        model = flux * np.outer(
+            pixel_fractions(v, sigma, np.arange(h) + c.v0),
+            pixel_fractions(u, sigma, np.arange(w) + c.u0),
+        )
         uu, vv = c.grid()
         core = (np.hypot(uu - u, vv - v) <= 2.0 * sigma) & ~c.saturated
         r2 = (c.signal() - model)[core] ** 2

@@ -24,7 +24,9 @@ from deckpose.detect.registry import Blobs, DetectorOptions, register
 from deckpose.records import Frame
 
 
-def _model_and_jac(p: np.ndarray, xs: np.ndarray, ys: np.ndarray, sel: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _model_and_jac(
+    p: np.ndarray, xs: np.ndarray, ys: np.ndarray, sel: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     u, v, su, sv, F, b = p
     Ex, dEx, sEx = gaussian_pixel_terms(u, su, xs)
     Ey, dEy, sEy = gaussian_pixel_terms(v, sv, ys)

@@ -71,10 +71,16 @@ class IdentifyOptions:
     seed: int = 0
 
     def __post_init__(self) -> None:
-        if not (self.inlier_tol_px > 0 and self.inlier_tol_frac >= 0 and 0 < self.assign_tol_frac < 0.5):
-            raise ConfigError("inlier_tol_px > 0, inlier_tol_frac >= 0 and 0 < assign_tol_frac < 0.5")
+        if not (
+            self.inlier_tol_px > 0 and self.inlier_tol_frac >= 0 and 0 < self.assign_tol_frac < 0.5
+        ):
+            raise ConfigError(
+                "inlier_tol_px > 0, inlier_tol_frac >= 0 and 0 < assign_tol_frac < 0.5"
+            )
         if self.min_ring is not None and self.min_ring < 5:
-            raise ConfigError(f"min_ring must be >= 5 (a conic needs 5 points), got {self.min_ring}")
+            raise ConfigError(
+                f"min_ring must be >= 5 (a conic needs 5 points), got {self.min_ring}"
+            )
 
 
 @dataclass(frozen=True)
@@ -117,7 +123,9 @@ def _ellipse_inliers(
     return d < tol, d, tol
 
 
-def ransac_ellipse(points: FloatArray, opts: IdentifyOptions, max_inliers: int) -> NDArray[np.bool_]:
+def ransac_ellipse(
+    points: FloatArray, opts: IdentifyOptions, max_inliers: int
+) -> NDArray[np.bool_]:
     """Largest set of points (at most ``max_inliers``) on one ellipse (boolean mask)."""
     n = points.shape[0]
     best = np.zeros(n, bool)
@@ -142,7 +150,7 @@ def ransac_ellipse(points: FloatArray, opts: IdentifyOptions, max_inliers: int) 
         if inl is None:
             continue
         k = int(inl.sum())
-        if k > max_inliers:
+        if k < 5 or k > max_inliers:
             continue
         cost = -k + float(np.sum(np.minimum(d, tol))) / (tol * (n + 1))
         if cost < best_cost:
@@ -157,7 +165,7 @@ def ransac_ellipse(points: FloatArray, opts: IdentifyOptions, max_inliers: int) 
 
 
 def _ring_angles(pts: FloatArray, conic: FloatArray) -> FloatArray | None:
-    """Angle of each point in the ellipse's normalised (circular) frame, counter-clockwise as displayed."""
+    """Angle of each point in the ellipse's normalised (circular) frame, ccw as displayed."""
     M = cn.ellipse_shape(conic)
     if M is None:
         return None
@@ -168,7 +176,7 @@ def _ring_angles(pts: FloatArray, conic: FloatArray) -> FloatArray | None:
 
 
 def _gap_misfit(ang: FloatArray, n: int) -> tuple[float, NDArray[np.int64], NDArray[np.int64]]:
-    """Worst non-integer part of the angular gaps (in ring steps), the order and the rounded steps."""
+    """Worst non-integer part of the angular gaps (ring steps), the order, the rounded steps."""
     order = np.argsort(ang)
     gaps = np.diff(np.append(ang[order], ang[order[0]] + 2 * np.pi)) / (2 * np.pi / n)
     steps = np.rint(gaps).astype(np.int64)
@@ -273,13 +281,17 @@ def identify_beacons(
     pts = camera.undistort(pts_d)
     on_ring = ransac_ellipse(pts, options, max_inliers=n + 2)
     if on_ring.sum() < min_ring:
-        return _fail(N, f"only {int(on_ring.sum())} blobs lie on a common ellipse; need >= {min_ring}")
+        return _fail(
+            N, f"only {int(on_ring.sum())} blobs lie on a common ellipse; need >= {min_ring}"
+        )
     idx = np.flatnonzero(on_ring)
     conic = cn.fit_conic(pts[idx])
     ang = _ring_angles(pts[idx], conic)
     found = None if ang is None else relative_positions(ang, n)
     if found is None:
-        return _fail(N, "ring blobs are not evenly spaced on the ellipse (spurious blobs on the ring?)")
+        return _fail(
+            N, "ring blobs are not evenly spaced on the ellipse (spurious blobs on the ring?)"
+        )
     rel0, keep = found
     idx, rel0 = idx[keep], rel0[keep]
     H = _homography(rel0, pts[idx], n)
@@ -291,7 +303,9 @@ def identify_beacons(
         rel, _pred, tol = _assign_ring(H, pts, n, options.assign_tol_frac)
         good = rel >= 0
         if good.sum() < min_ring:
-            return _fail(N, f"only {int(good.sum())} blobs match the predicted ring; need >= {min_ring}")
+            return _fail(
+                N, f"only {int(good.sum())} blobs match the predicted ring; need >= {min_ring}"
+            )
         H2 = _homography(rel[good], pts[good], n)
         if H2 is None:
             return _fail(N, "degenerate ring geometry: no homography from the ring")
@@ -307,7 +321,9 @@ def identify_beacons(
                 ids[free[np.argmin(dc)]] = layout.n_ring
     ring = np.flatnonzero(rel >= 0)
     if rgb_flux is None:
-        reasons.append("mono frame: the bow beacon is told by its colour, so ring ids stay unassigned")
+        reasons.append(
+            "mono frame: the bow beacon is told by its colour, so ring ids stay unassigned"
+        )
     else:
         red = redness(np.asarray(rgb_flux, dtype=float).reshape(-1, 3)[ring])
         if ring.size < 2 or not np.any(np.isfinite(red)):
@@ -318,7 +334,8 @@ def identify_beacons(
             margin = float(red[b] - np.nanmedian(others))
             if margin < options.min_red_margin:
                 reasons.append(
-                    f"bow beacon not found: no ring blob is distinctly red (best margin {margin:.2f} "
+                    "bow beacon not found: no ring blob is distinctly red "
+                    f"(best margin {margin:.2f} "
                     f"< {options.min_red_margin}); it may be hidden"
                 )
             else:
@@ -326,4 +343,3 @@ def identify_beacons(
     if reasons:
         return Identification(ids, False, "; ".join(reasons))
     return Identification(ids, True, "")
-

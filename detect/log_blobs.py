@@ -34,8 +34,14 @@ def log_boxes(
     # The scale-normalised LoG of unit-variance white noise has a standard deviation
     # of 0.40 at sigma = 1 (0.20 at 2, 0.10 at 4): the threshold is threshold_sigma
     # times that at the smallest scale searched.
-    found = blob_log(sig, min_sigma=1.0, max_sigma=max(2.0, min(sig.shape) / 20.0), num_sigma=8,
-                     threshold=0.40 * options.threshold_sigma, overlap=0.5)
+    found = blob_log(
+        sig,
+        min_sigma=1.0,
+        max_sigma=max(2.0, min(sig.shape) / 20.0),
+        num_sigma=8,
+        threshold=0.40 * options.threshold_sigma,
+        overlap=0.5,
+    )
     if len(found) > options.max_blobs:
         return [], f"{len(found)} LoG blobs exceed max_blobs={options.max_blobs}"
     H, W = image.shape[:2]
@@ -43,7 +49,9 @@ def log_boxes(
     for y, x, s in found:
         half = int(math.ceil(3.0 * s * f)) + f + 2
         cu, cv = int(x * f + (f - 1) / 2), int(y * f + (f - 1) / 2)
-        boxes.append((max(0, cu - half), max(0, cv - half), min(W, cu + half + 1), min(H, cv + half + 1)))
+        boxes.append(
+            (max(0, cu - half), max(0, cv - half), min(W, cu + half + 1), min(H, cv + half + 1))
+        )
     return boxes, ""
 
 

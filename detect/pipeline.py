@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import dataclass
 
@@ -53,7 +52,9 @@ class FrameDetections:
         return self.ok
 
     @classmethod
-    def failed(cls, frame_id: int, detector: str, reason: str, seconds: float = 0.0) -> "FrameDetections":
+    def failed(
+        cls, frame_id: int, detector: str, reason: str, seconds: float = 0.0
+    ) -> "FrameDetections":
         empty = Detections(np.zeros((0, 2)), np.zeros(0, np.int64), frame_id=frame_id)
         return cls(empty, np.zeros(0), np.zeros(0), detector, False, reason, seconds)
 
@@ -89,7 +90,9 @@ def detect_frame(
     t0 = time.perf_counter()
     blobs: Blobs = fn(frame, options)
     if not blobs:
-        return FrameDetections.failed(frame.frame_id, detector, blobs.reason, time.perf_counter() - t0)
+        return FrameDetections.failed(
+            frame.frame_id, detector, blobs.reason, time.perf_counter() - t0
+        )
     n = len(blobs)
     ids = np.full(n, UNASSIGNED, np.int64)
     reason = ""
@@ -98,11 +101,21 @@ def detect_frame(
         if frame.image.ndim == 3:
             radii = np.maximum(2.0, 2.0 * blobs.size_px)
             rgb = blob_rgb_flux(frame.image, blobs.points_px, radii)
-        ident = identify_beacons(blobs.points_px, layout, frame.camera, rgb_flux=rgb,
-                                 options=identify_options)
+        ident = identify_beacons(
+            blobs.points_px, layout, frame.camera, rgb_flux=rgb, options=identify_options
+        )
         ids = np.asarray(ident.beacon_ids)
         reason = "" if ident else f"identification: {ident.reason}"
     seconds = time.perf_counter() - t0
-    dets = Detections(blobs.points_px, ids, blobs.covariance_px2, blobs.score, frame_id=frame.frame_id)
-    return FrameDetections(dets, blobs.flux_dn, blobs.size_px, detector, not reason, reason,
-                           float(seconds) if math.isfinite(seconds) else 0.0)
+    dets = Detections(
+        blobs.points_px, ids, blobs.covariance_px2, blobs.score, frame_id=frame.frame_id
+    )
+    return FrameDetections(
+        dets,
+        blobs.flux_dn,
+        blobs.size_px,
+        detector,
+        not reason,
+        reason,
+        float(seconds),
+    )

@@ -15,9 +15,10 @@ does the rest, so a new detector is a few lines::
 
     @registry.register("peak")
     def peak(frame, options):
-        def measure(win):            # win: a candidates.Window
-            v, u = np.unravel_index(np.argmax(win.pixels), win.pixels.shape)
-            return win.blob(u, v, flux=win.pixels.max() - win.background_dn)
+        def measure(c):              # c: a candidates.Candidate (full-resolution window)
+            s = c.signal()           # background-subtracted pixels
+            v, u = np.unravel_index(np.argmax(s), s.shape)
+            return c.blob(u + c.u0, v + c.v0, flux_dn=float(s.max()))
         return measure_candidates(frame, options, measure)
 
 Modules outside deckpose can register detectors too: ``deckpose detect --plugin

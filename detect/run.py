@@ -48,18 +48,28 @@ def detect_frames(
         if isinstance(frame, str):
             fd = FrameDetections.failed(src.frame_id, detector, frame)
         else:
-            fd = detect_frame(frame, detector, frameset.layout, options=options,
-                              identify_options=identify_options)
+            fd = detect_frame(
+                frame, detector, frameset.layout, options=options, identify_options=identify_options
+            )
         det_parts.append(detection_rows(fd))
-        frame_rows.append({
-            "frame_id": src.frame_id, "ok": fd.ok, "reason": fd.reason,
-            "n_detections": len(fd.detections),
-            "seconds": fd.seconds,
-            "n_identified": int((fd.detections.beacon_ids >= 0).sum()),
-            "camera": src.camera_name, "stamp_ns": src.stamp_ns,
-            "image": os.path.relpath(src.image_path, frameset.root),
-        })
-    dets = pd.concat(det_parts, ignore_index=True) if det_parts else pd.DataFrame(columns=list(DETECTION_COLUMNS))
+        frame_rows.append(
+            {
+                "frame_id": src.frame_id,
+                "ok": fd.ok,
+                "reason": fd.reason,
+                "n_detections": len(fd.detections),
+                "seconds": fd.seconds,
+                "n_identified": int((fd.detections.beacon_ids >= 0).sum()),
+                "camera": src.camera_name,
+                "stamp_ns": src.stamp_ns,
+                "image": os.path.relpath(src.image_path, frameset.root),
+            }
+        )
+    dets = (
+        pd.concat(det_parts, ignore_index=True)
+        if det_parts
+        else pd.DataFrame(columns=list(DETECTION_COLUMNS))
+    )
     return dets, pd.DataFrame(frame_rows)
 
 
@@ -103,5 +113,11 @@ def _versions() -> dict[str, str]:
 
     from deckpose import __version__
 
-    return {"deckpose": __version__, "python": platform.python_version(), "numpy": numpy.__version__,
-            "scipy": scipy.__version__, "opencv": cv2.__version__, "scikit-image": skimage.__version__}
+    return {
+        "deckpose": __version__,
+        "python": platform.python_version(),
+        "numpy": numpy.__version__,
+        "scipy": scipy.__version__,
+        "opencv": cv2.__version__,
+        "scikit-image": skimage.__version__,
+    }

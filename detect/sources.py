@@ -93,15 +93,23 @@ def open_dataset(path: str | os.PathLike[str]) -> FrameSet:
     try:
         manifest = json.loads((root / "manifest.json").read_text())
     except (OSError, json.JSONDecodeError) as exc:
-        raise InputDataError(f"{root}: cannot read manifest.json ({exc}); is this a deckpose dataset?") from exc
+        raise InputDataError(
+            f"{root}: cannot read manifest.json ({exc}); is this a deckpose dataset?"
+        ) from exc
     fmt = manifest.get("format")
     if fmt != DATASET_FORMAT:
-        raise InputDataError(f"{root}/manifest.json: format is {fmt!r}, expected {DATASET_FORMAT!r}")
+        raise InputDataError(
+            f"{root}/manifest.json: format is {fmt!r}, expected {DATASET_FORMAT!r}"
+        )
     layout = layout_from_dict(manifest.get("layout"), f"{root}/manifest.json: layout")
     try:
-        frames = pd.read_parquet(root / "frames.parquet", columns=["frame_id", "image", "camera", "stamp_ns"])
+        frames = pd.read_parquet(
+            root / "frames.parquet", columns=["frame_id", "image", "camera", "stamp_ns"]
+        )
     except Exception as exc:  # pyarrow raises several types for missing/corrupt files
-        raise InputDataError(f"{root}/frames.parquet: cannot read frame_id, image, camera, stamp_ns ({exc})") from exc
+        raise InputDataError(
+            f"{root}/frames.parquet: cannot read frame_id, image, camera, stamp_ns ({exc})"
+        ) from exc
     cameras, files = {}, {}
     for name in sorted(set(frames["camera"].astype(str))):
         f = root / "cameras" / f"{name}.yaml"

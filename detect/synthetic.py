@@ -197,14 +197,18 @@ def render_spots(
     """
     pts = np.asarray(points_px, dtype=float).reshape(-1, 2)
     if rgb is None:
-        return add_noise(expected_electrons(shape, pts, sigma_px, flux_e, sensor.background_e),
-                         sensor, rng)
+        return add_noise(
+            expected_electrons(shape, pts, sigma_px, flux_e, sensor.background_e), sensor, rng
+        )
     col = np.asarray(rgb, dtype=float).reshape(-1, 3)
     check_shape("rgb", col, (pts.shape[0], 3))
     flux = np.broadcast_to(np.asarray(flux_e, dtype=float), (pts.shape[0],))
     chans = [
-        add_noise(expected_electrons(shape, pts, sigma_px, flux * col[:, c], sensor.background_e),
-                  sensor, rng)
+        add_noise(
+            expected_electrons(shape, pts, sigma_px, flux * col[:, c], sensor.background_e),
+            sensor,
+            rng,
+        )
         for c in range(3)
     ]
     return np.stack(chans, axis=-1)

@@ -27,7 +27,7 @@ import pandas as pd
 import yaml
 
 from deckpose.atomic_io import atomic_open, atomic_path
-from deckpose.camera import preset
+from deckpose.camera import CameraModel, preset
 from deckpose.camera_info import write_camera_info
 from deckpose.detect.synthetic import SensorModel, disc_spot_sigma_px, render_spots
 from deckpose.errors import ConfigError
@@ -95,7 +95,9 @@ def config_from_dict(doc: dict[str, Any], source: str = "config") -> SyntheticDa
     known = {f.name for f in dataclasses.fields(SyntheticDatasetConfig)}
     unknown = set(doc) - known
     if unknown:
-        raise ConfigError(f"{source}: unknown key(s) {sorted(unknown)}; valid keys are {sorted(known)}")
+        raise ConfigError(
+            f"{source}: unknown key(s) {sorted(unknown)}; valid keys are {sorted(known)}"
+        )
     kw = dict(doc)
     try:
         if "sensor" in kw:
@@ -119,7 +121,7 @@ def read_config(path: str | os.PathLike[str]) -> SyntheticDatasetConfig:
     return config_from_dict(doc or {}, str(path))
 
 
-def _camera(name: str):  # -> CameraModel
+def _camera(name: str) -> CameraModel:
     if "x" in name and name.replace("x", "").isdigit():
         w, h = (int(s) for s in name.split("x"))
         return preset("8mp").with_size(w, h)
@@ -132,10 +134,14 @@ def summed_channels_sensor(sensor: SensorModel, n_channels: int) -> SensorModel:
         return sensor
     q = 1.0 / (12.0 * sensor.gain_dn_per_e**2)
     read = math.sqrt(n_channels * sensor.read_noise_e**2 + (n_channels - 1) * q)
-    return dataclasses.replace(sensor, read_noise_e=read, background_e=n_channels * sensor.background_e)
+    return dataclasses.replace(
+        sensor, read_noise_e=read, background_e=n_channels * sensor.background_e
+    )
 
 
-def write_synthetic_dataset(config: SyntheticDatasetConfig, out_dir: str | os.PathLike[str]) -> Path:
+def write_synthetic_dataset(
+    config: SyntheticDatasetConfig, out_dir: str | os.PathLike[str]
+) -> Path:
     """Write the dataset; returns its folder. Deterministic for a given config (seed)."""
     out = Path(out_dir)
     rng = np.random.default_rng(config.seed)
@@ -148,7 +154,9 @@ def write_synthetic_dataset(config: SyntheticDatasetConfig, out_dir: str | os.Pa
         cam = _camera(cam_name)
         cam_key = cam_name.replace("/", "_")
         cams[cam_key] = cam
-        write_camera_info(dataclasses.replace(cam, name=cam_key), out / "cameras" / f"{cam_key}.yaml")
+        write_camera_info(
+            dataclasses.replace(cam, name=cam_key), out / "cameras" / f"{cam_key}.yaml"
+        )
         for h in config.heights_m:
             for _ in range(config.frames_per_config):
                 roll, pitch = np.radians(rng.uniform(-config.max_tilt_deg, config.max_tilt_deg, 2))
@@ -161,36 +169,62 @@ def write_synthetic_dataset(config: SyntheticDatasetConfig, out_dir: str | os.Pa
                     cand = [i for i in np.flatnonzero(visible) if i != lay.bow_id]
                     if cand:
                         visible[rng.choice(cand)] = False
-                sig = disc_spot_sigma_px(np.nan_to_num(pr.apparent_radius_px, nan=1.0), config.psf_sigma_px)
-                flux = config.radiance_e_per_px * math.pi * np.nan_to_num(pr.apparent_radius_px) ** 2
-                pts, sg, fl, col = pr.points_px[visible], sig[visible], flux[visible], rgb_all[visible]
+                sig = disc_spot_sigma_px(
+                    np.nan_to_num(pr.apparent_radius_px, nan=1.0), config.psf_sigma_px
+                )
+                flux = (
+                    config.radiance_e_per_px * math.pi * np.nan_to_num(pr.apparent_radius_px) ** 2
+                )
+                pts, sg, fl, col = (
+                    pr.points_px[visible],
+                    sig[visible],
+                    flux[visible],
+                    rgb_all[visible],
+                )
                 if rng.random() < config.glint_probability:
                     g = _glint_position(cam, pr.points_px[pr.in_image], rng)
                     pts = np.vstack([pts, g])
-                    glint_e = float(np.median(fl)) if fl.size else config.radiance_e_per_px * math.pi
+                    glint_e = (
+                        float(np.median(fl)) if fl.size else config.radiance_e_per_px * math.pi
+                    )
                     sg, fl = np.append(sg, 1.0), np.append(fl, glint_e)
                     col = np.vstack([col, [1.0, 1.0, 1.0]])
                 seed = int(rng.integers(2**31))
                 frng = np.random.default_rng(seed)
                 shape = (cam.height_px, cam.width_px)
-                img = render_spots(shape, pts, sg, fl, config.sensor, frng, rgb=col if config.colour else None)
+                img = render_spots(
+                    shape, pts, sg, fl, config.sensor, frng, rgb=col if config.colour else None
+                )
                 rel = f"images/{fid:06d}.png"
                 with atomic_path(out / rel) as tmp:
                     bgr = cv2.cvtColor(img, cv2.COLOR_RGB2BGR) if img.ndim == 3 else img
                     if not cv2.imwrite(str(tmp.with_suffix(".png")), bgr):
                         raise OSError(f"cannot write {out / rel}")
                     os.replace(tmp.with_suffix(".png"), tmp)
-                frame_rows.append(_frame_row(fid, rel, cam_key, h, ship, cpose, int(visible.sum()), seed))
+                frame_rows.append(
+                    _frame_row(fid, rel, cam_key, h, ship, cpose, int(visible.sum()), seed)
+                )
                 chan_w = rgb_all.sum(axis=1) if config.colour else np.ones(n)
                 for b in range(n):
-                    beacon_rows.append({
-                        "frame_id": fid, "beacon_id": b, "u_px": pr.points_px[b, 0], "v_px": pr.points_px[b, 1],
-                        "visible": bool(visible[b]), "in_image": bool(pr.in_image[b]),
-                        "facing": bool(pr.facing[b]), "apparent_radius_px": float(pr.apparent_radius_px[b]),
-                        "spot_sigma_px": float(sig[b]), "spot_flux_e": float(flux[b] * chan_w[b]),
-                    })
+                    beacon_rows.append(
+                        {
+                            "frame_id": fid,
+                            "beacon_id": b,
+                            "u_px": pr.points_px[b, 0],
+                            "v_px": pr.points_px[b, 1],
+                            "visible": bool(visible[b]),
+                            "in_image": bool(pr.in_image[b]),
+                            "facing": bool(pr.facing[b]),
+                            "apparent_radius_px": float(pr.apparent_radius_px[b]),
+                            "spot_sigma_px": float(sig[b]),
+                            "spot_flux_e": float(flux[b] * chan_w[b]),
+                        }
+                    )
                 fid += 1
-    for name, table in (("frames.parquet", pd.DataFrame(frame_rows)), ("beacons.parquet", pd.DataFrame(beacon_rows))):
+    for name, table in (
+        ("frames.parquet", pd.DataFrame(frame_rows)),
+        ("beacons.parquet", pd.DataFrame(beacon_rows)),
+    ):
         with atomic_path(out / name) as tmp:
             table.to_parquet(tmp, index=False)
     manifest = {
@@ -216,7 +250,9 @@ def _config_dict(config: SyntheticDatasetConfig) -> dict[str, Any]:
     return d
 
 
-def _glint_position(cam, beacon_px: np.ndarray, rng: np.random.Generator) -> np.ndarray:  # noqa: ANN001
+def _glint_position(
+    cam: CameraModel, beacon_px: np.ndarray, rng: np.random.Generator
+) -> np.ndarray:
     """A random in-image point at least 40 px from every beacon."""
     for _ in range(1000):
         p = rng.uniform([20, 20], [cam.width_px - 20, cam.height_px - 20])
@@ -225,15 +261,36 @@ def _glint_position(cam, beacon_px: np.ndarray, rng: np.random.Generator) -> np.
     return np.array([20.0, 20.0])
 
 
-def _frame_row(fid: int, rel: str, cam: str, h: float, ship: ShipPose, cpose: CameraPose,
-               n_visible: int, seed: int) -> dict[str, Any]:
+def _frame_row(
+    fid: int,
+    rel: str,
+    cam: str,
+    h: float,
+    ship: ShipPose,
+    cpose: CameraPose,
+    n_visible: int,
+    seed: int,
+) -> dict[str, Any]:
     tr, tp, ty = np.degrees(ship.thesis_angles_rad())
     row: dict[str, Any] = {
-        "frame_id": fid, "image": rel, "camera": cam, "stamp_ns": fid * 100_000_000, "t_s": fid * 0.1,
-        "camera_height_m": h, "roll_rad": ship.roll_rad, "pitch_rad": ship.pitch_rad, "yaw_rad": ship.yaw_rad,
-        "heave_m": ship.heave_m, "surge_m": ship.surge_m, "sway_m": ship.sway_m,
-        "thesis_roll_deg": tr, "thesis_pitch_deg": tp, "thesis_yaw_deg": ty,
-        "lighting": "synthetic-analytic", "seed": seed, "n_visible": n_visible,
+        "frame_id": fid,
+        "image": rel,
+        "camera": cam,
+        "stamp_ns": fid * 100_000_000,
+        "t_s": fid * 0.1,
+        "camera_height_m": h,
+        "roll_rad": ship.roll_rad,
+        "pitch_rad": ship.pitch_rad,
+        "yaw_rad": ship.yaw_rad,
+        "heave_m": ship.heave_m,
+        "surge_m": ship.surge_m,
+        "sway_m": ship.sway_m,
+        "thesis_roll_deg": tr,
+        "thesis_pitch_deg": tp,
+        "thesis_yaw_deg": ty,
+        "lighting": "synthetic-analytic",
+        "seed": seed,
+        "n_visible": n_visible,
     }
     R = cpose.R_world_from_cam
     for i in range(3):

@@ -21,8 +21,19 @@ from deckpose.detect.pipeline import FrameDetections
 from deckpose.errors import InputDataError
 from deckpose.records import Detections
 
-DETECTION_COLUMNS = ("frame_id", "beacon_id", "u_px", "v_px", "cov_uu", "cov_uv", "cov_vv",
-                     "flux", "size_px", "score", "detector")
+DETECTION_COLUMNS = (
+    "frame_id",
+    "beacon_id",
+    "u_px",
+    "v_px",
+    "cov_uu",
+    "cov_uv",
+    "cov_vv",
+    "flux",
+    "size_px",
+    "score",
+    "detector",
+)
 FRAME_COLUMNS = ("frame_id", "ok", "reason", "n_detections", "seconds")
 
 
@@ -30,18 +41,27 @@ def detection_rows(fd: FrameDetections) -> pd.DataFrame:
     """The ``detections.parquet`` rows of one frame."""
     d = fd.detections
     n = len(d)
-    return pd.DataFrame({
-        "frame_id": np.full(n, d.frame_id, np.int64),
-        "beacon_id": np.asarray(d.beacon_ids, np.int64),
-        "u_px": d.points_px[:, 0], "v_px": d.points_px[:, 1],
-        "cov_uu": d.covariance_px2[:, 0, 0], "cov_uv": d.covariance_px2[:, 0, 1],
-        "cov_vv": d.covariance_px2[:, 1, 1],
-        "flux": np.asarray(fd.flux_dn, float), "size_px": np.asarray(fd.size_px, float),
-        "score": np.asarray(d.score, float), "detector": pd.Series([fd.detector] * n, dtype=str),
-    }, columns=list(DETECTION_COLUMNS))
+    return pd.DataFrame(
+        {
+            "frame_id": np.full(n, d.frame_id, np.int64),
+            "beacon_id": np.asarray(d.beacon_ids, np.int64),
+            "u_px": d.points_px[:, 0],
+            "v_px": d.points_px[:, 1],
+            "cov_uu": d.covariance_px2[:, 0, 0],
+            "cov_uv": d.covariance_px2[:, 0, 1],
+            "cov_vv": d.covariance_px2[:, 1, 1],
+            "flux": np.asarray(fd.flux_dn, float),
+            "size_px": np.asarray(fd.size_px, float),
+            "score": np.asarray(d.score, float),
+            "detector": pd.Series([fd.detector] * n, dtype=str),
+        },
+        columns=list(DETECTION_COLUMNS),
+    )
 
 
-def write_tables(out_dir: str | os.PathLike[str], detections: pd.DataFrame, frames: pd.DataFrame) -> None:
+def write_tables(
+    out_dir: str | os.PathLike[str], detections: pd.DataFrame, frames: pd.DataFrame
+) -> None:
     """Write both tables atomically into ``out_dir``."""
     out = Path(out_dir)
     for name, table in (("detections.parquet", detections), ("detect_frames.parquet", frames)):
@@ -61,6 +81,11 @@ def read_detections(path: str | os.PathLike[str]) -> dict[int, Detections]:
     out = {}
     for fid, g in df.groupby("frame_id", sort=True):
         cov = np.stack([g.cov_uu, g.cov_uv, g.cov_uv, g.cov_vv], axis=1).reshape(-1, 2, 2)
-        out[int(fid)] = Detections(g[["u_px", "v_px"]].to_numpy(float), g.beacon_id.to_numpy(np.int64),
-                                   cov, g.score.to_numpy(float), frame_id=int(fid))
+        out[int(fid)] = Detections(
+            g[["u_px", "v_px"]].to_numpy(float),
+            g.beacon_id.to_numpy(np.int64),
+            cov,
+            g.score.to_numpy(float),
+            frame_id=int(fid),
+        )
     return out

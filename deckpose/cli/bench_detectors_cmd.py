@@ -1,4 +1,4 @@
-"""``deckpose bench-detectors``: centroid accuracy, recall, identification and speed per detector."""
+"""``deckpose bench-detectors``: centroid accuracy, recall, identification and speed."""
 
 from __future__ import annotations
 
@@ -11,17 +11,25 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         help="benchmark the beacon detectors on a dataset with ground truth",
         description=(
             "Run every detector (or --detectors) on DATASET and compare with its beacons.parquet: "
-            "centroid error (RMS, bias, 95th percentile), recall, precision, identification accuracy and "
-            "time per frame, per detector x resolution x height, beside the centroid Cramér–Rao bound "
+            "centroid error (RMS, bias, 95th percentile), recall, precision, identification "
+            "accuracy and time per frame, per detector x resolution x height, beside the "
+            "centroid Cramér–Rao bound "
             "where the dataset declares its noise model. Writes a Markdown report, a CSV and plots."
         ),
     )
     p.add_argument("dataset", metavar="DATASET", help="dataset folder (deckpose-dataset/1)")
     p.add_argument("--detectors", help="comma-separated detector names (default: all registered)")
     p.add_argument("--out", help="report folder (default DATASET/bench-detectors)")
-    p.add_argument("--threshold-sigma", type=float, default=6.0, help="detection threshold (sigmas)")
-    p.add_argument("--plugin", action="append", default=[], metavar="MODULE",
-                   help="import MODULE first (it may register more detectors); repeatable")
+    p.add_argument(
+        "--threshold-sigma", type=float, default=6.0, help="detection threshold (sigmas)"
+    )
+    p.add_argument(
+        "--plugin",
+        action="append",
+        default=[],
+        metavar="MODULE",
+        help="import MODULE first (it may register more detectors); repeatable",
+    )
     p.add_argument("--note", default="", help="a line of text for the top of the report")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -41,9 +49,18 @@ def run(args: argparse.Namespace) -> int:
     for n in names:
         registry.get(n)
     options = DetectorOptions(threshold_sigma=args.threshold_sigma)
-    summary, matches = run_benchmark(args.dataset, names, options=options, progress=not args.no_progress)
+    summary, matches = run_benchmark(
+        args.dataset, names, options=options, progress=not args.no_progress
+    )
     out = Path(args.out) if args.out else Path(args.dataset) / "bench-detectors"
-    md = write_report(out, summary, matches, dataset=str(args.dataset),
-                      manifest=open_dataset(args.dataset).manifest, options=options, note=args.note)
+    md = write_report(
+        out,
+        summary,
+        matches,
+        dataset=str(args.dataset),
+        manifest=open_dataset(args.dataset).manifest,
+        options=options,
+        note=args.note,
+    )
     print(md.read_text())
     return 0

@@ -20,13 +20,28 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument("--detector", default="cog", help="detector name (see --list); default cog")
     p.add_argument("--out", help="output folder (default DATASET/detect/<detector>)")
     p.add_argument("--camera-info", help="ROS camera_info YAML for a folder of images")
-    p.add_argument("--layout", help="layout YAML for a folder of images (default: the standard layout)")
-    p.add_argument("--threshold-sigma", type=float, default=6.0,
-                   help="threshold in background-noise sigmas above the background (default 6)")
-    p.add_argument("--gain", type=float, default=None,
-                   help="sensor gain in DN per electron (default: estimated per frame)")
-    p.add_argument("--plugin", action="append", default=[], metavar="MODULE",
-                   help="import MODULE first (it may register more detectors); repeatable")
+    p.add_argument(
+        "--layout", help="layout YAML for a folder of images (default: the standard layout)"
+    )
+    p.add_argument(
+        "--threshold-sigma",
+        type=float,
+        default=6.0,
+        help="threshold in background-noise sigmas above the background (default 6)",
+    )
+    p.add_argument(
+        "--gain",
+        type=float,
+        default=None,
+        help="sensor gain in DN per electron (default: estimated per frame)",
+    )
+    p.add_argument(
+        "--plugin",
+        action="append",
+        default=[],
+        metavar="MODULE",
+        help="import MODULE first (it may register more detectors); repeatable",
+    )
     p.add_argument("--list", action="store_true", help="list the detectors and exit")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -59,8 +74,13 @@ def run(args: argparse.Namespace) -> int:
         frameset = open_image_folder(args.dataset, args.camera_info, args.layout)
     options = DetectorOptions(threshold_sigma=args.threshold_sigma, gain_dn_per_e=args.gain)
     ident = IdentifyOptions()
-    dets, frames = detect_frames(frameset, args.detector, options=options, identify_options=ident,
-                                 progress=not args.no_progress)
+    dets, frames = detect_frames(
+        frameset,
+        args.detector,
+        options=options,
+        identify_options=ident,
+        progress=not args.no_progress,
+    )
     out = Path(args.out) if args.out else Path(args.dataset) / "detect" / args.detector
     write_run(out, frameset, args.detector, dets, frames, options, ident)
     n_ok = int(frames["ok"].sum()) if len(frames) else 0

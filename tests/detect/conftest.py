@@ -17,8 +17,14 @@ SMALL_CAMERA = "640x360"
 @pytest.fixture(scope="session")
 def tiny_dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """4 RGB frames: 2 heights x 2 frames, each with one hidden beacon and one glint."""
-    cfg = SyntheticDatasetConfig(cameras=(SMALL_CAMERA,), heights_m=(18.0, 25.0), frames_per_config=2,
-                                 glint_probability=1.0, hide_probability=1.0, seed=3)
+    cfg = SyntheticDatasetConfig(
+        cameras=(SMALL_CAMERA,),
+        heights_m=(18.0, 25.0),
+        frames_per_config=2,
+        glint_probability=1.0,
+        hide_probability=1.0,
+        seed=3,
+    )
     return write_synthetic_dataset(cfg, tmp_path_factory.mktemp("ds") / "tiny")
 
 

@@ -14,7 +14,20 @@ from deckpose.detect.tables import DETECTION_COLUMNS, FRAME_COLUMNS, read_detect
 @pytest.mark.parametrize("detector", ["binary", "cog", "gauss", "log", "opencv-blob"])
 def test_detect_dataset_writes_tables_with_ids(tiny_dataset, tmp_path, detector):
     out = tmp_path / detector
-    assert main(["detect", str(tiny_dataset), "--detector", detector, "--out", str(out), "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "detect",
+                str(tiny_dataset),
+                "--detector",
+                detector,
+                "--out",
+                str(out),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     dets = pd.read_parquet(out / "detections.parquet")
     frames = pd.read_parquet(out / "detect_frames.parquet")
     assert list(dets.columns) == list(DETECTION_COLUMNS)
@@ -24,7 +37,9 @@ def test_detect_dataset_writes_tables_with_ids(tiny_dataset, tmp_path, detector)
     for fid, g in dets.groupby("frame_id"):
         t = truth[(truth.frame_id == fid) & truth.visible].set_index("beacon_id")
         ided = g[g.beacon_id >= 0].set_index("beacon_id")
-        assert set(ided.index) == set(t.index)  # every visible beacon found and named; glint left -1
+        assert set(ided.index) == set(
+            t.index
+        )  # every visible beacon found and named; glint left -1
         err = np.hypot(ided.u_px - t.u_px.loc[ided.index], ided.v_px - t.v_px.loc[ided.index])
         assert err.max() < 0.5
         assert (g.beacon_id == -1).sum() == 1  # the glint
@@ -40,7 +55,10 @@ def test_detect_folder_of_images_with_camera_info(tiny_dataset, tmp_path, capsys
     (folder / "notes.txt").write_text("ignored")
     cam = next((tiny_dataset / "cameras").iterdir())
     out = tmp_path / "out"
-    assert main(["detect", str(folder), "--camera-info", str(cam), "--out", str(out), "--no-progress"]) == 0
+    assert (
+        main(["detect", str(folder), "--camera-info", str(cam), "--out", str(out), "--no-progress"])
+        == 0
+    )
     frames = pd.read_parquet(out / "detect_frames.parquet")
     assert len(frames) == 4 and frames.ok.all()
 
@@ -73,8 +91,20 @@ def test_plugin_detector_appears_in_the_cli(tmp_path, monkeypatch, capsys):
 
 def test_bench_detectors_report(tiny_dataset, tmp_path, capsys):
     out = tmp_path / "bench"
-    assert main(["bench-detectors", str(tiny_dataset), "--detectors", "binary,cog,gauss",
-                 "--out", str(out), "--no-progress"]) == 0
+    assert (
+        main(
+            [
+                "bench-detectors",
+                str(tiny_dataset),
+                "--detectors",
+                "binary,cog,gauss",
+                "--out",
+                str(out),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
     table = pd.read_csv(out / "bench_detectors.csv")
     assert set(table.detector) == {"binary", "cog", "gauss"}
     assert len(table) == 3 * 2  # detectors x heights (one camera)

@@ -26,8 +26,13 @@ def spot_frames():
     for k in range(N_FRAMES):
         pts = grid_points(rng, SHAPE, 3, 2)
         frames.append((Frame(render_spots(SHAPE, pts, SIGMA_PX, FLUX_E, SENSOR, rng), cam, k), pts))
-    crb = np.mean([np.trace(centroid_crb_px2(u, v, SIGMA_PX, FLUX_E, SENSOR)) / 2
-                   for _, pts in frames for u, v in pts])
+    crb = np.mean(
+        [
+            np.trace(centroid_crb_px2(u, v, SIGMA_PX, FLUX_E, SENSOR)) / 2
+            for _, pts in frames
+            for u, v in pts
+        ]
+    )
     return frames, float(np.sqrt(crb))
 
 
@@ -95,8 +100,12 @@ def test_threshold_adapts_to_background_level():
     cam = preset("8mp").with_size(SHAPE[1], SHAPE[0])
     pts = grid_points(rng, SHAPE, 3, 2)
     for offset in (0.0, 5000.0):
-        sensor = SensorModel(gain_dn_per_e=1.0, read_noise_e=3.0, background_e=20.0, offset_dn=offset)
-        b = registry.get("cog")(Frame(render_spots(SHAPE, pts, 1.5, 2e4, sensor, rng), cam), DetectorOptions())
+        sensor = SensorModel(
+            gain_dn_per_e=1.0, read_noise_e=3.0, background_e=20.0, offset_dn=offset
+        )
+        b = registry.get("cog")(
+            Frame(render_spots(SHAPE, pts, 1.5, 2e4, sensor, rng), cam), DetectorOptions()
+        )
         assert len(b) == 6
 
 
@@ -122,12 +131,15 @@ def test_a_user_detector_is_one_small_function():
             s = c.signal()
             v, u = np.unravel_index(np.argmax(s), s.shape)
             return c.blob(u + c.u0, v + c.v0, flux_dn=float(s.max()))
+
         return measure_candidates(frame, options, measure)
 
     rng = np.random.default_rng(9)
     cam = preset("8mp").with_size(SHAPE[1], SHAPE[0])
     pts = grid_points(rng, SHAPE, 3, 2)
-    b = registry.get("test-peak")(Frame(render_spots(SHAPE, pts, 1.5, 2e4, SENSOR, rng), cam), DetectorOptions())
+    b = registry.get("test-peak")(
+        Frame(render_spots(SHAPE, pts, 1.5, 2e4, SENSOR, rng), cam), DetectorOptions()
+    )
     assert isinstance(b, Blobs) and len(b) == 6
     assert "test-peak" in registry.names()
     d = np.linalg.norm(b.points_px[None] - pts[:, None], axis=2).min(axis=1)

@@ -16,7 +16,9 @@ WHITE, RED = (100.0, 100.0, 90.0), (100.0, 10.0, 5.0)
 
 
 def scene(rng, *, hide=None, glint=False, noise_px=0.1, tilt_deg=10.0, layout=LAYOUT):
-    ship = ShipPose(*np.radians(rng.uniform([-tilt_deg, -tilt_deg, -180], [tilt_deg, tilt_deg, 180])))
+    ship = ShipPose(
+        *np.radians(rng.uniform([-tilt_deg, -tilt_deg, -180], [tilt_deg, tilt_deg, 180]))
+    )
     pr = project_layout(layout, ship, CameraPose.nadir(float(rng.uniform(20, 80))), CAMERA)
     ids = np.flatnonzero(pr.visible)
     if hide is not None:
@@ -70,7 +72,9 @@ def test_mono_frames_leave_ring_ids_unassigned_with_a_reason():
     r = identify_beacons(pts, LAYOUT, CAMERA, rgb_flux=None)
     assert not r and "mono" in r.reason
     assert set(r.beacon_ids[ids != LAYOUT.n_ring]) == {UNASSIGNED}
-    assert r.beacon_ids[list(ids).index(LAYOUT.n_ring)] == LAYOUT.n_ring  # the centre is still found
+    assert (
+        r.beacon_ids[list(ids).index(LAYOUT.n_ring)] == LAYOUT.n_ring
+    )  # the centre is still found
 
 
 def test_hidden_bow_is_reported_not_guessed():
