@@ -1,10 +1,12 @@
 """Batch detection over a :class:`~deckpose.detect.sources.FrameSet`, written to an output folder.
 
-The output folder holds what ``deckpose estimate`` needs and nothing else:
-``detections.parquet``, ``detect_frames.parquet``, ``cameras/<name>.yaml`` and
-``detect_run.json`` (format ``deckpose-detections/1``: detector, options,
-layout, source, package versions). A bad frame is a row with ``ok = False``
-and a reason; the batch goes on.
+Outputs (see :func:`write_run`) go either into the dataset's run layout
+(``DATASET/detections/<detector>.parquet`` + ``<detector>.frames.parquet``, read
+by ``deckpose estimate --run``) or into a self-contained folder
+(``detections.parquet``, ``detect_frames.parquet``, ``cameras/<name>.yaml``,
+``detect_run.json``), with a metadata file of format ``deckpose-detections/1``
+(detector, options, layout, source, package versions). A bad frame is a row
+with ``ok = False`` and a reason; the batch goes on.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from deckpose.detect.identify import IdentifyOptions
 from deckpose.detect.pipeline import FrameDetections, detect_frame
 from deckpose.detect.registry import DetectorOptions
 from deckpose.detect.sources import FrameSet, load_frame
+from deckpose.errors import ConfigError
 from deckpose.detect.tables import DETECTION_COLUMNS, detection_rows, write_tables
 from deckpose.layout import layout_to_dict
 
@@ -74,7 +77,7 @@ def detect_frames(
 
 
 def write_run(
-    out_dir: str | os.PathLike[str],
+    out_dir: str | os.PathLike[str] | None,
     frameset: FrameSet,
     detector: str,
     detections: pd.DataFrame,
@@ -82,27 +85,50 @@ def write_run(
     options: DetectorOptions,
     identify_options: IdentifyOptions,
 ) -> Path:
-    """Write the tables, the cameras and ``detect_run.json`` into ``out_dir``."""
-    out = Path(out_dir)
-    write_tables(out, detections, frames)
+    """Write the detection outputs; returns the detections table's path.
+
+    With ``out_dir``: a self-contained folder ``out_dir/{detections.parquet,
+    detect_frames.parquet, detect_run.json, cameras/}``. Without (datasets only):
+    into the dataset's run layout, ``DATASET/detections/<detector>.parquet``,
+    ``<detector>.frames.parquet`` and ``<detector>.run.json``, where
+    ``deckpose estimate --run DATASET --detector <detector>`` reads them.
+    """
+    if out_dir is None:
+        if frameset.kind != "dataset":
+            raise ConfigError("a folder of images needs an output folder (--out)")
+        base = frameset.root / "detections"
+        det_path, frames_path = base / f"{detector}.parquet", base / f"{detector}.frames.parquet"
+        meta_path, cam_dir = base / f"{detector}.run.json", None
+    else:
+        base = Path(out_dir)
+        det_path, frames_path = base / "detections.parquet", base / "detect_frames.parquet"
+        meta_path, cam_dir = base / "detect_run.json", base / "cameras"
+    write_tables(det_path, frames_path, detections, frames)
+    cams = {}
     for name, cam in frameset.cameras.items():
-        write_camera_info(cam, out / "cameras" / f"{name}.yaml")
+        if cam_dir is not None:
+            write_camera_info(cam, cam_dir / f"{name}.yaml")
+            cams[name] = f"cameras/{name}.yaml"
+        else:
+            cams[name] = os.path.relpath(frameset.camera_files[name], base)
     meta: dict[str, Any] = {
         "format": RUN_FORMAT,
         "detector": detector,
+        "detections": det_path.name,
+        "frames": frames_path.name,
         "detector_options": dataclasses.asdict(options),
         "identify_options": dataclasses.asdict(identify_options),
         "layout": layout_to_dict(frameset.layout),
         "source": str(frameset.root.resolve()),
         "source_kind": frameset.kind,
-        "cameras": {name: f"cameras/{name}.yaml" for name in frameset.cameras},
+        "cameras": cams,
         "n_frames": int(len(frames)),
         "n_frames_ok": int(frames["ok"].sum()) if len(frames) else 0,
         "versions": _versions(),
     }
-    with atomic_open(out / "detect_run.json", "w") as fh:
+    with atomic_open(meta_path, "w") as fh:
         json.dump(meta, fh, indent=2)
-    return out
+    return det_path
 
 
 def _versions() -> dict[str, str]:

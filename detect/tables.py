@@ -11,7 +11,6 @@ n_detections, seconds`` plus ``n_identified, camera, stamp_ns, image``.
 from __future__ import annotations
 
 import os
-from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -60,12 +59,14 @@ def detection_rows(fd: FrameDetections) -> pd.DataFrame:
 
 
 def write_tables(
-    out_dir: str | os.PathLike[str], detections: pd.DataFrame, frames: pd.DataFrame
+    detections_path: str | os.PathLike[str],
+    frames_path: str | os.PathLike[str],
+    detections: pd.DataFrame,
+    frames: pd.DataFrame,
 ) -> None:
-    """Write both tables atomically into ``out_dir``."""
-    out = Path(out_dir)
-    for name, table in (("detections.parquet", detections), ("detect_frames.parquet", frames)):
-        with atomic_path(out / name) as tmp:
+    """Write both tables atomically."""
+    for path, table in ((detections_path, detections), (frames_path, frames)):
+        with atomic_path(path) as tmp:
             table.to_parquet(tmp, index=False)
 
 

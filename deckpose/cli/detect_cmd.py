@@ -10,15 +10,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         "detect",
         help="detect and identify beacons in a dataset or a folder of images",
         description=(
-            "Detect the deck beacons in every frame of DATASET (a deckpose dataset folder) or of a "
-            "folder of images (then --camera-info is required) and write detections.parquet and "
-            "detect_frames.parquet (one row per frame, with ok/reason) to --out. The output folder "
-            "feeds 'deckpose estimate'. Bad frames are reported and skipped."
+            "Detect the deck beacons in every frame of DATASET (a deckpose dataset folder) or of "
+            "a folder of images (then --camera-info and --out are required) and write a detections "
+            "table (one row per frame x detection; beacon_id -1 = unassigned) and a frames table "
+            "(one row per frame, with ok/reason). The output feeds 'deckpose estimate'. Bad "
+            "frames are reported and skipped."
         ),
     )
     p.add_argument("dataset", metavar="DATASET", help="dataset folder, or a folder of images")
     p.add_argument("--detector", default="cog", help="detector name (see --list); default cog")
-    p.add_argument("--out", help="output folder (default DATASET/detect/<detector>)")
+    p.add_argument(
+        "--out",
+        help="self-contained output folder (detections.parquet, detect_frames.parquet, cameras/, "
+        "detect_run.json); default for a dataset: DATASET/detections/<detector>.parquet and "
+        "<detector>.frames.parquet, where 'deckpose estimate --run DATASET' reads them; "
+        "required for a folder of images",
+    )
     p.add_argument("--camera-info", help="ROS camera_info YAML for a folder of images")
     p.add_argument(
         "--layout", help="layout YAML for a folder of images (default: the standard layout)"
@@ -48,7 +55,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 
 
 def run(args: argparse.Namespace) -> int:
-    from pathlib import Path
 
     from deckpose.detect import registry
     from deckpose.detect.identify import IdentifyOptions
@@ -81,8 +87,7 @@ def run(args: argparse.Namespace) -> int:
         identify_options=ident,
         progress=not args.no_progress,
     )
-    out = Path(args.out) if args.out else Path(args.dataset) / "detect" / args.detector
-    write_run(out, frameset, args.detector, dets, frames, options, ident)
+    out = write_run(args.out, frameset, args.detector, dets, frames, options, ident)
     n_ok = int(frames["ok"].sum()) if len(frames) else 0
     print(f"{len(frames)} frames, {n_ok} ok, {len(dets)} detections -> {out}")
     for r in frames.itertuples():

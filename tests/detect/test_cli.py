@@ -117,3 +117,21 @@ def test_bench_detectors_report(tiny_dataset, tmp_path, capsys):
     assert (binary.rms_px.to_numpy() > 2 * cog.rms_px.to_numpy()).all()
     for f in ("bench_detectors.md", "error_vs_height.png", "error_vs_size.png"):
         assert (out / f).stat().st_size > 0
+
+
+def test_detect_dataset_default_output_is_the_run_layout(tiny_dataset, tmp_path):
+    ds = tmp_path / "run"
+    shutil.copytree(tiny_dataset, ds)
+    assert main(["detect", str(ds), "--detector", "cog", "--no-progress"]) == 0
+    dets = pd.read_parquet(ds / "detections" / "cog.parquet")
+    frames = pd.read_parquet(ds / "detections" / "cog.frames.parquet")
+    assert len(frames) == 4 and frames.ok.all()
+    assert {"frame_id", "beacon_id", "u_px", "v_px", "cov_uu", "cov_uv", "cov_vv"} <= set(
+        dets.columns
+    )
+    # ids are unique per frame (estimators reject duplicates), -1 apart
+    ided = dets[dets.beacon_id >= 0]
+    assert not ided.duplicated(["frame_id", "beacon_id"]).any()
+    meta = json.loads((ds / "detections" / "cog.run.json").read_text())
+    assert meta["detections"] == "cog.parquet"
+    assert (ds / "detections" / meta["cameras"]["640x360"]).resolve().is_file()
