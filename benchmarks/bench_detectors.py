@@ -1,8 +1,10 @@
 """Detector benchmarks that print their figures.
 
-1. Speed: ``cog`` (and the others) on one 8 MP and one 64 MP synthetic mono
-   frame with the 13 beacons of the standard layout, image already decoded,
-   OpenCV restricted to one thread; median of ``--repeat`` runs.
+1. Speed: every detector on one 8 MP and one 64 MP synthetic frame (16-bit
+   mono, and the same as 8-bit RGB) with the 13 beacons of the standard layout,
+   image already decoded, OpenCV restricted to one thread; median of
+   ``--repeat`` runs (detection only; identification is timed by the
+   ``bench-detectors`` report).
 2. Accuracy: Monte Carlo centroid error of every detector on analytic spots
    (:mod:`deckpose.detect.synthetic`) against the centroid Cramér–Rao bound,
    over spot sizes and fluxes.
@@ -46,20 +48,22 @@ def speed(repeat: int, detectors: list[str]) -> None:
         sigma = np.sqrt(pr.apparent_radius_px**2 / 4 + 0.7**2)
         flux = 3000.0 * np.pi * pr.apparent_radius_px**2
         img = render_spots((cam.height_px, cam.width_px), pr.points_px, sigma, flux, sensor, rng)
-        frame = Frame(img, cam)
-        print(
-            f"\n{cam_name} frame {cam.width_px}x{cam.height_px} uint16 mono, 13 spots of radius "
-            f"{pr.apparent_radius_px.mean():.1f} px; one OpenCV thread; median of {repeat}"
-        )
-        for name in detectors:
-            fn = registry.get(name)
-            times = []
-            for _ in range(repeat):
-                t0 = time.perf_counter()
-                blobs = fn(frame, DetectorOptions())
-                times.append(time.perf_counter() - t0)
-            print(f"  {name:12s} {1000 * np.median(times):8.1f} ms/frame  ({len(blobs)} blobs)")
-        del img, frame
+        # The same content as 8-bit RGB (white spots), for the colour path.
+        rgb8 = np.repeat(np.clip(img // 32, 0, 255).astype(np.uint8)[:, :, None], 3, axis=2)
+        for label, frame in (("uint16 mono", Frame(img, cam)), ("uint8 RGB", Frame(rgb8, cam))):
+            print(
+                f"\n{cam_name} frame {cam.width_px}x{cam.height_px} {label}, 13 spots of radius "
+                f"{pr.apparent_radius_px.mean():.1f} px; one OpenCV thread; median of {repeat}"
+            )
+            for name in detectors:
+                fn = registry.get(name)
+                times = []
+                for _ in range(repeat):
+                    t0 = time.perf_counter()
+                    blobs = fn(frame, DetectorOptions())
+                    times.append(time.perf_counter() - t0)
+                print(f"  {name:12s} {1000 * np.median(times):8.1f} ms/frame  ({len(blobs)} blobs)")
+        del img, frame, rgb8
 
 
 def accuracy(trials: int, detectors: list[str]) -> None:
