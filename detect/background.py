@@ -28,7 +28,7 @@ class FrameStats:
     background_dn : float
         Median pixel value, DN.
     noise_dn : float
-        Robust standard deviation of the background, DN.
+        Robust noise standard deviation (:func:`difference_noise`), DN.
     saturation_dn : float
         Value at which a single channel saturates (dtype maximum), DN.
     saturated_fraction : float
@@ -73,6 +73,23 @@ def robust_stats(values: np.ndarray) -> tuple[float, float]:
     return med, sigma
 
 
+def difference_noise(image: np.ndarray, *, samples: int = 60_000) -> float:
+    """Noise standard deviation from differences of horizontally adjacent pixels, DN.
+
+    Smooth background structure (a lit deck, vignetting) cancels in the
+    differences, so unlike the spread of pixel values this measures the noise
+    alone: ``sigma = 1.4826 * MAD(d) / sqrt(2)`` over strided pixel pairs.
+    """
+    H, W = image.shape[:2]
+    step = max(1, int(math.sqrt(H * W / samples)))
+    a = mono(image[::step, 0 : W - 1 : step])
+    b = mono(image[::step, 1::step])
+    n = min(a.shape[1], b.shape[1])
+    d = (b[:, :n] - a[:, :n]).ravel()
+    _, s = robust_stats(d)
+    return max(s / math.sqrt(2.0), MIN_NOISE_DN)
+
+
 def frame_stats(image: np.ndarray, *, samples: int = 60_000) -> FrameStats:
     """Background, noise and saturation of a frame from a strided subsample.
 
@@ -92,7 +109,8 @@ def frame_stats(image: np.ndarray, *, samples: int = 60_000) -> FrameStats:
     sat = saturation_level(image)
     m = mono(sub)
     saturated = (sub >= sat).any(axis=2) if sub.ndim == 3 else sub >= sat
-    bg, noise = robust_stats(m)
+    bg, _ = robust_stats(m)
+    noise = difference_noise(image, samples=samples)
     return FrameStats(bg, noise, sat, float(saturated.mean()), float(m.max()))
 
 
@@ -104,3 +122,45 @@ def frame_problem(stats: FrameStats, *, max_saturated_fraction: float = 0.25) ->
             f"value {stats.saturation_dn:g} DN; reduce exposure or gain"
         )
     return ""
+
+
+def tile_stats(image: np.ndarray, tile: int = 32) -> tuple[np.ndarray, np.ndarray]:
+    """Local background level and noise maps of a mono image, from ``tile x tile`` tiles.
+
+    Level: per-tile median; noise: per-tile :func:`difference_noise` estimate
+    (MAD of horizontal differences). Both maps have the image's shape (constant
+    per tile). For frames whose noise varies with the background (shot noise of
+    a lit deck).
+    """
+    img = np.asarray(image, dtype=np.float32)
+    h, w = img.shape
+    th, tw = -(-h // tile), -(-w // tile)
+    pad = np.full((th * tile, tw * tile + 1), np.nan, np.float32)
+    pad[:h, :w] = img
+    tiles = pad[:, :-1].reshape(th, tile, tw, tile).transpose(0, 2, 1, 3).reshape(th, tw, -1)
+    diffs = (
+        np.diff(pad, axis=1).reshape(th, tile, tw, tile).transpose(0, 2, 1, 3).reshape(th, tw, -1)
+    )
+    level = np.nanmedian(tiles, axis=2)
+    dmed = np.nanmedian(diffs, axis=2)
+    noise = MAD_TO_SIGMA * np.nanmedian(np.abs(diffs - dmed[..., None]), axis=2) / math.sqrt(2.0)
+    noise = np.maximum(np.nan_to_num(noise, nan=MIN_NOISE_DN), MIN_NOISE_DN)
+    up = np.ones((tile, tile), np.float32)
+    return np.kron(level, up)[:h, :w], np.kron(noise, up)[:h, :w]
+
+
+def border_noise(pixels: np.ndarray) -> float:
+    """Noise of a window from differences along its outer two-pixel frame, DN."""
+    p = np.asarray(pixels, dtype=np.float64)
+    if min(p.shape) < 6:
+        return MIN_NOISE_DN
+    d = np.concatenate(
+        [
+            np.diff(p[:2], axis=1).ravel(),
+            np.diff(p[-2:], axis=1).ravel(),
+            np.diff(p[:, :2], axis=0).ravel(),
+            np.diff(p[:, -2:], axis=0).ravel(),
+        ]
+    )
+    med = float(np.median(d))
+    return max(MAD_TO_SIGMA * float(np.median(np.abs(d - med))) / math.sqrt(2.0), MIN_NOISE_DN)

@@ -22,7 +22,15 @@ from dataclasses import dataclass
 import cv2
 import numpy as np
 
-from deckpose.detect.background import frame_problem, frame_stats, mono, robust_stats
+from deckpose.detect.background import (
+    border_noise,
+    difference_noise,
+    frame_problem,
+    frame_stats,
+    mono,
+    robust_stats,
+    tile_stats,
+)
 from deckpose.detect.registry import Blobs, DetectorOptions
 from deckpose.records import Frame
 
@@ -42,9 +50,13 @@ class Candidate:
     u0, v0 : int
         Full-resolution column and row of ``pixels[0, 0]``.
     background_dn : float
-        Local background (median of the window border), DN.
+        Local background at the window centre, DN: a plane fitted to the window
+        border (robustly), so a background gradient does not bias centroids.
+    background_grad : (float, float)
+        Slope of that plane along u and v, DN per pixel.
     noise_dn : float
-        Background noise standard deviation of the frame, DN.
+        Background noise standard deviation, DN: the frame's, or with an uneven
+        background (``background_kernel_px``) the window border's.
     gain_dn_per_e : float
         Gain used by the noise model (given, or estimated by
         :func:`deckpose.detect.gain.estimate_gain`), DN per electron.
@@ -58,6 +70,7 @@ class Candidate:
     u0: int
     v0: int
     background_dn: float
+    background_grad: tuple[float, float]
     noise_dn: float
     gain_dn_per_e: float
     threshold_dn: float
@@ -69,7 +82,12 @@ class Candidate:
 
     def signal(self) -> np.ndarray:
         """Background-subtracted pixels, DN."""
-        return self.pixels - self.background_dn
+        h, w = self.pixels.shape
+        gu, gv = self.background_grad
+        plane = (np.arange(h)[:, None] - (h - 1) / 2) * gv + (
+            np.arange(w)[None, :] - (w - 1) / 2
+        ) * gu
+        return self.pixels - self.background_dn - plane
 
     def variance(self, signal_dn: np.ndarray | None = None) -> np.ndarray:
         """Per-pixel noise variance, DN^2: background noise plus shot noise of the signal."""
@@ -139,8 +157,20 @@ def coarse_boxes(
     f = coarse_factor(image.shape[:2], options.coarse_max_px)
     small = coarse_image(image, f)
     step = max(1, int(math.sqrt(small.size / 60_000)))
-    bg, noise = robust_stats(small[::step, ::step])
-    mask = (small > bg + options.threshold_sigma * noise).astype(np.uint8)
+    if options.background_kernel_px > 0:
+        # Uneven background (a lit, textured deck): subtract a grey opening, which keeps
+        # structures wider than the kernel and removes the beacons.
+        k = 2 * max(1, round(options.background_kernel_px / (2 * f))) + 1
+        small = small - cv2.morphologyEx(
+            small, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+        )
+        # ... and its noise varies with the background (shot noise): local statistics.
+        bg_map, noise_map = tile_stats(small)
+        mask = (small > bg_map + options.threshold_sigma * noise_map).astype(np.uint8)
+    else:
+        bg, _ = robust_stats(small[::step, ::step])
+        noise = difference_noise(small)
+        mask = (small > bg + options.threshold_sigma * noise).astype(np.uint8)
     n, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if n - 1 > options.max_blobs:
         return [], (
@@ -169,6 +199,31 @@ def _window(
     block = image[v0:v1, u0:u1]
     saturated = (block >= sat).any(axis=2) if block.ndim == 3 else block >= sat
     return mono(block), saturated
+
+
+def border_plane(pixels: np.ndarray) -> tuple[float, float, float]:
+    """Plane ``(value at the centre, d/du, d/dv)`` fitted to a window's border pixels.
+
+    Two passes: a least-squares fit, then a refit without border pixels more than
+    3 robust sigmas off it (a neighbouring blob touching the border).
+    """
+    h, w = pixels.shape
+    vv, uu = np.mgrid[0:h, 0:w]
+    border = np.zeros((h, w), bool)
+    border[[0, -1], :] = True
+    border[:, [0, -1]] = True
+    A = np.column_stack([np.ones(border.sum()), uu[border] - (w - 1) / 2, vv[border] - (h - 1) / 2])
+    z = pixels[border]
+    keep = np.ones(z.size, bool)
+    coef = np.array([float(np.median(z)), 0.0, 0.0])
+    for _ in range(2):
+        if keep.sum() < 6:
+            break
+        coef = np.linalg.lstsq(A[keep], z[keep], rcond=None)[0]
+        r = z - A @ coef
+        mad = 1.4826 * float(np.median(np.abs(r - np.median(r)))) + 1e-9
+        keep = np.abs(r) < 3 * mad + 1e-6
+    return float(coef[0]), float(coef[1]), float(coef[2])
 
 
 def _border_median(pixels: np.ndarray) -> float:
@@ -202,13 +257,27 @@ def find_candidates(
     if reason:
         return [], reason
     thr = st.background_dn + options.threshold_sigma * st.noise_dn
+    k_noise = options.threshold_sigma * st.noise_dn
     H, W = image.shape[:2]
-    raw: list[tuple[np.ndarray, np.ndarray, np.ndarray, int, int, float]] = []
+    raw: list[
+        tuple[
+            np.ndarray, np.ndarray, np.ndarray, int, int, tuple[float, float, float], float, float
+        ]
+    ]
+    raw = []
     seen: set[tuple[int, int]] = set()
     for box in boxes:
         pix, _ = _window(image, box, st.saturation_dn)
+        # The threshold follows the local background (the box border) where it is brighter;
+        # with an uneven background, the local noise too.
+        if options.background_kernel_px > 0:
+            noise_box = border_noise(pix)
+            thr_box = _border_median(pix) + options.threshold_sigma * noise_box
+        else:
+            noise_box = st.noise_dn
+            thr_box = max(thr, _border_median(pix) + k_noise)
         n, labels, cstats, _ = cv2.connectedComponentsWithStats(
-            (pix > thr).astype(np.uint8), connectivity=8
+            (pix > thr_box).astype(np.uint8), connectivity=8
         )
         for lab in range(1, n):
             x, y, w, h, area = (int(c) for c in cstats[lab])
@@ -234,15 +303,15 @@ def find_candidates(
             wpix, wsat = _window(image, wb, st.saturation_dn)
             mask = np.zeros(wpix.shape, bool)
             mask[gv0 - wb[1] : gv0 - wb[1] + h, gu0 - wb[0] : gu0 - wb[0] + w] = comp
-            raw.append((wpix, mask, wsat, wb[0], wb[1], _border_median(wpix)))
+            raw.append((wpix, mask, wsat, wb[0], wb[1], border_plane(wpix), thr_box, noise_box))
     if not raw:
         return [], (
             f"dark frame: no blob above {thr:.1f} DN (background {st.background_dn:.1f} DN, "
             f"noise {st.noise_dn:.2f} DN, brightest sample {st.max_dn:.0f} DN)"
         )
     cands = [
-        Candidate(p, m, s, u0, v0, bg, st.noise_dn, options.gain_dn_per_e or 1.0, thr)
-        for p, m, s, u0, v0, bg in raw
+        Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, options.gain_dn_per_e or 1.0, t)
+        for p, m, s, u0, v0, bg, t, nz in raw
     ]
     if options.gain_dn_per_e is None:
         from deckpose.detect.gain import estimate_gain  # gain uses cog, which uses this module

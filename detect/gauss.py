@@ -56,8 +56,8 @@ def gauss_fit(cand: Candidate, window_sigma: float = 3.0) -> Row | None:
     sel = ((np.hypot(uu - u0, vv - v0) <= R) & ~cand.saturated).ravel()
     if sel.sum() < 8:
         return None
-    data = cand.pixels.ravel()[sel]
-    p = np.array([u0, v0, s0, s0, F0, cand.background_dn])
+    data = cand.signal().ravel()[sel]  # local background plane removed; b fits what is left
+    p = np.array([u0, v0, s0, s0, F0, 0.0])
     for _ in range(2):  # weights from the current model, then once more from the fit
         m, _ = _model_and_jac(p, xs, ys, sel)
         wts = 1.0 / np.sqrt(cand.noise_dn**2 + cand.gain_dn_per_e * np.maximum(m - p[5], 0.0))

@@ -62,6 +62,11 @@ class DetectorOptions:
     gain_dn_per_e : float or None
         Sensor gain, DN per electron, for the noise model behind covariances and
         fit weights; ``None`` estimates it from the frame's blobs.
+    background_kernel_px : int
+        0: one background level for the whole frame (dark sea or sky). Otherwise
+        the candidate search first removes an uneven background (a lit deck) by a
+        grey opening with a disc of this diameter, full-resolution pixels; it
+        must exceed the largest beacon's diameter.
     """
 
     threshold_sigma: float = 6.0
@@ -70,6 +75,7 @@ class DetectorOptions:
     max_blobs: int = 200
     window_sigma: float = 3.0
     gain_dn_per_e: float | None = None
+    background_kernel_px: int = 0
 
     def __post_init__(self) -> None:
         if not self.threshold_sigma > 0:
@@ -80,6 +86,8 @@ class DetectorOptions:
             raise ConfigError("min_area_px and max_blobs must be >= 1")
         if not self.window_sigma >= 1.0:
             raise ConfigError(f"window_sigma must be >= 1, got {self.window_sigma}")
+        if self.background_kernel_px < 0:
+            raise ConfigError(f"background_kernel_px must be >= 0, got {self.background_kernel_px}")
         if self.gain_dn_per_e is not None and not self.gain_dn_per_e > 0:
             raise ConfigError(f"gain_dn_per_e must be positive or None, got {self.gain_dn_per_e}")
 

@@ -24,6 +24,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         "--threshold-sigma", type=float, default=6.0, help="detection threshold (sigmas)"
     )
     p.add_argument(
+        "--background-kernel-px",
+        type=int,
+        default=0,
+        help="remove an uneven background (lit deck) with a grey opening of this diameter "
+        "(pixels, larger than any beacon) before the candidate search; 0 = flat background",
+    )
+    p.add_argument(
         "--plugin",
         action="append",
         default=[],
@@ -48,7 +55,9 @@ def run(args: argparse.Namespace) -> int:
     names = args.detectors.split(",") if args.detectors else registry.names()
     for n in names:
         registry.get(n)
-    options = DetectorOptions(threshold_sigma=args.threshold_sigma)
+    options = DetectorOptions(
+        threshold_sigma=args.threshold_sigma, background_kernel_px=args.background_kernel_px
+    )
     summary, matches = run_benchmark(
         args.dataset, names, options=options, progress=not args.no_progress
     )

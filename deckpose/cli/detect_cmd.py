@@ -43,6 +43,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         help="sensor gain in DN per electron (default: estimated per frame)",
     )
     p.add_argument(
+        "--background-kernel-px",
+        type=int,
+        default=0,
+        help="remove an uneven background (lit deck) with a grey opening of this diameter "
+        "(pixels, larger than any beacon) before the candidate search; 0 = flat background",
+    )
+    p.add_argument(
         "--plugin",
         action="append",
         default=[],
@@ -78,7 +85,11 @@ def run(args: argparse.Namespace) -> int:
                 "images pass --camera-info CAMERA.yaml (and optionally --layout)"
             )
         frameset = open_image_folder(args.dataset, args.camera_info, args.layout)
-    options = DetectorOptions(threshold_sigma=args.threshold_sigma, gain_dn_per_e=args.gain)
+    options = DetectorOptions(
+        threshold_sigma=args.threshold_sigma,
+        gain_dn_per_e=args.gain,
+        background_kernel_px=args.background_kernel_px,
+    )
     ident = IdentifyOptions()
     dets, frames = detect_frames(
         frameset,
