@@ -28,7 +28,8 @@ class FrameStats:
     background_dn : float
         Median pixel value, DN.
     noise_dn : float
-        Robust noise standard deviation (:func:`difference_noise`), DN.
+        Robust noise standard deviation (:func:`difference_noise`), at least
+        :func:`noise_floor_dn`, DN.
     saturation_dn : float
         Value at which a single channel saturates (dtype maximum), DN.
     saturated_fraction : float
@@ -42,6 +43,18 @@ class FrameStats:
     saturation_dn: float
     saturated_fraction: float
     max_dn: float
+
+
+def noise_floor_dn(image: np.ndarray) -> float:
+    """Smallest noise the thresholds assume, DN of the mono (channel-sum) signal.
+
+    Integer images: 1 DN per channel. Noise-free renders and heavily quantised
+    dark backgrounds would otherwise put the threshold a single quantum above
+    the background, where antialiasing and dither make false blobs.
+    """
+    if not np.issubdtype(image.dtype, np.integer):
+        return MIN_NOISE_DN
+    return math.sqrt(image.shape[2] if image.ndim == 3 else 1)
 
 
 def saturation_level(image: np.ndarray) -> float:
@@ -73,7 +86,7 @@ def robust_stats(values: np.ndarray) -> tuple[float, float]:
     return med, sigma
 
 
-def difference_noise(image: np.ndarray, *, samples: int = 60_000) -> float:
+def difference_noise(image: np.ndarray, *, samples: int = 30_000) -> float:
     """Noise standard deviation from differences of horizontally adjacent pixels, DN.
 
     Smooth background structure (a lit deck, vignetting) cancels in the
@@ -90,7 +103,7 @@ def difference_noise(image: np.ndarray, *, samples: int = 60_000) -> float:
     return max(s / math.sqrt(2.0), MIN_NOISE_DN)
 
 
-def frame_stats(image: np.ndarray, *, samples: int = 60_000) -> FrameStats:
+def frame_stats(image: np.ndarray, *, samples: int = 30_000) -> FrameStats:
     """Background, noise and saturation of a frame from a strided subsample.
 
     Parameters
@@ -110,7 +123,7 @@ def frame_stats(image: np.ndarray, *, samples: int = 60_000) -> FrameStats:
     m = mono(sub)
     saturated = (sub >= sat).any(axis=2) if sub.ndim == 3 else sub >= sat
     bg, _ = robust_stats(m)
-    noise = difference_noise(image, samples=samples)
+    noise = max(difference_noise(image, samples=samples), noise_floor_dn(image))
     return FrameStats(bg, noise, sat, float(saturated.mean()), float(m.max()))
 
 

@@ -28,6 +28,7 @@ from deckpose.detect.background import (
     frame_problem,
     frame_stats,
     mono,
+    noise_floor_dn,
     robust_stats,
     tile_stats,
 )
@@ -156,7 +157,7 @@ def coarse_boxes(
     """
     f = coarse_factor(image.shape[:2], options.coarse_max_px)
     small = coarse_image(image, f)
-    step = max(1, int(math.sqrt(small.size / 60_000)))
+    step = max(1, int(math.sqrt(small.size / 30_000)))
     if options.background_kernel_px > 0:
         # Uneven background (a lit, textured deck): subtract a grey opening, which keeps
         # structures wider than the kernel and removes the beacons.
@@ -166,10 +167,11 @@ def coarse_boxes(
         )
         # ... and its noise varies with the background (shot noise): local statistics.
         bg_map, noise_map = tile_stats(small)
+        noise_map = np.maximum(noise_map, noise_floor_dn(image))
         mask = (small > bg_map + options.threshold_sigma * noise_map).astype(np.uint8)
     else:
         bg, _ = robust_stats(small[::step, ::step])
-        noise = difference_noise(small)
+        noise = max(difference_noise(small), noise_floor_dn(image))
         mask = (small > bg + options.threshold_sigma * noise).astype(np.uint8)
     n, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
     if n - 1 > options.max_blobs:
@@ -271,7 +273,7 @@ def find_candidates(
         # The threshold follows the local background (the box border) where it is brighter;
         # with an uneven background, the local noise too.
         if options.background_kernel_px > 0:
-            noise_box = border_noise(pix)
+            noise_box = max(border_noise(pix), noise_floor_dn(image))
             thr_box = _border_median(pix) + options.threshold_sigma * noise_box
         else:
             noise_box = st.noise_dn

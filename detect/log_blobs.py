@@ -12,7 +12,7 @@ import math
 import numpy as np
 from skimage.feature import blob_log
 
-from deckpose.detect.background import difference_noise, robust_stats
+from deckpose.detect.background import difference_noise, noise_floor_dn, robust_stats
 from deckpose.detect.candidates import coarse_factor, coarse_image, measure_candidates
 from deckpose.detect.centroid import cog_centroid
 from deckpose.detect.registry import Blobs, DetectorOptions, register
@@ -30,7 +30,7 @@ def log_boxes(
     small = coarse_image(image, f)
     step = max(1, int(math.sqrt(small.size / 60_000)))
     bg, _ = robust_stats(small[::step, ::step])
-    noise = difference_noise(small)
+    noise = max(difference_noise(small), noise_floor_dn(image))
     sig = np.clip((small - bg) / noise, 0.0, None).astype(np.float32)
     # The scale-normalised LoG of unit-variance white noise has a standard deviation
     # of 0.40 at sigma = 1 (0.20 at 2, 0.10 at 4): the threshold is threshold_sigma

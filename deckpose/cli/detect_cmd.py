@@ -84,6 +84,8 @@ def run(args: argparse.Namespace) -> int:
                 f"{args.dataset} is not a deckpose dataset (no manifest.json); for a folder of "
                 "images pass --camera-info CAMERA.yaml (and optionally --layout)"
             )
+        if not args.out:
+            raise ConfigError("a folder of images needs an output folder: add --out DIR")
         frameset = open_image_folder(args.dataset, args.camera_info, args.layout)
     options = DetectorOptions(
         threshold_sigma=args.threshold_sigma,
