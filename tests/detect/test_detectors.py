@@ -174,3 +174,22 @@ def test_uneven_background_with_the_opening(name):
     # The border plane removes the gradient: no bias beyond noise (CRB here ~0.02 px).
     assert np.sqrt(np.mean(e**2)) < 0.04
     assert np.all(np.abs(e.mean(axis=0)) < 0.02)
+
+
+@pytest.mark.parametrize("read_noise_e", [0.0, 0.3])
+def test_noise_free_or_quantised_8bit_rgb_has_no_false_blobs(read_noise_e):
+    # An 8-bit RGB frame whose background noise is below one DN (or absent, as in a
+    # noise-free render): the threshold must not sit one quantum above the background.
+    rng = np.random.default_rng(13)
+    cam = preset("8mp").with_size(SHAPE[1], SHAPE[0])
+    pts = grid_points(rng, SHAPE, 3, 2)
+    sensor = SensorModel(gain_dn_per_e=0.02, read_noise_e=read_noise_e, background_e=10.0, bit_depth=8)
+    img = render_spots(SHAPE, pts, 1.5, 1e5, sensor, rng, rgb=np.ones((6, 3)))
+    if read_noise_e == 0.0:  # no noise at all: the expected image, rounded
+        from deckpose.detect.synthetic import expected_electrons
+
+        mu = expected_electrons(SHAPE, pts, 1.5, 1e5, 10.0)
+        img = np.repeat(np.rint(0.02 * mu).astype(np.uint8)[:, :, None], 3, axis=2)
+    for name in ("binary", "cog", "gauss"):
+        b = registry.get(name)(Frame(img, cam), DetectorOptions())
+        assert len(b) == 6, (name, len(b), b.reason)
