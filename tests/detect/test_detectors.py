@@ -183,7 +183,9 @@ def test_noise_free_or_quantised_8bit_rgb_has_no_false_blobs(read_noise_e):
     rng = np.random.default_rng(13)
     cam = preset("8mp").with_size(SHAPE[1], SHAPE[0])
     pts = grid_points(rng, SHAPE, 3, 2)
-    sensor = SensorModel(gain_dn_per_e=0.02, read_noise_e=read_noise_e, background_e=10.0, bit_depth=8)
+    sensor = SensorModel(
+        gain_dn_per_e=0.02, read_noise_e=read_noise_e, background_e=10.0, bit_depth=8
+    )
     img = render_spots(SHAPE, pts, 1.5, 1e5, sensor, rng, rgb=np.ones((6, 3)))
     if read_noise_e == 0.0:  # no noise at all: the expected image, rounded
         from deckpose.detect.synthetic import expected_electrons
