@@ -219,6 +219,36 @@ def _homography(rel: NDArray[np.int64], pts: FloatArray, n: int) -> FloatArray |
     return None if H is None else np.asarray(H, float)
 
 
+def search_homography(
+    ring_sorted: FloatArray, pts: FloatArray, n: int, tol_frac: float
+) -> FloatArray | None:
+    """Ring homography from hypotheses on 4 angle-consecutive ring points.
+
+    For every run of 4 consecutive points (in angle order) and every pattern of
+    ring steps between them (all 1, or one gap of 2: a missing beacon), fit the
+    homography from the unit circle and keep the one that places the most blobs
+    on predicted ring positions (exact under perspective, unlike angle gaps).
+    """
+    m = ring_sorted.shape[0]
+    if m < 4:
+        return None
+    best, best_key = None, (-1, np.inf)
+    for start in range(m):
+        quad = ring_sorted[[(start + k) % m for k in range(4)]]
+        for steps in ((1, 1, 1), (2, 1, 1), (1, 2, 1), (1, 1, 2)):
+            rel = np.concatenate([[0], np.cumsum(steps)]).astype(np.int64)
+            H = _homography(rel, quad, n)
+            if H is None or not np.all(np.isfinite(H)):
+                continue
+            ids, pred, _tol = _assign_ring(H, pts, n, tol_frac)
+            ok = ids >= 0
+            resid = float(np.sum(np.linalg.norm(pts[ok] - pred[ids[ok]], axis=1)))
+            key = (int(ok.sum()), -resid)
+            if key > (best_key[0], -best_key[1]):
+                best, best_key = H, (int(ok.sum()), resid)
+    return best
+
+
 def _apply(H: FloatArray, plane: FloatArray) -> FloatArray:
     p = np.column_stack([plane, np.ones(plane.shape[0])]) @ H.T
     return p[:, :2] / p[:, 2:3]
@@ -287,16 +317,19 @@ def identify_beacons(
     idx = np.flatnonzero(on_ring)
     conic = cn.fit_conic(pts[idx])
     ang = _ring_angles(pts[idx], conic)
-    found = None if ang is None else relative_positions(ang, n)
-    if found is None:
+    if ang is None:
+        return _fail(N, "degenerate ring ellipse")
+    found = relative_positions(ang, n)
+    H = None
+    if found is not None:
+        rel0, keep = found
+        H = _homography(rel0[keep], pts[idx[keep]], n)
+    if H is None:  # strong perspective or spurious blobs: search the ring's homography
+        H = search_homography(pts[idx[np.argsort(ang)]], pts, n, options.assign_tol_frac)
+    if H is None:
         return _fail(
             N, "ring blobs are not evenly spaced on the ellipse (spurious blobs on the ring?)"
         )
-    rel0, keep = found
-    idx, rel0 = idx[keep], rel0[keep]
-    H = _homography(rel0, pts[idx], n)
-    if H is None:
-        return _fail(N, "degenerate ring geometry: no homography from the ring")
     rel = np.full(N, UNASSIGNED, np.int64)
     tol = 0.0
     for _ in range(2):  # assign all blobs to predictions, refit, assign again

@@ -27,7 +27,7 @@ from deckpose.detect.pipeline import FrameDetections, detect_frame
 from deckpose.detect.registry import DetectorOptions
 from deckpose.detect.sources import FrameSet, load_frame
 from deckpose.errors import ConfigError
-from deckpose.detect.tables import DETECTION_COLUMNS, detection_rows, write_tables
+from deckpose.detect.tables import detection_rows, write_tables
 from deckpose.layout import layout_to_dict
 
 RUN_FORMAT = "deckpose-detections/1"
@@ -68,10 +68,11 @@ def detect_frames(
                 "image": os.path.relpath(src.image_path, frameset.root),
             }
         )
+    det_parts = [d for d in det_parts if len(d)]  # (concatenating empty frames is deprecated)
     dets = (
         pd.concat(det_parts, ignore_index=True)
         if det_parts
-        else pd.DataFrame(columns=list(DETECTION_COLUMNS))
+        else detection_rows(FrameDetections.failed(-1, detector, "none"))
     )
     return dets, pd.DataFrame(frame_rows)
 
