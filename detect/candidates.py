@@ -326,11 +326,20 @@ def find_candidates(
 def measure_candidates(
     frame: Frame, options: DetectorOptions, measure: MeasureFn, *, boxes_fn: BoxesFn = coarse_boxes
 ) -> Blobs:
-    """Run ``measure`` on every candidate of ``frame``; ``None`` results are dropped."""
+    """Run ``measure`` on every candidate of ``frame``; ``None`` results are dropped.
+
+    A blob measured twice (reached from two coarse boxes, e.g. a faint spot whose
+    coarse footprint fell apart) is kept once: of two centres closer than the
+    larger spot sigma (at least 1 px), the one with more flux stays.
+    """
     cands, reason = find_candidates(frame, options, boxes_fn=boxes_fn)
     if reason:
         return Blobs.empty(reason)
     rows = [r for r in (measure(c) for c in cands) if r is not None]
     if not rows:
         return Blobs.empty("no candidate could be measured")
-    return Blobs.stack(rows)
+    kept: list[tuple[float, float, np.ndarray, float, float, float]] = []
+    for r in sorted(rows, key=lambda r: -r[3]):
+        if all(math.hypot(r[0] - k[0], r[1] - k[1]) >= max(1.0, r[4], k[4]) for k in kept):
+            kept.append(r)
+    return Blobs.stack(kept)
