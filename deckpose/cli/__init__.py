@@ -22,6 +22,8 @@ SUBCOMMAND_MODULES: tuple[str, ...] = (
     "deckpose.cli.thesis_tables_cmd",
     "deckpose.cli.motion_cmd",
     "deckpose.cli.render_cmd",
+    "deckpose.cli.detect_cmd",
+    "deckpose.cli.bench_detectors_cmd",
 )
 
 

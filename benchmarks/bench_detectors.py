@@ -1,0 +1,214 @@
+"""Detector benchmarks that print their figures.
+
+1. Speed: every detector on one 8 MP and one 64 MP synthetic frame (16-bit
+   mono, and the same as 8-bit RGB) with the 13 beacons of the standard layout,
+   image already decoded, OpenCV restricted to one thread; median of
+   ``--repeat`` runs (detection only; identification is timed by the
+   ``bench-detectors`` report).
+2. Accuracy: Monte Carlo centroid error of every detector on analytic spots
+   (:mod:`deckpose.detect.synthetic`) against the centroid Cramér–Rao bound,
+   over spot sizes and fluxes.
+3. Identification on exact projections with hidden beacons and glints.
+4. Optionally (``--dataset DIR``) the full ``bench-detectors`` report on a dataset;
+   ``--make-dataset CONFIG DIR`` writes the synthetic dataset of a config first.
+
+Usage::
+
+    .venv/bin/python benchmarks/bench_detectors.py [--repeat 5] [--trials 200]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import cv2  # noqa: E402
+import numpy as np  # noqa: E402
+
+from deckpose.camera import preset  # noqa: E402
+from deckpose.detect import registry  # noqa: E402
+from deckpose.detect.crb import centroid_crb_px2  # noqa: E402
+from deckpose.detect.registry import DetectorOptions  # noqa: E402
+from deckpose.detect.synthetic import SensorModel, render_spots  # noqa: E402
+from deckpose.layout import DeckLayout  # noqa: E402
+from deckpose.pose import CameraPose, ShipPose  # noqa: E402
+from deckpose.projection import project_layout  # noqa: E402
+from deckpose.records import Frame  # noqa: E402
+
+
+def speed(repeat: int, detectors: list[str]) -> None:
+    sensor = SensorModel(gain_dn_per_e=1.0, read_noise_e=3.0, background_e=20.0, bit_depth=16)
+    rng = np.random.default_rng(0)
+    for cam_name, height in (("8mp", 30.0), ("64mp", 60.0)):
+        cam = preset(cam_name)
+        pr = project_layout(DeckLayout(), ShipPose(0.03, -0.02, 0.4), CameraPose.nadir(height), cam)
+        sigma = np.sqrt(pr.apparent_radius_px**2 / 4 + 0.7**2)
+        flux = 3000.0 * np.pi * pr.apparent_radius_px**2
+        img = render_spots((cam.height_px, cam.width_px), pr.points_px, sigma, flux, sensor, rng)
+        # The same content as 8-bit RGB (white spots), for the colour path.
+        rgb8 = np.repeat(np.clip(img // 32, 0, 255).astype(np.uint8)[:, :, None], 3, axis=2)
+        for label, frame in (("uint16 mono", Frame(img, cam)), ("uint8 RGB", Frame(rgb8, cam))):
+            print(
+                f"\n{cam_name} frame {cam.width_px}x{cam.height_px} {label}, 13 spots of radius "
+                f"{pr.apparent_radius_px.mean():.1f} px; one OpenCV thread; median of {repeat}"
+            )
+            for name in detectors:
+                fn = registry.get(name)
+                times = []
+                for _ in range(repeat):
+                    t0 = time.perf_counter()
+                    blobs = fn(frame, DetectorOptions())
+                    times.append(time.perf_counter() - t0)
+                print(f"  {name:12s} {1000 * np.median(times):8.1f} ms/frame  ({len(blobs)} blobs)")
+        del img, frame, rgb8
+
+
+def accuracy(trials: int, detectors: list[str]) -> None:
+    sensor = SensorModel(gain_dn_per_e=1.0, read_noise_e=3.0, background_e=20.0, bit_depth=16)
+    cam = preset("8mp").with_size(480, 320)
+    rng = np.random.default_rng(1)
+    print(f"\naccuracy on analytic spots: {trials} frames x 6 spots per case; sensor {sensor}")
+    print("per-axis RMS error / CRB (and RMS in px); 'FWHM' = 2.355 sigma")
+    print(
+        f"{'sigma px':>8} {'FWHM px':>8} {'flux e':>9} {'CRB px':>8} "
+        + " ".join(f"{d:>16}" for d in detectors)
+    )
+    for sigma, flux in (
+        (0.85, 5e3),
+        (0.85, 5e4),
+        (1.5, 2e4),
+        (1.5, 2e5),
+        (3.0, 5e4),
+        (3.0, 5e5),
+        (0.5, 2e4),
+    ):
+        errs = {d: [] for d in detectors}
+        crb = []
+        for _ in range(trials):
+            pts = np.array(
+                [[60 + 160 * i, 80 + 160 * j] for i in range(3) for j in range(2)], float
+            )
+            pts += rng.uniform(-0.5, 0.5, pts.shape)
+            img = render_spots((320, 480), pts, sigma, flux, sensor, rng)
+            fr = Frame(img, cam)
+            crb += [np.trace(centroid_crb_px2(u, v, sigma, flux, sensor)) / 2 for u, v in pts]
+            for d in detectors:
+                b = registry.get(d)(fr, DetectorOptions())
+                if len(b) == 0:
+                    continue
+                dist = np.linalg.norm(b.points_px[None] - pts[:, None], axis=2)
+                ok = dist.min(1) < 3
+                errs[d].append((b.points_px[dist.argmin(1)] - pts)[ok])
+        c = float(np.sqrt(np.mean(crb)))
+        cells = []
+        for d in detectors:
+            e = np.concatenate(errs[d]) if errs[d] else np.zeros((0, 2))
+            rms = float(np.sqrt(np.mean(e**2))) if len(e) else float("nan")
+            cells.append(f"{rms / c:6.2f} ({rms:.4f})")
+        print(
+            f"{sigma:8.2f} {2.355 * sigma:8.2f} {flux:9.0f} {c:8.4f} "
+            + " ".join(f"{x:>16}" for x in cells)
+        )
+
+
+def identification(trials: int) -> None:
+    """Identification on exact projections + 0.1 px noise, with hidden beacons and glints."""
+    from deckpose.detect.identify import identify_beacons
+    from deckpose.layout import thesis_layout
+
+    white, red = (100.0, 100.0, 90.0), (100.0, 10.0, 5.0)
+    cam = preset("8mp")
+    print(f"\nidentification: {trials} random poses per row (yaw uniform, height 20-80 m, 8mp)")
+    for lay_name, lay in (("default", DeckLayout()), ("thesis", thesis_layout())):
+        for tilt in (5, 15, 25):
+            for n_glint, hide in ((0, False), (1, True), (2, True)):
+                rng = np.random.default_rng(0)
+                good = glint_in_gap = 0
+                for _ in range(trials):
+                    lo, hi = [-tilt, -tilt, -180], [tilt, tilt, 180]
+                    ship = ShipPose(*np.radians(rng.uniform(lo, hi)))
+                    h = float(rng.uniform(20, 80))
+                    pr = project_layout(lay, ship, CameraPose.nadir(h), cam)
+                    ids = np.flatnonzero(pr.visible)
+                    if hide:
+                        ids = ids[ids != rng.integers(1, lay.n_ring)]
+                    pts = pr.points_px[ids] + rng.normal(0, 0.1, (len(ids), 2))
+                    rgb = np.array([red if i == lay.bow_id else white for i in ids])
+                    for _ in range(n_glint):
+                        c = pts.mean(0)
+                        while True:
+                            g = c + rng.uniform(-500, 500, 2)
+                            if np.min(np.linalg.norm(pts - g, axis=1)) > 60:
+                                break
+                        pts = np.vstack([pts, g])
+                        ids = np.append(ids, -1)
+                        rgb = np.vstack([rgb, white])
+                    r = identify_beacons(pts, lay, cam, rgb_flux=rgb)
+                    if r.ok and np.array_equal(r.beacon_ids, ids):
+                        good += 1
+                    elif r.ok and np.sum(r.beacon_ids != ids) == 1:
+                        glint_in_gap += int(ids[r.beacon_ids != ids][0] == -1)
+                print(
+                    f"  {lay_name:8s} tilt<={tilt:2d} deg glints={n_glint} hidden={int(hide)}: "
+                    f"{good}/{trials} correct; {glint_in_gap} with a glint taken for the hidden one"
+                )
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--trials", type=int, default=100)
+    ap.add_argument("--detectors", default=",".join(registry.names()))
+    ap.add_argument("--skip-speed", action="store_true")
+    ap.add_argument("--skip-accuracy", action="store_true")
+    ap.add_argument("--skip-identification", action="store_true")
+    ap.add_argument("--dataset", help="also run the bench-detectors report on this dataset")
+    ap.add_argument("--out", help="report folder for --dataset")
+    ap.add_argument("--note", default="", help="line of text for the top of the --dataset report")
+    ap.add_argument(
+        "--make-dataset",
+        nargs=2,
+        metavar=("CONFIG", "DIR"),
+        help="write the synthetic dataset of CONFIG (YAML) to DIR and exit",
+    )
+    args = ap.parse_args()
+    if args.make_dataset:
+        from deckpose.detect.synthetic_dataset import read_config, write_synthetic_dataset
+
+        t0 = time.perf_counter()
+        out = write_synthetic_dataset(read_config(args.make_dataset[0]), args.make_dataset[1])
+        print(f"wrote {out} in {time.perf_counter() - t0:.0f} s")
+        return
+    cv2.setNumThreads(1)
+    dets = args.detectors.split(",")
+    if not args.skip_speed:
+        speed(args.repeat, dets)
+    if not args.skip_accuracy:
+        accuracy(args.trials, dets)
+    if not args.skip_identification:
+        identification(2 * args.trials)
+    if args.dataset:
+        from deckpose.cli import main as cli
+
+        cli(
+            [
+                "bench-detectors",
+                args.dataset,
+                "--detectors",
+                ",".join(dets),
+                "--no-progress",
+                "--note",
+                args.note,
+            ]
+            + (["--out", args.out] if args.out else [])
+        )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,109 @@
+"""``deckpose detect``: beacon detections of a dataset or an image folder, as Parquet tables."""
+
+from __future__ import annotations
+
+import argparse
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
+    p = subparsers.add_parser(
+        "detect",
+        help="detect and identify beacons in a dataset or a folder of images",
+        description=(
+            "Detect the deck beacons in every frame of DATASET (a deckpose dataset folder) or of "
+            "a folder of images (then --camera-info and --out are required) and write a detections "
+            "table (one row per frame x detection; beacon_id -1 = unassigned) and a frames table "
+            "(one row per frame, with ok/reason). The output feeds 'deckpose estimate'. Bad "
+            "frames are reported and skipped."
+        ),
+    )
+    p.add_argument("dataset", metavar="DATASET", help="dataset folder, or a folder of images")
+    p.add_argument("--detector", default="cog", help="detector name (see --list); default cog")
+    p.add_argument(
+        "--out",
+        help="self-contained output folder (detections.parquet, detect_frames.parquet, cameras/, "
+        "detect_run.json); default for a dataset: DATASET/detections/<detector>.parquet and "
+        "<detector>.frames.parquet, where 'deckpose estimate --run DATASET' reads them; "
+        "required for a folder of images",
+    )
+    p.add_argument("--camera-info", help="ROS camera_info YAML for a folder of images")
+    p.add_argument(
+        "--layout", help="layout YAML for a folder of images (default: the standard layout)"
+    )
+    p.add_argument(
+        "--threshold-sigma",
+        type=float,
+        default=6.0,
+        help="threshold in background-noise sigmas above the background (default 6)",
+    )
+    p.add_argument(
+        "--gain",
+        type=float,
+        default=None,
+        help="sensor gain in DN per electron (default: estimated per frame)",
+    )
+    p.add_argument(
+        "--background-kernel-px",
+        type=int,
+        default=0,
+        help="remove an uneven background (lit deck) with a grey opening of this diameter "
+        "(pixels, larger than any beacon) before the candidate search; 0 = flat background",
+    )
+    p.add_argument(
+        "--plugin",
+        action="append",
+        default=[],
+        metavar="MODULE",
+        help="import MODULE first (it may register more detectors); repeatable",
+    )
+    p.add_argument("--list", action="store_true", help="list the detectors and exit")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+
+    from deckpose.detect import registry
+    from deckpose.detect.identify import IdentifyOptions
+    from deckpose.detect.registry import DetectorOptions
+    from deckpose.detect.run import detect_frames, write_run
+    from deckpose.detect.sources import is_dataset, open_dataset, open_image_folder
+    from deckpose.errors import ConfigError
+
+    for mod in args.plugin:
+        registry.load_plugin(mod)
+    if args.list:
+        print("\n".join(registry.names()))
+        return 0
+    registry.get(args.detector)  # fail early on an unknown name
+    if is_dataset(args.dataset):
+        frameset = open_dataset(args.dataset)
+    else:
+        if not args.camera_info:
+            raise ConfigError(
+                f"{args.dataset} is not a deckpose dataset (no manifest.json); for a folder of "
+                "images pass --camera-info CAMERA.yaml (and optionally --layout)"
+            )
+        if not args.out:
+            raise ConfigError("a folder of images needs an output folder: add --out DIR")
+        frameset = open_image_folder(args.dataset, args.camera_info, args.layout)
+    options = DetectorOptions(
+        threshold_sigma=args.threshold_sigma,
+        gain_dn_per_e=args.gain,
+        background_kernel_px=args.background_kernel_px,
+    )
+    ident = IdentifyOptions()
+    dets, frames = detect_frames(
+        frameset,
+        args.detector,
+        options=options,
+        identify_options=ident,
+        progress=not args.no_progress,
+    )
+    out = write_run(args.out, frameset, args.detector, dets, frames, options, ident)
+    n_ok = int(frames["ok"].sum()) if len(frames) else 0
+    print(f"{len(frames)} frames, {n_ok} ok, {len(dets)} detections -> {out}")
+    for r in frames.itertuples():
+        if not r.ok:
+            print(f"  frame {r.frame_id}: {r.reason}")
+    return 0

@@ -1,0 +1,179 @@
+"""Per-frame background level, noise and saturation: the numbers every threshold adapts to.
+
+All statistics are robust (median, MAD) and computed on a strided subsample of
+the frame, so a few bright beacons do not move them and a 64 MP frame costs a
+few milliseconds. Colour frames are measured on the sum of their channels, the
+mono signal the detectors work on.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Noise floor, DN: integer images hold at least quantisation noise (1/sqrt(12) DN).
+MIN_NOISE_DN = 1.0 / math.sqrt(12.0)
+#: Scale from median absolute deviation to standard deviation for Gaussian noise.
+MAD_TO_SIGMA = 1.4826
+
+
+@dataclass(frozen=True)
+class FrameStats:
+    """Robust statistics of one frame (mono = sum of channels).
+
+    Attributes
+    ----------
+    background_dn : float
+        Median pixel value, DN.
+    noise_dn : float
+        Robust noise standard deviation (:func:`difference_noise`), at least
+        :func:`noise_floor_dn`, DN.
+    saturation_dn : float
+        Value at which a single channel saturates (dtype maximum), DN.
+    saturated_fraction : float
+        Fraction of sampled pixels with a channel at ``saturation_dn``.
+    max_dn : float
+        Brightest sampled mono value, DN.
+    """
+
+    background_dn: float
+    noise_dn: float
+    saturation_dn: float
+    saturated_fraction: float
+    max_dn: float
+
+
+def noise_floor_dn(image: np.ndarray) -> float:
+    """Smallest noise the thresholds assume, DN of the mono (channel-sum) signal.
+
+    Integer images: 1 DN per channel. Noise-free renders and heavily quantised
+    dark backgrounds would otherwise put the threshold a single quantum above
+    the background, where antialiasing and dither make false blobs.
+    """
+    if not np.issubdtype(image.dtype, np.integer):
+        return MIN_NOISE_DN
+    return math.sqrt(image.shape[2] if image.ndim == 3 else 1)
+
+
+def saturation_level(image: np.ndarray) -> float:
+    """The dtype maximum of an integer image (inf for float images)."""
+    if np.issubdtype(image.dtype, np.integer):
+        return float(np.iinfo(image.dtype).max)
+    return math.inf
+
+
+def mono(pixels: np.ndarray) -> np.ndarray:
+    """Float64 mono signal of an (h, w) or (h, w, 3) block: the sum of its channels."""
+    a = np.asarray(pixels)
+    if a.ndim == 3:
+        return a.sum(axis=2, dtype=np.float64)
+    return a.astype(np.float64)
+
+
+def robust_stats(values: np.ndarray) -> tuple[float, float]:
+    """Median and MAD-based standard deviation (floored at :data:`MIN_NOISE_DN`)."""
+    v = np.asarray(values, dtype=np.float64).ravel()
+    med = float(np.median(v))
+    sigma = MAD_TO_SIGMA * float(np.median(np.abs(v - med)))
+    if sigma < MIN_NOISE_DN:
+        # Heavily quantised noise: the MAD can be 0; fall back to the standard deviation
+        # of the central 80 % of the distribution.
+        lo, hi = np.percentile(v, [10, 90])
+        core = v[(v >= lo) & (v <= hi)]
+        sigma = max(float(core.std()) if core.size else 0.0, MIN_NOISE_DN)
+    return med, sigma
+
+
+def difference_noise(image: np.ndarray, *, samples: int = 30_000) -> float:
+    """Noise standard deviation from differences of horizontally adjacent pixels, DN.
+
+    Smooth background structure (a lit deck, vignetting) cancels in the
+    differences, so unlike the spread of pixel values this measures the noise
+    alone: ``sigma = 1.4826 * MAD(d) / sqrt(2)`` over strided pixel pairs.
+    """
+    H, W = image.shape[:2]
+    step = max(1, int(math.sqrt(H * W / samples)))
+    a = mono(image[::step, 0 : W - 1 : step])
+    b = mono(image[::step, 1::step])
+    n = min(a.shape[1], b.shape[1])
+    d = (b[:, :n] - a[:, :n]).ravel()
+    _, s = robust_stats(d)
+    return max(s / math.sqrt(2.0), MIN_NOISE_DN)
+
+
+def frame_stats(image: np.ndarray, *, samples: int = 30_000) -> FrameStats:
+    """Background, noise and saturation of a frame from a strided subsample.
+
+    Parameters
+    ----------
+    image : (H, W) or (H, W, 3) array
+    samples : int
+        About how many pixels to sample.
+
+    Returns
+    -------
+    FrameStats
+    """
+    H, W = image.shape[:2]
+    step = max(1, int(math.sqrt(H * W / samples)))
+    sub = image[::step, ::step]
+    sat = saturation_level(image)
+    m = mono(sub)
+    saturated = (sub >= sat).any(axis=2) if sub.ndim == 3 else sub >= sat
+    bg, _ = robust_stats(m)
+    noise = max(difference_noise(image, samples=samples), noise_floor_dn(image))
+    return FrameStats(bg, noise, sat, float(saturated.mean()), float(m.max()))
+
+
+def frame_problem(stats: FrameStats, *, max_saturated_fraction: float = 0.25) -> str:
+    """Why a frame cannot be measured at all ("" when it can)."""
+    if stats.saturated_fraction > max_saturated_fraction:
+        return (
+            f"saturated frame: {100 * stats.saturated_fraction:.0f}% of pixels at the maximum "
+            f"value {stats.saturation_dn:g} DN; reduce exposure or gain"
+        )
+    return ""
+
+
+def tile_stats(image: np.ndarray, tile: int = 32) -> tuple[np.ndarray, np.ndarray]:
+    """Local background level and noise maps of a mono image, from ``tile x tile`` tiles.
+
+    Level: per-tile median; noise: per-tile :func:`difference_noise` estimate
+    (MAD of horizontal differences). Both maps have the image's shape (constant
+    per tile). For frames whose noise varies with the background (shot noise of
+    a lit deck).
+    """
+    img = np.asarray(image, dtype=np.float32)
+    h, w = img.shape
+    th, tw = -(-h // tile), -(-w // tile)
+    pad = np.full((th * tile, tw * tile + 1), np.nan, np.float32)
+    pad[:h, :w] = img
+    tiles = pad[:, :-1].reshape(th, tile, tw, tile).transpose(0, 2, 1, 3).reshape(th, tw, -1)
+    diffs = (
+        np.diff(pad, axis=1).reshape(th, tile, tw, tile).transpose(0, 2, 1, 3).reshape(th, tw, -1)
+    )
+    level = np.nanmedian(tiles, axis=2)
+    dmed = np.nanmedian(diffs, axis=2)
+    noise = MAD_TO_SIGMA * np.nanmedian(np.abs(diffs - dmed[..., None]), axis=2) / math.sqrt(2.0)
+    noise = np.maximum(np.nan_to_num(noise, nan=MIN_NOISE_DN), MIN_NOISE_DN)
+    up = np.ones((tile, tile), np.float32)
+    return np.kron(level, up)[:h, :w], np.kron(noise, up)[:h, :w]
+
+
+def border_noise(pixels: np.ndarray) -> float:
+    """Noise of a window from differences along its outer two-pixel frame, DN."""
+    p = np.asarray(pixels, dtype=np.float64)
+    if min(p.shape) < 6:
+        return MIN_NOISE_DN
+    d = np.concatenate(
+        [
+            np.diff(p[:2], axis=1).ravel(),
+            np.diff(p[-2:], axis=1).ravel(),
+            np.diff(p[:, :2], axis=0).ravel(),
+            np.diff(p[:, -2:], axis=0).ravel(),
+        ]
+    )
+    med = float(np.median(d))
+    return max(MAD_TO_SIGMA * float(np.median(np.abs(d - med))) / math.sqrt(2.0), MIN_NOISE_DN)

@@ -1,0 +1,345 @@
+"""Coarse-to-fine candidate search, shared by the detectors.
+
+1. Block-average the frame to at most ``coarse_max_px`` pixels (OpenCV area
+   resampling) and threshold it at its own background + ``k`` sigma.
+2. Each connected component of the coarse mask gives a full-resolution window;
+   in it, pixels above the full-resolution threshold form blobs (connected
+   components, 8-connectivity).
+3. Each blob becomes a :class:`Candidate`: a full-resolution window around it,
+   its mask, local background and the frame noise, which a detector measures.
+
+Thresholds adapt to the frame: background and noise are measured per frame
+(:mod:`deckpose.detect.background`), never fixed constants.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import cv2
+import numpy as np
+
+from deckpose.detect.background import (
+    border_noise,
+    difference_noise,
+    frame_problem,
+    frame_stats,
+    mono,
+    noise_floor_dn,
+    robust_stats,
+    tile_stats,
+)
+from deckpose.detect.registry import Blobs, DetectorOptions
+from deckpose.records import Frame
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One blob, in a full-resolution window of the frame.
+
+    Attributes
+    ----------
+    pixels : (h, w) array of float
+        Mono signal of the window (sum of channels), DN, background not removed.
+    mask : (h, w) array of bool
+        The blob's connected pixels above the full-resolution threshold.
+    saturated : (h, w) array of bool
+        Pixels with a channel at the saturation value.
+    u0, v0 : int
+        Full-resolution column and row of ``pixels[0, 0]``.
+    background_dn : float
+        Local background at the window centre, DN: a plane fitted to the window
+        border (robustly), so a background gradient does not bias centroids.
+    background_grad : (float, float)
+        Slope of that plane along u and v, DN per pixel.
+    noise_dn : float
+        Background noise standard deviation, DN: the frame's, or with an uneven
+        background (``background_kernel_px``) the window border's.
+    gain_dn_per_e : float
+        Gain used by the noise model (given, or estimated by
+        :func:`deckpose.detect.gain.estimate_gain`), DN per electron.
+    threshold_dn : float
+        Full-resolution threshold used for ``mask``, DN.
+    """
+
+    pixels: np.ndarray
+    mask: np.ndarray
+    saturated: np.ndarray
+    u0: int
+    v0: int
+    background_dn: float
+    background_grad: tuple[float, float]
+    noise_dn: float
+    gain_dn_per_e: float
+    threshold_dn: float
+
+    def grid(self) -> tuple[np.ndarray, np.ndarray]:
+        """Full-resolution ``(u, v)`` coordinates of the window's pixels, each (h, w)."""
+        h, w = self.pixels.shape
+        return np.meshgrid(np.arange(w, dtype=float) + self.u0, np.arange(h, dtype=float) + self.v0)
+
+    def signal(self) -> np.ndarray:
+        """Background-subtracted pixels, DN."""
+        h, w = self.pixels.shape
+        gu, gv = self.background_grad
+        plane = (np.arange(h)[:, None] - (h - 1) / 2) * gv + (
+            np.arange(w)[None, :] - (w - 1) / 2
+        ) * gu
+        return self.pixels - self.background_dn - plane
+
+    def variance(self, signal_dn: np.ndarray | None = None) -> np.ndarray:
+        """Per-pixel noise variance, DN^2: background noise plus shot noise of the signal."""
+        s = self.signal() if signal_dn is None else signal_dn
+        return self.noise_dn**2 + self.gain_dn_per_e * np.maximum(s, 0.0)
+
+    def mask_moments(self) -> tuple[float, float, float]:
+        """Binary centroid ``(u, v)`` and Gaussian-equivalent sigma of the mask, pixels."""
+        vv, uu = np.nonzero(self.mask)
+        area = uu.size
+        sigma = math.sqrt(max(area, 1) / math.pi) / 2.0 + 0.3
+        return float(uu.mean() + self.u0), float(vv.mean() + self.v0), sigma
+
+    def blob(
+        self,
+        u_px: float,
+        v_px: float,
+        *,
+        flux_dn: float,
+        size_px: float | None = None,
+        cov_px2: np.ndarray | None = None,
+    ) -> tuple[float, float, np.ndarray, float, float, float]:
+        """A :class:`~deckpose.detect.registry.Blobs` row, filling in what is not given.
+
+        The default covariance is that of an intensity-weighted centroid of a
+        Gaussian spot of ``size_px`` under this window's noise model.
+        """
+        size = self.mask_moments()[2] if size_px is None else float(size_px)
+        area = int(self.mask.sum())
+        score = float(flux_dn / (self.noise_dn * math.sqrt(max(area, 1))))
+        if cov_px2 is None:
+            n_e = max(flux_dn, 1e-9) / self.gain_dn_per_e
+            npix = 4.0 * math.pi * size**2
+            bg_e2 = npix * self.noise_dn**2 / self.gain_dn_per_e**2
+            var = (size**2 + 1.0 / 12.0) / n_e * (1.0 + bg_e2 / n_e)
+            cov_px2 = np.eye(2) * var
+        return (float(u_px), float(v_px), np.asarray(cov_px2, float), float(flux_dn), size, score)
+
+
+MeasureFn = Callable[[Candidate], "tuple[float, float, np.ndarray, float, float, float] | None"]
+
+
+def coarse_factor(shape: tuple[int, int], coarse_max_px: int) -> int:
+    """Integer block size that brings ``H * W`` down to at most ``coarse_max_px``."""
+    return max(1, math.ceil(math.sqrt(shape[0] * shape[1] / coarse_max_px)))
+
+
+def coarse_image(image: np.ndarray, factor: int) -> np.ndarray:
+    """Block means of ``factor x factor`` pixels (mono), float32."""
+    if factor == 1:
+        return mono(image).astype(np.float32)
+    H, W = image.shape[:2]
+    h, w = H // factor, W // factor
+    small = cv2.resize(image[: h * factor, : w * factor], (w, h), interpolation=cv2.INTER_AREA)
+    if small.ndim == 3:
+        return small.sum(axis=2, dtype=np.float32)
+    return small.astype(np.float32)
+
+
+def coarse_boxes(
+    image: np.ndarray, options: DetectorOptions
+) -> tuple[list[tuple[int, int, int, int]], str]:
+    """Full-resolution boxes ``(u0, v0, u1, v1)`` (exclusive ends) around coarse detections.
+
+    Returns the boxes and, when there are none or too many, the reason.
+    """
+    f = coarse_factor(image.shape[:2], options.coarse_max_px)
+    small = coarse_image(image, f)
+    step = max(1, int(math.sqrt(small.size / 30_000)))
+    if options.background_kernel_px > 0:
+        # Uneven background (a lit, textured deck): subtract a grey opening, which keeps
+        # structures wider than the kernel and removes the beacons.
+        k = 2 * max(1, round(options.background_kernel_px / (2 * f))) + 1
+        small = small - cv2.morphologyEx(
+            small, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+        )
+        # ... and its noise varies with the background (shot noise): local statistics.
+        bg_map, noise_map = tile_stats(small)
+        noise_map = np.maximum(noise_map, noise_floor_dn(image))
+        mask = (small > bg_map + options.threshold_sigma * noise_map).astype(np.uint8)
+    else:
+        bg, _ = robust_stats(small[::step, ::step])
+        noise = max(difference_noise(small), noise_floor_dn(image))
+        mask = (small > bg + options.threshold_sigma * noise).astype(np.uint8)
+    n, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    if n - 1 > options.max_blobs:
+        return [], (
+            f"{n - 1} candidate blobs exceed max_blobs={options.max_blobs}: "
+            "glare, noise or the wrong threshold"
+        )
+    H, W = image.shape[:2]
+    pad = f + 2
+    boxes = []
+    for x, y, w, h, _area in stats[1:]:
+        boxes.append(
+            (
+                max(0, x * f - pad),
+                max(0, y * f - pad),
+                min(W, (x + w) * f + pad),
+                min(H, (y + h) * f + pad),
+            )
+        )
+    return boxes, ""
+
+
+def _window(
+    image: np.ndarray, box: tuple[int, int, int, int], sat: float
+) -> tuple[np.ndarray, np.ndarray]:
+    u0, v0, u1, v1 = box
+    block = image[v0:v1, u0:u1]
+    saturated = (block >= sat).any(axis=2) if block.ndim == 3 else block >= sat
+    return mono(block), saturated
+
+
+def border_plane(pixels: np.ndarray) -> tuple[float, float, float]:
+    """Plane ``(value at the centre, d/du, d/dv)`` fitted to a window's border pixels.
+
+    Two passes: a least-squares fit, then a refit without border pixels more than
+    3 robust sigmas off it (a neighbouring blob touching the border).
+    """
+    h, w = pixels.shape
+    vv, uu = np.mgrid[0:h, 0:w]
+    border = np.zeros((h, w), bool)
+    border[[0, -1], :] = True
+    border[:, [0, -1]] = True
+    A = np.column_stack([np.ones(border.sum()), uu[border] - (w - 1) / 2, vv[border] - (h - 1) / 2])
+    z = pixels[border]
+    keep = np.ones(z.size, bool)
+    coef = np.array([float(np.median(z)), 0.0, 0.0])
+    for _ in range(2):
+        if keep.sum() < 6:
+            break
+        coef = np.linalg.lstsq(A[keep], z[keep], rcond=None)[0]
+        r = z - A @ coef
+        mad = 1.4826 * float(np.median(np.abs(r - np.median(r)))) + 1e-9
+        keep = np.abs(r) < 3 * mad + 1e-6
+    return float(coef[0]), float(coef[1]), float(coef[2])
+
+
+def _border_median(pixels: np.ndarray) -> float:
+    return float(
+        np.median(np.concatenate([pixels[0], pixels[-1], pixels[1:-1, 0], pixels[1:-1, -1]]))
+    )
+
+
+BoxesFn = Callable[[np.ndarray, DetectorOptions], "tuple[list[tuple[int, int, int, int]], str]"]
+
+
+def find_candidates(
+    frame: Frame, options: DetectorOptions, *, boxes_fn: BoxesFn = coarse_boxes
+) -> tuple[list[Candidate], str]:
+    """All blobs of a frame as :class:`Candidate` windows, or ``([], reason)``.
+
+    Parameters
+    ----------
+    frame : Frame
+    options : DetectorOptions
+    boxes_fn : callable, optional
+        ``(image, options) -> (boxes, reason)``: where to look at full resolution;
+        default :func:`coarse_boxes`.
+    """
+    image = frame.image
+    st = frame_stats(image)
+    problem = frame_problem(st)
+    if problem:
+        return [], problem
+    boxes, reason = boxes_fn(image, options)
+    if reason:
+        return [], reason
+    thr = st.background_dn + options.threshold_sigma * st.noise_dn
+    k_noise = options.threshold_sigma * st.noise_dn
+    H, W = image.shape[:2]
+    raw: list[
+        tuple[
+            np.ndarray, np.ndarray, np.ndarray, int, int, tuple[float, float, float], float, float
+        ]
+    ]
+    raw = []
+    seen: set[tuple[int, int]] = set()
+    for box in boxes:
+        pix, _ = _window(image, box, st.saturation_dn)
+        # The threshold follows the local background (the box border) where it is brighter;
+        # with an uneven background, the local noise too.
+        if options.background_kernel_px > 0:
+            noise_box = max(border_noise(pix), noise_floor_dn(image))
+            thr_box = _border_median(pix) + options.threshold_sigma * noise_box
+        else:
+            noise_box = st.noise_dn
+            thr_box = max(thr, _border_median(pix) + k_noise)
+        n, labels, cstats, _ = cv2.connectedComponentsWithStats(
+            (pix > thr_box).astype(np.uint8), connectivity=8
+        )
+        for lab in range(1, n):
+            x, y, w, h, area = (int(c) for c in cstats[lab])
+            if area < options.min_area_px:
+                continue
+            comp = labels[y : y + h, x : x + w] == lab
+            peak = np.unravel_index(
+                np.argmax(np.where(comp, pix[y : y + h, x : x + w], -np.inf)), comp.shape
+            )
+            key = (box[1] + y + int(peak[0]), box[0] + x + int(peak[1]))
+            if key in seen:  # the same blob reached from two overlapping coarse boxes
+                continue
+            seen.add(key)
+            r_eq = math.sqrt(area / math.pi)
+            pad = int(math.ceil(options.window_sigma * max(r_eq, 1.0))) + 3
+            gu0, gv0 = box[0] + x, box[1] + y
+            wb = (
+                max(0, gu0 - pad),
+                max(0, gv0 - pad),
+                min(W, gu0 + w + pad),
+                min(H, gv0 + h + pad),
+            )
+            wpix, wsat = _window(image, wb, st.saturation_dn)
+            mask = np.zeros(wpix.shape, bool)
+            mask[gv0 - wb[1] : gv0 - wb[1] + h, gu0 - wb[0] : gu0 - wb[0] + w] = comp
+            raw.append((wpix, mask, wsat, wb[0], wb[1], border_plane(wpix), thr_box, noise_box))
+    if not raw:
+        return [], (
+            f"dark frame: no blob above {thr:.1f} DN (background {st.background_dn:.1f} DN, "
+            f"noise {st.noise_dn:.2f} DN, brightest sample {st.max_dn:.0f} DN)"
+        )
+    cands = [
+        Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, options.gain_dn_per_e or 1.0, t)
+        for p, m, s, u0, v0, bg, t, nz in raw
+    ]
+    if options.gain_dn_per_e is None:
+        from deckpose.detect.gain import estimate_gain  # gain uses cog, which uses this module
+
+        gain = estimate_gain(cands, options.window_sigma)
+        cands = [dataclasses.replace(c, gain_dn_per_e=gain) for c in cands]
+    return cands, ""
+
+
+def measure_candidates(
+    frame: Frame, options: DetectorOptions, measure: MeasureFn, *, boxes_fn: BoxesFn = coarse_boxes
+) -> Blobs:
+    """Run ``measure`` on every candidate of ``frame``; ``None`` results are dropped.
+
+    A blob measured twice (reached from two coarse boxes, e.g. a faint spot whose
+    coarse footprint fell apart) is kept once: of two centres closer than the
+    larger spot sigma (at least 1 px), the one with more flux stays.
+    """
+    cands, reason = find_candidates(frame, options, boxes_fn=boxes_fn)
+    if reason:
+        return Blobs.empty(reason)
+    rows = [r for r in (measure(c) for c in cands) if r is not None]
+    if not rows:
+        return Blobs.empty("no candidate could be measured")
+    kept: list[tuple[float, float, np.ndarray, float, float, float]] = []
+    for r in sorted(rows, key=lambda r: -r[3]):
+        if all(math.hypot(r[0] - k[0], r[1] - k[1]) >= max(1.0, r[4], k[4]) for k in kept):
+            kept.append(r)
+    return Blobs.stack(kept)

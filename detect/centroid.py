@@ -1,0 +1,108 @@
+"""The two classic centroiders: ``binary`` (the baseline) and ``cog``.
+
+* ``binary``: threshold + connected components, centre of the binary blob, as
+  most LED trackers do. Every pixel above the threshold counts the same, so
+  the centre moves in steps as pixels cross the threshold.
+* ``cog``: intensity-weighted centre of gravity of background-subtracted pixels,
+  in a soft-edged circular window of ``window_sigma`` spot sigmas re-centred on
+  the estimate until it converges (a symmetric window does not bias a
+  symmetric spot).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from deckpose.detect.candidates import Candidate, measure_candidates
+from deckpose.detect.registry import Blobs, DetectorOptions, register
+from deckpose.records import Frame
+
+Row = tuple[float, float, np.ndarray, float, float, float]
+
+
+def truncated_m2_fraction(k: float) -> float:
+    """Per-axis second moment of a 2-D Gaussian truncated at radius ``k`` sigma, over sigma^2."""
+    e = math.exp(-k * k / 2.0)
+    return (1.0 - (1.0 + k * k / 2.0) * e) / (1.0 - e)
+
+
+def binary_centroid(cand: Candidate) -> Row:
+    """Unweighted centre of the blob's mask; covariance adds the mask's quantisation."""
+    u, v, sigma = cand.mask_moments()
+    flux = float(cand.signal()[cand.mask].sum())
+    base = cand.blob(u, v, flux_dn=flux, size_px=sigma)
+    area = int(cand.mask.sum())
+    quant = 1.0 / (12.0 * math.sqrt(area))  # heuristic: boundary pixels flipping in or out
+    return base[:2] + (base[2] + np.eye(2) * quant,) + base[3:]
+
+
+def cog_centroid(
+    cand: Candidate, window_sigma: float = 3.0, max_iter: int = 30, tol_px: float = 1e-4
+) -> Row | None:
+    """Iterated, soft-windowed intensity centroid of one candidate (``None`` if degenerate).
+
+    The window is a disc of radius ``window_sigma * sigma`` whose edge pixels are
+    weighted by their approximate coverage; ``sigma`` is re-estimated from the
+    windowed second moment (corrected for the truncation) at each iteration.
+    """
+    s_full = cand.signal()
+    h, w = s_full.shape
+    ms = np.where(cand.mask, s_full, 0.0)
+    F = ms.sum()
+    if not F > 0:
+        return None
+    vv0, uu0 = np.nonzero(cand.mask)
+    wts = ms[vv0, uu0]
+    u = float((wts * uu0).sum() / F) + cand.u0
+    v = float((wts * vv0).sum() / F) + cand.v0
+    sigma = cand.mask_moments()[2]
+    sigma_max = 0.5 * min(h, w) / window_sigma + 1.0
+    m2_frac = truncated_m2_fraction(window_sigma)
+    for it in range(max_iter + 1):
+        R = window_sigma * sigma
+        # Work on the square around the current window only.
+        c0 = max(0, int(np.floor(u - cand.u0 - R - 1)))
+        c1 = min(w, int(np.ceil(u - cand.u0 + R + 2)))
+        r0 = max(0, int(np.floor(v - cand.v0 - R - 1)))
+        r1 = min(h, int(np.ceil(v - cand.v0 + R + 2)))
+        s = s_full[r0:r1, c0:c1]
+        du = (np.arange(c0, c1, dtype=float) + cand.u0 - u)[None, :]
+        dv = (np.arange(r0, r1, dtype=float) + cand.v0 - v)[:, None]
+        win = np.clip(R + 0.5 - np.sqrt(du * du + dv * dv), 0.0, 1.0)
+        ws = win * s
+        F = ws.sum()
+        if not F > 0:
+            return None
+        su, sv = float((ws * du).sum() / F), float((ws * dv).sum() / F)
+        if it == max_iter or math.hypot(su, sv) < tol_px:
+            break
+        m2 = float((ws * (du * du + dv * dv)).sum() / F) / 2.0 - (su * su + sv * sv) / 2.0
+        sigma = float(np.clip(math.sqrt(max(m2, 0.0) / m2_frac), 0.5, sigma_max))
+        u, v = u + su, v + sv
+    u, v = u + su, v + sv
+    du, dv = du - su, dv - sv
+    var = cand.variance(s) * win**2
+    cov = (
+        np.array(
+            [
+                [(var * du * du).sum(), (var * du * dv).sum()],
+                [(var * du * dv).sum(), (var * dv * dv).sum()],
+            ]
+        )
+        / F**2
+    )
+    return cand.blob(u, v, flux_dn=float(F), size_px=sigma, cov_px2=cov)
+
+
+@register("binary")
+def detect_binary(frame: Frame, options: DetectorOptions) -> Blobs:
+    """Baseline: adaptive threshold + connected components, binary-blob centre."""
+    return measure_candidates(frame, options, binary_centroid)
+
+
+@register("cog")
+def detect_cog(frame: Frame, options: DetectorOptions) -> Blobs:
+    """Intensity-weighted centre of gravity in a re-centred window around each blob."""
+    return measure_candidates(frame, options, lambda c: cog_centroid(c, options.window_sigma))

@@ -1,0 +1,55 @@
+"""Colour of each blob: tells the red bow beacon from the white ones."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import NDArray
+
+from deckpose.errors import check_shape
+
+FloatArray = NDArray[np.float64]
+
+
+def blob_rgb_flux(image: np.ndarray, points_px: FloatArray, radii_px: FloatArray) -> FloatArray:
+    """Background-subtracted flux per channel of each blob.
+
+    Parameters
+    ----------
+    image : (H, W, 3) array
+        RGB frame.
+    points_px : (N, 2) array of float
+        Blob centres ``(u, v)``.
+    radii_px : (N,) array of float
+        Aperture radius per blob, pixels; the background is the per-channel
+        median of an annulus from 1.5 to 2.5 aperture radii.
+
+    Returns
+    -------
+    (N, 3) array of float, DN
+    """
+    img = np.asarray(image)
+    check_shape("image", img, (None, None, 3))
+    pts = np.asarray(points_px, dtype=float).reshape(-1, 2)
+    H, W = img.shape[:2]
+    out = np.zeros((pts.shape[0], 3))
+    for i, ((u, v), r) in enumerate(zip(pts, np.broadcast_to(radii_px, (pts.shape[0],)))):
+        R = 2.5 * r + 1.0
+        u0, u1 = max(0, int(math.floor(u - R))), min(W, int(math.ceil(u + R)) + 1)
+        v0, v1 = max(0, int(math.floor(v - R))), min(H, int(math.ceil(v + R)) + 1)
+        block = img[v0:v1, u0:u1].astype(float)
+        vv, uu = np.mgrid[v0:v1, u0:u1]
+        d = np.hypot(uu - u, vv - v)
+        ap, ann = d <= r, (d >= 1.5 * r) & (d <= R)
+        bg = np.median(block[ann], axis=0) if ann.any() else np.zeros(3)
+        out[i] = (block[ap] - bg).sum(axis=0)
+    return out
+
+
+def redness(rgb_flux: FloatArray) -> FloatArray:
+    """Share of red in each blob's flux, ``R / (R + G + B)`` (NaN for non-positive flux), (N,)."""
+    f = np.clip(np.asarray(rgb_flux, dtype=float), 0.0, None)
+    tot = f.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return np.where(tot > 0, f[:, 0] / tot, np.nan)

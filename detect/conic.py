@@ -1,0 +1,102 @@
+"""Conics through image points: the ring of beacons images as an ellipse.
+
+A conic is ``A x^2 + B x y + C y^2 + D x + E y + F = 0``, stored as the
+coefficient vector ``(A, B, C, D, E, F)``. Fits are algebraic (SVD) on
+Hartley-normalised points, and distances are first-order geometric (Sampson).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import NDArray
+
+from deckpose.errors import check_shape
+
+FloatArray = NDArray[np.float64]
+
+
+def _normaliser(points: FloatArray) -> FloatArray:
+    c = points.mean(axis=0)
+    s = np.sqrt(2.0) / max(float(np.mean(np.linalg.norm(points - c, axis=1))), 1e-12)
+    return np.array([[s, 0.0, -s * c[0]], [0.0, s, -s * c[1]], [0.0, 0.0, 1.0]])
+
+
+def _design(points: FloatArray) -> FloatArray:
+    x, y = points[:, 0], points[:, 1]
+    return np.column_stack([x * x, x * y, y * y, x, y, np.ones_like(x)])
+
+
+def conic_matrix(conic: FloatArray) -> FloatArray:
+    """The symmetric 3x3 matrix ``Q`` with ``[x y 1] Q [x y 1]^T = 0``."""
+    A, B, C, D, E, F = conic
+    return np.array([[A, B / 2, D / 2], [B / 2, C, E / 2], [D / 2, E / 2, F]])
+
+
+def fit_conic(points_px: FloatArray) -> FloatArray:
+    """Algebraic least-squares conic through ``points_px`` (N >= 5), unit-norm coefficients.
+
+    Parameters
+    ----------
+    points_px : (N, 2) array of float
+
+    Returns
+    -------
+    (6,) array of float
+    """
+    p = np.asarray(points_px, dtype=float)
+    check_shape("points_px", p, (None, 2))
+    T = _normaliser(p)
+    pn = p @ T[:2, :2].T + T[:2, 2]
+    _, _, vt = np.linalg.svd(_design(pn))
+    Qn = conic_matrix(vt[-1])
+    Q = T.T @ Qn @ T
+    c = np.array([Q[0, 0], 2 * Q[0, 1], Q[1, 1], 2 * Q[0, 2], 2 * Q[1, 2], Q[2, 2]])
+    return c / np.linalg.norm(c)
+
+
+def is_ellipse(conic: FloatArray) -> bool:
+    """A real, non-degenerate ellipse."""
+    A, B, C = conic[:3]
+    if not B * B - 4 * A * C < 0:
+        return False
+    return ellipse_semi_axes(conic) is not None
+
+
+def ellipse_centre(conic: FloatArray) -> FloatArray:
+    """Centre of an ellipse conic, (2,)."""
+    A, B, C, D, E, _ = conic
+    return np.linalg.solve(np.array([[2 * A, B], [B, 2 * C]]), -np.array([D, E]))
+
+
+def ellipse_shape(conic: FloatArray) -> FloatArray | None:
+    """``M`` (2x2, positive definite) with ``(p - c)^T M (p - c) = 1`` on the ellipse, or None."""
+    A, B, C = conic[:3]
+    c = ellipse_centre(conic)
+    Q2 = np.array([[A, B / 2], [B / 2, C]])
+    fc = float(np.append(c, 1.0) @ conic_matrix(conic) @ np.append(c, 1.0))
+    if fc == 0.0:
+        return None
+    M = Q2 / -fc
+    if np.any(np.linalg.eigvalsh(M) <= 0):
+        return None
+    return M
+
+
+def ellipse_semi_axes(conic: FloatArray) -> tuple[float, float] | None:
+    """``(major, minor)`` semi-axes, or ``None`` if the conic is no real ellipse."""
+    M = ellipse_shape(conic)
+    if M is None:
+        return None
+    ev = np.linalg.eigvalsh(M)
+    return float(1.0 / np.sqrt(ev[0])), float(1.0 / np.sqrt(ev[1]))
+
+
+def sampson_distance(conic: FloatArray, points_px: FloatArray) -> FloatArray:
+    """First-order geometric distance of each point to the conic, (N,) pixels."""
+    p = np.asarray(points_px, dtype=float)
+    A, B, C, D, E, _ = conic
+    x, y = p[:, 0], p[:, 1]
+    f = _design(p) @ conic
+    gx = 2 * A * x + B * y + D
+    gy = B * x + 2 * C * y + E
+    return np.abs(f) / np.maximum(np.hypot(gx, gy), 1e-300)

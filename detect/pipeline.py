@@ -1,0 +1,121 @@
+"""One frame through a detector and identification: the detection stage's unit of work."""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from deckpose.detect import registry
+from deckpose.detect.colour import blob_rgb_flux
+from deckpose.detect.identify import IdentifyOptions, identify_beacons
+from deckpose.detect.registry import Blobs, DetectorOptions
+from deckpose.layout import DeckLayout
+from deckpose.records import UNASSIGNED, Detections, Frame
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class FrameDetections:
+    """Detections of one frame with the detector's extra measurements and the outcome.
+
+    Attributes
+    ----------
+    detections : Detections
+        Centres, ids, covariances and scores (the record the estimators read).
+    flux_dn : (N,) array of float
+        Background-subtracted flux per detection, DN.
+    size_px : (N,) array of float
+        Gaussian-equivalent spot sigma per detection, pixels.
+    detector : str
+    ok : bool
+        Detection and identification both succeeded.
+    reason : str
+        Why not (empty when ok). Detections may be present when only
+        identification failed.
+    seconds : float
+        Wall time of detection plus identification.
+    """
+
+    detections: Detections
+    flux_dn: FloatArray
+    size_px: FloatArray
+    detector: str
+    ok: bool
+    reason: str
+    seconds: float
+
+    def __bool__(self) -> bool:
+        return self.ok
+
+    @classmethod
+    def failed(
+        cls, frame_id: int, detector: str, reason: str, seconds: float = 0.0
+    ) -> "FrameDetections":
+        empty = Detections(np.zeros((0, 2)), np.zeros(0, np.int64), frame_id=frame_id)
+        return cls(empty, np.zeros(0), np.zeros(0), detector, False, reason, seconds)
+
+
+def detect_frame(
+    frame: Frame,
+    detector: str,
+    layout: DeckLayout,
+    *,
+    options: DetectorOptions = DetectorOptions(),
+    identify_options: IdentifyOptions = IdentifyOptions(),
+    identify: bool = True,
+) -> FrameDetections:
+    """Run detector ``detector`` on ``frame`` and identify the beacons.
+
+    Parameters
+    ----------
+    frame : Frame
+    detector : str
+        A name from :func:`deckpose.detect.registry.names`.
+    layout : DeckLayout
+    options : DetectorOptions
+    identify_options : IdentifyOptions
+    identify : bool
+        Skip identification (all ids unassigned) when False.
+
+    Returns
+    -------
+    FrameDetections
+        Never raises for a bad frame: failures come back with a reason.
+    """
+    fn = registry.get(detector)
+    t0 = time.perf_counter()
+    blobs: Blobs = fn(frame, options)
+    if not blobs:
+        return FrameDetections.failed(
+            frame.frame_id, detector, blobs.reason, time.perf_counter() - t0
+        )
+    n = len(blobs)
+    ids = np.full(n, UNASSIGNED, np.int64)
+    reason = ""
+    if identify:
+        rgb = None
+        if frame.image.ndim == 3:
+            radii = np.maximum(2.0, 2.0 * blobs.size_px)
+            rgb = blob_rgb_flux(frame.image, blobs.points_px, radii)
+        ident = identify_beacons(
+            blobs.points_px, layout, frame.camera, rgb_flux=rgb, options=identify_options
+        )
+        ids = np.asarray(ident.beacon_ids)
+        reason = "" if ident else f"identification: {ident.reason}"
+    seconds = time.perf_counter() - t0
+    dets = Detections(
+        blobs.points_px, ids, blobs.covariance_px2, blobs.score, frame_id=frame.frame_id
+    )
+    return FrameDetections(
+        dets,
+        blobs.flux_dn,
+        blobs.size_px,
+        detector,
+        not reason,
+        reason,
+        float(seconds),
+    )

@@ -1,0 +1,234 @@
+"""The detector interface, its measurement record and the registry.
+
+A detector is a pure function::
+
+    fn(frame: Frame, options: DetectorOptions) -> Blobs
+
+registered under a name with :func:`register`; ``deckpose detect --detector NAME``
+and ``deckpose bench-detectors`` find it through :func:`get`. Most detectors only
+measure one blob in a full-resolution window around each candidate that the shared
+coarse-to-fine search finds; :func:`deckpose.detect.candidates.measure_candidates`
+does the rest, so a new detector is a few lines::
+
+    from deckpose.detect import registry
+    from deckpose.detect.candidates import measure_candidates
+
+    @registry.register("peak")
+    def peak(frame, options):
+        def measure(c):              # c: a candidates.Candidate (full-resolution window)
+            s = c.signal()           # background-subtracted pixels
+            v, u = np.unravel_index(np.argmax(s), s.shape)
+            return c.blob(u + c.u0, v + c.v0, flux_dn=float(s.max()))
+        return measure_candidates(frame, options, measure)
+
+Modules outside deckpose can register detectors too: ``deckpose detect --plugin
+MODULE`` imports ``MODULE`` first, and installed packages can declare an entry
+point in the group ``deckpose.detectors``.
+"""
+
+from __future__ import annotations
+
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from deckpose.errors import ConfigError, check_shape
+from deckpose.records import Frame
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class DetectorOptions:
+    """Options shared by all detectors.
+
+    Attributes
+    ----------
+    threshold_sigma : float
+        Detection threshold, in standard deviations of the frame's background
+        noise above its background level (both measured per frame).
+    coarse_max_px : int
+        The candidate search runs on a block-averaged copy of the frame with at
+        most this many pixels (coarse-to-fine search on large frames).
+    min_area_px : int
+        Smallest blob (full-resolution pixels above threshold) kept.
+    max_blobs : int
+        More candidates than this fail the frame (noise, glare).
+    window_sigma : float
+        Radius of the measuring window, in spot standard deviations (cog, log).
+    gain_dn_per_e : float or None
+        Sensor gain, DN per electron, for the noise model behind covariances and
+        fit weights; ``None`` estimates it from the frame's blobs.
+    background_kernel_px : int
+        0: one background level for the whole frame (dark sea or sky). Otherwise
+        the candidate search first removes an uneven background (a lit deck) by a
+        grey opening with a disc of this diameter, full-resolution pixels; it
+        must exceed the largest beacon's diameter.
+    """
+
+    threshold_sigma: float = 6.0
+    coarse_max_px: int = 1_000_000
+    min_area_px: int = 2
+    max_blobs: int = 200
+    window_sigma: float = 3.0
+    gain_dn_per_e: float | None = None
+    background_kernel_px: int = 0
+
+    def __post_init__(self) -> None:
+        if not self.threshold_sigma > 0:
+            raise ConfigError(f"threshold_sigma must be positive, got {self.threshold_sigma}")
+        if self.coarse_max_px < 10_000:
+            raise ConfigError(f"coarse_max_px must be >= 10000, got {self.coarse_max_px}")
+        if self.min_area_px < 1 or self.max_blobs < 1:
+            raise ConfigError("min_area_px and max_blobs must be >= 1")
+        if not self.window_sigma >= 1.0:
+            raise ConfigError(f"window_sigma must be >= 1, got {self.window_sigma}")
+        if self.background_kernel_px < 0:
+            raise ConfigError(f"background_kernel_px must be >= 0, got {self.background_kernel_px}")
+        if self.gain_dn_per_e is not None and not self.gain_dn_per_e > 0:
+            raise ConfigError(f"gain_dn_per_e must be positive or None, got {self.gain_dn_per_e}")
+
+
+def _ro(a: object, dtype: type = float) -> np.ndarray:
+    arr = np.array(a, dtype=dtype)
+    arr.setflags(write=False)
+    return arr
+
+
+@dataclass(frozen=True)
+class Blobs:
+    """What a detector measures in one frame, before identification.
+
+    A frame the detector could not handle is a falsy ``Blobs`` with a ``reason``.
+
+    Attributes
+    ----------
+    points_px : (N, 2) array of float
+        Blob centres ``(u, v)``, distorted pixels as in the image.
+    covariance_px2 : (N, 2, 2) array of float
+        Covariance of each centre, px^2.
+    flux_dn : (N,) array of float
+        Background-subtracted summed intensity, DN.
+    size_px : (N,) array of float
+        Gaussian-equivalent standard deviation of the spot, pixels.
+    score : (N,) array of float
+        Signal-to-noise ratio of the blob (larger = better).
+    ok : bool
+    reason : str
+        Why the frame failed (empty when ok).
+    """
+
+    points_px: FloatArray
+    covariance_px2: FloatArray
+    flux_dn: FloatArray
+    size_px: FloatArray
+    score: FloatArray
+    ok: bool = True
+    reason: str = ""
+
+    def __post_init__(self) -> None:
+        pts = _ro(self.points_px).reshape(-1, 2)
+        n = pts.shape[0]
+        cov = _ro(self.covariance_px2).reshape(-1, 2, 2)
+        check_shape("covariance_px2", cov, (n, 2, 2))
+        object.__setattr__(self, "points_px", pts)
+        object.__setattr__(self, "covariance_px2", cov)
+        for name in ("flux_dn", "size_px", "score"):
+            arr = _ro(getattr(self, name)).reshape(-1)
+            check_shape(name, arr, (n,))
+            object.__setattr__(self, name, arr)
+        if self.ok == bool(self.reason):
+            raise ValueError("Blobs: ok must be True with no reason, or False with a reason")
+
+    def __len__(self) -> int:
+        return int(self.points_px.shape[0])
+
+    def __bool__(self) -> bool:
+        return self.ok
+
+    @classmethod
+    def empty(cls, reason: str = "") -> "Blobs":
+        """No blobs; failed when ``reason`` is given."""
+        z = np.zeros(0)
+        return cls(np.zeros((0, 2)), np.zeros((0, 2, 2)), z, z, z, ok=not reason, reason=reason)
+
+    @classmethod
+    def stack(cls, rows: list[tuple[float, float, FloatArray, float, float, float]]) -> "Blobs":
+        """Build from ``(u, v, cov (2, 2), flux_dn, size_px, score)`` tuples."""
+        if not rows:
+            return cls.empty()
+        u, v, cov, flux, size, score = zip(*rows)
+        return cls(np.column_stack([u, v]), np.stack(cov), flux, size, score)
+
+
+DetectorFn = Callable[[Frame, DetectorOptions], Blobs]
+
+_REGISTRY: dict[str, DetectorFn] = {}
+
+#: Modules that register the built-in detectors when imported.
+_BUILTIN_MODULES: tuple[str, ...] = (
+    "deckpose.detect.centroid",
+    "deckpose.detect.gauss",
+    "deckpose.detect.log_blobs",
+    "deckpose.detect.opencv_blob",
+)
+
+_loaded = False
+
+
+def register(name: str) -> Callable[[DetectorFn], DetectorFn]:
+    """Decorator: make ``fn`` available as detector ``name``."""
+
+    def deco(fn: DetectorFn) -> DetectorFn:
+        if name in _REGISTRY and _REGISTRY[name] is not fn:
+            raise ConfigError(f"a detector named {name!r} is already registered")
+        _REGISTRY[name] = fn
+        return fn
+
+    return deco
+
+
+def unregister(name: str) -> None:
+    """Remove detector ``name`` (for tests and interactive sessions)."""
+    _REGISTRY.pop(name, None)
+
+
+def _load_builtins() -> None:
+    global _loaded
+    if _loaded:
+        return
+    _loaded = True
+    for mod in _BUILTIN_MODULES:
+        importlib.import_module(mod)
+    from importlib.metadata import entry_points
+
+    for ep in entry_points(group="deckpose.detectors"):
+        ep.load()
+
+
+def load_plugin(module: str) -> None:
+    """Import a user module that registers detectors with :func:`register`."""
+    try:
+        importlib.import_module(module)
+    except ImportError as exc:
+        raise ConfigError(f"cannot import detector plugin {module!r}: {exc}") from exc
+
+
+def names() -> list[str]:
+    """Names of all registered detectors."""
+    _load_builtins()
+    return sorted(_REGISTRY)
+
+
+def get(name: str) -> DetectorFn:
+    """The detector registered as ``name``."""
+    _load_builtins()
+    try:
+        return _REGISTRY[name]
+    except KeyError:
+        raise ConfigError(
+            f"unknown detector {name!r}; choose one of {', '.join(sorted(_REGISTRY))}"
+        ) from None

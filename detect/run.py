@@ -1,0 +1,150 @@
+"""Batch detection over a :class:`~deckpose.detect.sources.FrameSet`, written to an output folder.
+
+Outputs (see :func:`write_run`) go either into the dataset's run layout
+(``DATASET/detections/<detector>.parquet`` + ``<detector>.frames.parquet``, read
+by ``deckpose estimate --run``) or into a self-contained folder
+(``detections.parquet``, ``detect_frames.parquet``, ``cameras/<name>.yaml``,
+``detect_run.json``), with a metadata file of format ``deckpose-detections/1``
+(detector, options, layout, source, package versions). A bad frame is a row
+with ``ok = False`` and a reason; the batch goes on.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import platform
+from pathlib import Path
+from typing import Any
+
+import pandas as pd
+
+from deckpose.atomic_io import atomic_open
+from deckpose.camera_info import write_camera_info
+from deckpose.detect.identify import IdentifyOptions
+from deckpose.detect.pipeline import FrameDetections, detect_frame
+from deckpose.detect.registry import DetectorOptions
+from deckpose.detect.sources import FrameSet, load_frame
+from deckpose.errors import ConfigError
+from deckpose.detect.tables import detection_rows, write_tables
+from deckpose.layout import layout_to_dict
+
+RUN_FORMAT = "deckpose-detections/1"
+
+
+def detect_frames(
+    frameset: FrameSet,
+    detector: str,
+    *,
+    options: DetectorOptions = DetectorOptions(),
+    identify_options: IdentifyOptions = IdentifyOptions(),
+    progress: bool = False,
+) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Detect in every frame; returns ``(detections table, frames table)``."""
+    from tqdm import tqdm
+
+    det_parts, frame_rows = [], []
+    it = tqdm(frameset.sources, desc=f"detect {detector}", unit="frame", disable=not progress)
+    for src in it:
+        frame = load_frame(src, frameset.cameras[src.camera_name])
+        if isinstance(frame, str):
+            fd = FrameDetections.failed(src.frame_id, detector, frame)
+        else:
+            fd = detect_frame(
+                frame, detector, frameset.layout, options=options, identify_options=identify_options
+            )
+        det_parts.append(detection_rows(fd))
+        frame_rows.append(
+            {
+                "frame_id": src.frame_id,
+                "ok": fd.ok,
+                "reason": fd.reason,
+                "n_detections": len(fd.detections),
+                "seconds": fd.seconds,
+                "n_identified": int((fd.detections.beacon_ids >= 0).sum()),
+                "camera": src.camera_name,
+                "stamp_ns": src.stamp_ns,
+                "image": os.path.relpath(src.image_path, frameset.root),
+            }
+        )
+    det_parts = [d for d in det_parts if len(d)]  # (concatenating empty frames is deprecated)
+    dets = (
+        pd.concat(det_parts, ignore_index=True)
+        if det_parts
+        else detection_rows(FrameDetections.failed(-1, detector, "none"))
+    )
+    return dets, pd.DataFrame(frame_rows)
+
+
+def write_run(
+    out_dir: str | os.PathLike[str] | None,
+    frameset: FrameSet,
+    detector: str,
+    detections: pd.DataFrame,
+    frames: pd.DataFrame,
+    options: DetectorOptions,
+    identify_options: IdentifyOptions,
+) -> Path:
+    """Write the detection outputs; returns the detections table's path.
+
+    With ``out_dir``: a self-contained folder ``out_dir/{detections.parquet,
+    detect_frames.parquet, detect_run.json, cameras/}``. Without (datasets only):
+    into the dataset's run layout, ``DATASET/detections/<detector>.parquet``,
+    ``<detector>.frames.parquet`` and ``<detector>.run.json``, where
+    ``deckpose estimate --run DATASET --detector <detector>`` reads them.
+    """
+    if out_dir is None:
+        if frameset.kind != "dataset":
+            raise ConfigError("a folder of images needs an output folder (--out)")
+        base = frameset.root / "detections"
+        det_path, frames_path = base / f"{detector}.parquet", base / f"{detector}.frames.parquet"
+        meta_path, cam_dir = base / f"{detector}.run.json", None
+    else:
+        base = Path(out_dir)
+        det_path, frames_path = base / "detections.parquet", base / "detect_frames.parquet"
+        meta_path, cam_dir = base / "detect_run.json", base / "cameras"
+    write_tables(det_path, frames_path, detections, frames)
+    cams = {}
+    for name, cam in frameset.cameras.items():
+        if cam_dir is not None:
+            write_camera_info(cam, cam_dir / f"{name}.yaml")
+            cams[name] = f"cameras/{name}.yaml"
+        else:
+            cams[name] = os.path.relpath(frameset.camera_files[name], base)
+    meta: dict[str, Any] = {
+        "format": RUN_FORMAT,
+        "detector": detector,
+        "detections": det_path.name,
+        "frames": frames_path.name,
+        "detector_options": dataclasses.asdict(options),
+        "identify_options": dataclasses.asdict(identify_options),
+        "layout": layout_to_dict(frameset.layout),
+        "source": str(frameset.root.resolve()),
+        "source_kind": frameset.kind,
+        "cameras": cams,
+        "n_frames": int(len(frames)),
+        "n_frames_ok": int(frames["ok"].sum()) if len(frames) else 0,
+        "versions": _versions(),
+    }
+    with atomic_open(meta_path, "w") as fh:
+        json.dump(meta, fh, indent=2)
+    return det_path
+
+
+def _versions() -> dict[str, str]:
+    import cv2
+    import numpy
+    import scipy
+    import skimage
+
+    from deckpose import __version__
+
+    return {
+        "deckpose": __version__,
+        "python": platform.python_version(),
+        "numpy": numpy.__version__,
+        "scipy": scipy.__version__,
+        "opencv": cv2.__version__,
+        "scikit-image": skimage.__version__,
+    }

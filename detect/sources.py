@@ -1,0 +1,175 @@
+"""Where frames come from: a deckpose dataset folder, or a folder of a user's images.
+
+A dataset follows the contract ``deckpose-dataset/1`` (``manifest.json``,
+``cameras/*.yaml``, ``images/``, ``frames.parquet``). A plain folder of images
+needs a ROS camera_info file (one camera for all images) and optionally a
+layout file; frame ids are then the images' positions in name order.
+
+Loading a frame never raises for a bad file: it returns the reason instead,
+so a batch goes on past unreadable, truncated or wrongly sized images.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from deckpose.camera import CameraModel
+from deckpose.camera_info import read_camera_info
+from deckpose.errors import InputDataError
+from deckpose.layout import DeckLayout, layout_from_dict, read_layout
+from deckpose.records import Frame
+
+DATASET_FORMAT = "deckpose-dataset/1"
+IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg", ".bmp", ".pgm", ".ppm")
+
+
+@dataclass(frozen=True)
+class FrameSource:
+    """One image to detect in, before it is read.
+
+    Attributes
+    ----------
+    frame_id : int
+    image_path : Path
+    camera_name : str
+    stamp_ns : int
+    """
+
+    frame_id: int
+    image_path: Path
+    camera_name: str
+    stamp_ns: int = 0
+
+
+@dataclass(frozen=True)
+class FrameSet:
+    """Frames with their cameras and the deck layout.
+
+    Attributes
+    ----------
+    sources : tuple of FrameSource
+    cameras : mapping of camera name to CameraModel
+    camera_files : mapping of camera name to the camera_info path
+    layout : DeckLayout
+    kind : str
+        ``"dataset"`` or ``"images"``.
+    root : Path
+    manifest : dict
+        The dataset manifest (empty for an image folder).
+    """
+
+    sources: tuple[FrameSource, ...]
+    cameras: dict[str, CameraModel]
+    camera_files: dict[str, Path]
+    layout: DeckLayout
+    kind: str
+    root: Path
+    manifest: dict[str, Any] = field(default_factory=dict)
+
+
+def is_dataset(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` is a dataset folder (has a manifest.json)."""
+    return (Path(path) / "manifest.json").is_file()
+
+
+def open_dataset(path: str | os.PathLike[str]) -> FrameSet:
+    """Read a dataset's manifest, cameras and frame table.
+
+    Raises
+    ------
+    InputDataError
+        If the manifest, a camera file or ``frames.parquet`` is missing or malformed.
+    """
+    import pandas as pd
+
+    root = Path(path)
+    try:
+        manifest = json.loads((root / "manifest.json").read_text())
+    except (OSError, json.JSONDecodeError) as exc:
+        raise InputDataError(
+            f"{root}: cannot read manifest.json ({exc}); is this a deckpose dataset?"
+        ) from exc
+    fmt = manifest.get("format")
+    if fmt != DATASET_FORMAT:
+        raise InputDataError(
+            f"{root}/manifest.json: format is {fmt!r}, expected {DATASET_FORMAT!r}"
+        )
+    layout = layout_from_dict(manifest.get("layout"), f"{root}/manifest.json: layout")
+    try:
+        frames = pd.read_parquet(
+            root / "frames.parquet", columns=["frame_id", "image", "camera", "stamp_ns"]
+        )
+    except Exception as exc:  # pyarrow raises several types for missing/corrupt files
+        raise InputDataError(
+            f"{root}/frames.parquet: cannot read frame_id, image, camera, stamp_ns ({exc})"
+        ) from exc
+    cameras, files = {}, {}
+    for name in sorted(set(frames["camera"].astype(str))):
+        f = root / "cameras" / f"{name}.yaml"
+        cameras[name] = read_camera_info(f)
+        files[name] = f
+    sources = tuple(
+        FrameSource(int(r.frame_id), root / str(r.image), str(r.camera), int(r.stamp_ns))
+        for r in frames.itertuples(index=False)
+    )
+    return FrameSet(sources, cameras, files, layout, "dataset", root, manifest)
+
+
+def open_image_folder(
+    path: str | os.PathLike[str],
+    camera_info: str | os.PathLike[str],
+    layout_file: str | os.PathLike[str] | None = None,
+) -> FrameSet:
+    """A folder of images taken with one camera (frame ids in file-name order)."""
+    root = Path(path)
+    if not root.is_dir():
+        raise InputDataError(f"{root} is not a folder of images")
+    images = sorted(p for p in root.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    if not images:
+        raise InputDataError(f"{root}: no images ({', '.join(IMAGE_SUFFIXES)}) found")
+    camera = read_camera_info(camera_info)
+    name = camera.name or "camera"
+    layout = DeckLayout() if layout_file is None else read_layout(layout_file)
+    sources = tuple(FrameSource(i, p, name, 0) for i, p in enumerate(images))
+    return FrameSet(sources, {name: camera}, {name: Path(camera_info)}, layout, "images", root)
+
+
+def read_image(path: Path) -> np.ndarray | str:
+    """Decode an image file (colour as RGB); the reason as a string if it cannot be used."""
+    if not path.is_file():
+        return f"image file {path} does not exist"
+    data = np.fromfile(path, dtype=np.uint8)
+    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
+    if img is None:
+        return f"cannot decode image {path}: empty, truncated or not an image"
+    if img.dtype not in (np.uint8, np.uint16):
+        return f"image {path} has pixel type {img.dtype}; use 8- or 16-bit images"
+    if img.ndim == 3 and img.shape[2] == 4:
+        img = img[:, :, :3]
+    if img.ndim == 3 and img.shape[2] == 3:
+        img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
+    elif img.ndim == 3 and img.shape[2] == 1:
+        img = img[:, :, 0]
+    elif img.ndim != 2:
+        return f"image {path} has shape {img.shape}; expected mono or RGB"
+    return img
+
+
+def load_frame(src: FrameSource, camera: CameraModel) -> Frame | str:
+    """The frame of ``src``, or the reason it cannot be used."""
+    img = read_image(src.image_path)
+    if isinstance(img, str):
+        return img
+    if img.shape[:2] != (camera.height_px, camera.width_px):
+        return (
+            f"image {src.image_path.name} is {img.shape[1]}x{img.shape[0]} but camera "
+            f"{src.camera_name!r} is {camera.width_px}x{camera.height_px}; wrong camera_info?"
+        )
+    return Frame(img, camera, src.frame_id, src.stamp_ns)

@@ -1,0 +1,60 @@
+"""Bad frames fail one by one with a reason; the batch goes on."""
+
+import shutil
+
+import cv2
+import numpy as np
+import pytest
+
+from deckpose.detect.run import detect_frames
+from deckpose.detect.sources import open_dataset
+
+
+@pytest.fixture()
+def damaged(tiny_dataset, tmp_path):
+    ds = tmp_path / "damaged"
+    shutil.copytree(tiny_dataset, ds)
+    imgs = sorted((ds / "images").iterdir())
+    data = imgs[0].read_bytes()
+    imgs[0].write_bytes(data[: len(data) // 2])  # truncated PNG
+    H, W = cv2.imread(str(imgs[1]), cv2.IMREAD_UNCHANGED).shape[:2]
+    cv2.imwrite(str(imgs[1]), np.zeros((H, W + 8, 3), np.uint16))  # wrong size
+    cv2.imwrite(str(imgs[2]), np.full((H, W, 3), 65535, np.uint16))  # saturated
+    return ds, imgs
+
+
+def test_each_bad_frame_has_a_reason_and_the_rest_succeed(damaged):
+    ds, imgs = damaged
+    dets, frames = detect_frames(open_dataset(ds), "cog")
+    reasons = dict(zip(frames.frame_id, frames.reason))
+    assert "truncated" in reasons[0]
+    assert "but camera" in reasons[1]
+    assert "saturated" in reasons[2]
+    assert bool(frames.ok.iloc[3]), reasons[3]
+    assert list(frames.n_detections[:3]) == [0, 0, 0]
+    assert set(dets.frame_id) == {3}
+
+
+def test_dark_missing_and_non_image_files(damaged):
+    ds, imgs = damaged
+    H, W = cv2.imread(str(imgs[3]), cv2.IMREAD_UNCHANGED).shape[:2]
+    rng = np.random.default_rng(0)
+    cv2.imwrite(str(imgs[0]), rng.integers(95, 106, (H, W, 3)).astype(np.uint16))  # all dark
+    imgs[1].write_bytes(b"not a png at all")
+    imgs[2].unlink()
+    _, frames = detect_frames(open_dataset(ds), "gauss")
+    r = list(frames.reason)
+    assert "dark frame" in r[0]
+    assert "cannot decode" in r[1]
+    assert "does not exist" in r[2]
+    assert bool(frames.ok.iloc[3])
+
+
+def test_all_black_frame(tiny_dataset, tmp_path):
+    ds = tmp_path / "black"
+    shutil.copytree(tiny_dataset, ds)
+    img = sorted((ds / "images").iterdir())[0]
+    H, W = cv2.imread(str(img), cv2.IMREAD_UNCHANGED).shape[:2]
+    cv2.imwrite(str(img), np.zeros((H, W), np.uint8))
+    _, frames = detect_frames(open_dataset(ds), "binary")
+    assert not frames.ok.iloc[0] and "dark frame" in frames.reason.iloc[0]

@@ -1,0 +1,137 @@
+"""``deckpose detect`` and ``deckpose bench-detectors`` end to end on a tiny synthetic dataset."""
+
+import json
+import shutil
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from deckpose.cli import main
+from deckpose.detect.tables import DETECTION_COLUMNS, FRAME_COLUMNS, read_detections
+
+
+@pytest.mark.parametrize("detector", ["binary", "cog", "gauss", "log", "opencv-blob"])
+def test_detect_dataset_writes_tables_with_ids(tiny_dataset, tmp_path, detector):
+    out = tmp_path / detector
+    assert (
+        main(
+            [
+                "detect",
+                str(tiny_dataset),
+                "--detector",
+                detector,
+                "--out",
+                str(out),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
+    dets = pd.read_parquet(out / "detections.parquet")
+    frames = pd.read_parquet(out / "detect_frames.parquet")
+    assert list(dets.columns) == list(DETECTION_COLUMNS)
+    assert set(FRAME_COLUMNS) <= set(frames.columns)
+    assert frames.ok.all(), list(frames.reason)
+    truth = pd.read_parquet(tiny_dataset / "beacons.parquet")
+    for fid, g in dets.groupby("frame_id"):
+        t = truth[(truth.frame_id == fid) & truth.visible].set_index("beacon_id")
+        ided = g[g.beacon_id >= 0].set_index("beacon_id")
+        assert set(ided.index) == set(
+            t.index
+        )  # every visible beacon found and named; glint left -1
+        err = np.hypot(ided.u_px - t.u_px.loc[ided.index], ided.v_px - t.v_px.loc[ided.index])
+        assert err.max() < 0.5
+        assert (g.beacon_id == -1).sum() == 1  # the glint
+    run = json.loads((out / "detect_run.json").read_text())
+    assert run["detector"] == detector and (out / "cameras").is_dir()
+    per_frame = read_detections(out / "detections.parquet")
+    assert sorted(per_frame) == sorted(frames.frame_id)
+
+
+def test_detect_folder_of_images_with_camera_info(tiny_dataset, tmp_path, capsys):
+    folder = tmp_path / "mine"
+    shutil.copytree(tiny_dataset / "images", folder)
+    (folder / "notes.txt").write_text("ignored")
+    cam = next((tiny_dataset / "cameras").iterdir())
+    out = tmp_path / "out"
+    assert (
+        main(["detect", str(folder), "--camera-info", str(cam), "--out", str(out), "--no-progress"])
+        == 0
+    )
+    frames = pd.read_parquet(out / "detect_frames.parquet")
+    assert len(frames) == 4 and frames.ok.all()
+
+
+def test_detect_folder_without_camera_info_is_a_clear_error(tmp_path, capsys):
+    assert main(["detect", str(tmp_path), "--no-progress"]) == 2
+    assert "--camera-info" in capsys.readouterr().err
+
+
+def test_unknown_detector_lists_the_known_ones(tiny_dataset, capsys):
+    assert main(["detect", str(tiny_dataset), "--detector", "nope"]) == 2
+    assert "cog" in capsys.readouterr().err
+
+
+def test_plugin_detector_appears_in_the_cli(tmp_path, monkeypatch, capsys):
+    (tmp_path / "my_detector_plugin.py").write_text(
+        "from deckpose.detect import registry\n"
+        "from deckpose.detect.centroid import detect_cog\n"
+        "registry.register('my-cog')(detect_cog)\n"
+    )
+    monkeypatch.syspath_prepend(str(tmp_path))
+    try:
+        assert main(["detect", ".", "--plugin", "my_detector_plugin", "--list"]) == 0
+        assert "my-cog" in capsys.readouterr().out.split()
+    finally:
+        from deckpose.detect import registry
+
+        registry.unregister("my-cog")
+
+
+def test_bench_detectors_report(tiny_dataset, tmp_path, capsys):
+    out = tmp_path / "bench"
+    assert (
+        main(
+            [
+                "bench-detectors",
+                str(tiny_dataset),
+                "--detectors",
+                "binary,cog,gauss",
+                "--out",
+                str(out),
+                "--no-progress",
+            ]
+        )
+        == 0
+    )
+    table = pd.read_csv(out / "bench_detectors.csv")
+    assert set(table.detector) == {"binary", "cog", "gauss"}
+    assert len(table) == 3 * 2  # detectors x heights (one camera)
+    assert (table.recall == 1.0).all() and (table.id_accuracy == 1.0).all()
+    assert np.allclose(table.precision, 12 / 13)  # one glint per frame among 12 visible beacons
+    assert table.crb_px.notna().all()
+    cog = table[table.detector == "cog"]
+    binary = table[table.detector == "binary"]
+    assert (cog.rms_over_crb < 1.6).all()  # ~50 spots per row: loose statistical margin
+    assert (binary.rms_px.to_numpy() > 2 * cog.rms_px.to_numpy()).all()
+    for f in ("bench_detectors.md", "error_vs_height.png", "error_vs_size.png"):
+        assert (out / f).stat().st_size > 0
+
+
+def test_detect_dataset_default_output_is_the_run_layout(tiny_dataset, tmp_path):
+    ds = tmp_path / "run"
+    shutil.copytree(tiny_dataset, ds)
+    assert main(["detect", str(ds), "--detector", "cog", "--no-progress"]) == 0
+    dets = pd.read_parquet(ds / "detections" / "cog.parquet")
+    frames = pd.read_parquet(ds / "detections" / "cog.frames.parquet")
+    assert len(frames) == 4 and frames.ok.all()
+    assert {"frame_id", "beacon_id", "u_px", "v_px", "cov_uu", "cov_uv", "cov_vv"} <= set(
+        dets.columns
+    )
+    # ids are unique per frame (estimators reject duplicates), -1 apart
+    ided = dets[dets.beacon_id >= 0]
+    assert not ided.duplicated(["frame_id", "beacon_id"]).any()
+    meta = json.loads((ds / "detections" / "cog.run.json").read_text())
+    assert meta["detections"] == "cog.parquet"
+    assert (ds / "detections" / meta["cameras"]["640x360"]).resolve().is_file()

@@ -1,0 +1,197 @@
+"""Every registered detector on analytic spots with known centres."""
+
+import numpy as np
+import pytest
+
+from deckpose.camera import preset
+from deckpose.detect import registry
+from deckpose.detect.crb import centroid_crb_px2
+from deckpose.detect.registry import Blobs, DetectorOptions
+from deckpose.detect.synthetic import SensorModel, render_spots
+from deckpose.records import Frame
+
+from .conftest import grid_points
+
+SENSOR = SensorModel(gain_dn_per_e=1.0, read_noise_e=3.0, background_e=20.0, bit_depth=16)
+SHAPE = (320, 480)
+SIGMA_PX, FLUX_E = 1.5, 2e4  # FWHM 3.5 px: "spans at least 2 px"
+N_FRAMES = 15
+
+
+@pytest.fixture(scope="module")
+def spot_frames():
+    rng = np.random.default_rng(42)
+    cam = preset("8mp").with_size(SHAPE[1], SHAPE[0])
+    frames = []
+    for k in range(N_FRAMES):
+        pts = grid_points(rng, SHAPE, 3, 2)
+        frames.append((Frame(render_spots(SHAPE, pts, SIGMA_PX, FLUX_E, SENSOR, rng), cam, k), pts))
+    crb = np.mean(
+        [
+            np.trace(centroid_crb_px2(u, v, SIGMA_PX, FLUX_E, SENSOR)) / 2
+            for _, pts in frames
+            for u, v in pts
+        ]
+    )
+    return frames, float(np.sqrt(crb))
+
+
+def _errors(name, frames):
+    errs, covs, n_det = [], [], 0
+    for frame, pts in frames:
+        b = registry.get(name)(frame, DetectorOptions())
+        assert b.ok, b.reason
+        n_det += len(b)
+        d = np.linalg.norm(b.points_px[None] - pts[:, None], axis=2)
+        j = d.argmin(axis=1)
+        assert np.all(d[np.arange(len(pts)), j] < 1.0), "a spot was missed"
+        errs.append(b.points_px[j] - pts)
+        covs.append(b.covariance_px2[j])
+    return np.concatenate(errs), np.concatenate(covs), n_det
+
+
+def test_builtin_detectors_are_registered():
+    assert {"binary", "cog", "gauss", "log", "opencv-blob"} <= set(registry.names())
+
+
+@pytest.mark.parametrize("name", ["cog", "gauss", "log"])
+def test_subpixel_detectors_reach_the_cramer_rao_bound(name, spot_frames):
+    frames, crb = spot_frames
+    e, _, n_det = _errors(name, frames)
+    assert n_det == 6 * N_FRAMES  # no false positives at the adaptive threshold
+    rms = float(np.sqrt(np.mean(e**2)))
+    # 180 spots: the RMS has ~4 % sampling error; the issue's target is 1.3x the bound.
+    assert 0.8 * crb < rms < 1.3 * crb, (rms, crb)
+    assert np.all(np.abs(e.mean(axis=0)) < 3 * crb / np.sqrt(len(e)) + 1e-3)
+
+
+@pytest.mark.parametrize("name", ["binary", "opencv-blob"])
+def test_baseline_detectors_are_subpixel_but_worse(name, spot_frames):
+    frames, crb = spot_frames
+    e, _, n_det = _errors(name, frames)
+    assert n_det == 6 * N_FRAMES
+    rms = float(np.sqrt(np.mean(e**2)))
+    assert rms < 0.3
+    assert rms > 2.0 * crb  # the pixel-threshold centroids cannot approach the bound
+
+
+@pytest.mark.parametrize("name", ["cog", "gauss"])
+def test_reported_covariance_matches_the_errors(name, spot_frames):
+    frames, _ = spot_frames
+    e, cov, _ = _errors(name, frames)
+    # Normalised squared error d^T C^-1 d is chi^2 with 2 dof (mean 2) if C is right;
+    # the gain is estimated per frame, so allow +-40 %.
+    nees = np.einsum("ni,nij,nj->n", e, np.linalg.inv(cov), e)
+    assert 1.2 < nees.mean() < 2.8, nees.mean()
+
+
+@pytest.mark.parametrize("name", ["binary", "cog", "gauss", "log", "opencv-blob"])
+def test_pure_noise_frame_fails_with_a_reason(name):
+    rng = np.random.default_rng(7)
+    cam = preset("8mp").with_size(SHAPE[1], SHAPE[0])
+    frame = Frame(render_spots(SHAPE, np.zeros((0, 2)), [], [], SENSOR, rng), cam)
+    b = registry.get(name)(frame, DetectorOptions())
+    assert not b and len(b) == 0
+    assert "dark frame" in b.reason or "no" in b.reason
+
+
+def test_threshold_adapts_to_background_level():
+    rng = np.random.default_rng(3)
+    cam = preset("8mp").with_size(SHAPE[1], SHAPE[0])
+    pts = grid_points(rng, SHAPE, 3, 2)
+    for offset in (0.0, 5000.0):
+        sensor = SensorModel(
+            gain_dn_per_e=1.0, read_noise_e=3.0, background_e=20.0, offset_dn=offset
+        )
+        b = registry.get("cog")(
+            Frame(render_spots(SHAPE, pts, 1.5, 2e4, sensor, rng), cam), DetectorOptions()
+        )
+        assert len(b) == 6
+
+
+def test_coarse_to_fine_finds_small_spots_in_a_large_frame():
+    # 2400x1600 with a 100k-pixel coarse image: 5x5 blocks; spots of FWHM 2 px.
+    rng = np.random.default_rng(5)
+    shape = (1600, 2400)
+    cam = preset("8mp").with_size(shape[1], shape[0])
+    pts = grid_points(rng, shape, 4, 3)
+    img = render_spots(shape, pts, 0.85, 2e4, SENSOR, rng)
+    b = registry.get("cog")(Frame(img, cam), DetectorOptions(coarse_max_px=100_000))
+    assert len(b) == len(pts)
+    d = np.linalg.norm(b.points_px[None] - pts[:, None], axis=2).min(axis=1)
+    assert d.max() < 0.1
+
+
+def test_a_user_detector_is_one_small_function():
+    from deckpose.detect.candidates import measure_candidates
+
+    @registry.register("test-peak")
+    def peak(frame, options):
+        def measure(c):
+            s = c.signal()
+            v, u = np.unravel_index(np.argmax(s), s.shape)
+            return c.blob(u + c.u0, v + c.v0, flux_dn=float(s.max()))
+
+        return measure_candidates(frame, options, measure)
+
+    rng = np.random.default_rng(9)
+    cam = preset("8mp").with_size(SHAPE[1], SHAPE[0])
+    pts = grid_points(rng, SHAPE, 3, 2)
+    b = registry.get("test-peak")(
+        Frame(render_spots(SHAPE, pts, 1.5, 2e4, SENSOR, rng), cam), DetectorOptions()
+    )
+    assert isinstance(b, Blobs) and len(b) == 6
+    assert "test-peak" in registry.names()
+    d = np.linalg.norm(b.points_px[None] - pts[:, None], axis=2).min(axis=1)
+    assert d.max() <= 0.75  # the brightest pixel is within half a pixel diagonal
+    registry.unregister("test-peak")
+    assert "test-peak" not in registry.names()
+
+
+@pytest.mark.parametrize("name", ["cog", "gauss"])
+def test_uneven_background_with_the_opening(name):
+    # A lit deck: a brightness ramp (0 -> 1000 e across the frame) and a bright patch
+    # (+3000 e, columns 160-319) under the middle column of spots.
+    from deckpose.detect.synthetic import add_noise, expected_electrons
+
+    rng = np.random.default_rng(11)
+    cam = preset("8mp").with_size(SHAPE[1], SHAPE[0])
+    pts = grid_points(rng, SHAPE, 3, 2)
+    ramp = np.linspace(0.0, 1000.0, SHAPE[1])[None, :] + np.zeros(SHAPE)
+    ramp[:, 160:320] += 3000.0
+    errs = []
+    for _ in range(5):
+        mu = expected_electrons(SHAPE, pts, 1.5, 3e4, SENSOR.background_e) + ramp
+        frame = Frame(add_noise(mu, SENSOR, rng), cam)
+        flat = registry.get(name)(frame, DetectorOptions())
+        # One global level takes the bright patch for a blob (or several).
+        assert len(flat) != 6
+        b = registry.get(name)(frame, DetectorOptions(background_kernel_px=25))
+        assert b.ok and len(b) == 6, b.reason
+        d = np.linalg.norm(b.points_px[None] - pts[:, None], axis=2)
+        errs.append(b.points_px[d.argmin(axis=1)] - pts)
+    e = np.concatenate(errs)
+    # The border plane removes the gradient: no bias beyond noise (CRB here ~0.02 px).
+    assert np.sqrt(np.mean(e**2)) < 0.04
+    assert np.all(np.abs(e.mean(axis=0)) < 0.02)
+
+
+@pytest.mark.parametrize("read_noise_e", [0.0, 0.3])
+def test_noise_free_or_quantised_8bit_rgb_has_no_false_blobs(read_noise_e):
+    # An 8-bit RGB frame whose background noise is below one DN (or absent, as in a
+    # noise-free render): the threshold must not sit one quantum above the background.
+    rng = np.random.default_rng(13)
+    cam = preset("8mp").with_size(SHAPE[1], SHAPE[0])
+    pts = grid_points(rng, SHAPE, 3, 2)
+    sensor = SensorModel(
+        gain_dn_per_e=0.02, read_noise_e=read_noise_e, background_e=10.0, bit_depth=8
+    )
+    img = render_spots(SHAPE, pts, 1.5, 1e5, sensor, rng, rgb=np.ones((6, 3)))
+    if read_noise_e == 0.0:  # no noise at all: the expected image, rounded
+        from deckpose.detect.synthetic import expected_electrons
+
+        mu = expected_electrons(SHAPE, pts, 1.5, 1e5, 10.0)
+        img = np.repeat(np.rint(0.02 * mu).astype(np.uint8)[:, :, None], 3, axis=2)
+    for name in ("binary", "cog", "gauss"):
+        b = registry.get(name)(Frame(img, cam), DetectorOptions())
+        assert len(b) == 6, (name, len(b), b.reason)
