@@ -15,6 +15,7 @@ from deckpose.errors import DeckposeError
 
 #: Modules that register a subcommand, in the order ``--help`` lists them.
 SUBCOMMAND_MODULES: tuple[str, ...] = (
+    "deckpose.cli.crb_cmd",
 )
 
 
