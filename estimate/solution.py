@@ -86,7 +86,12 @@ def pick_candidate(
     if assume_level_deck:
         levelness = [math.cos(f.params[0]) * math.cos(f.params[1]) for f in (best, alt)]
         ex["assumed_level_deck"] = 1.0
-        return Candidate(best if levelness[0] >= levelness[1] else alt, ex)
+        if levelness[0] >= levelness[1]:
+            return Candidate(best, ex)
+        # The runner-up is chosen: "alt_*" now describe the rejected (lower chi2) solution.
+        ex.update(alt_roll_rad=float(best.params[0]), alt_pitch_rad=float(best.params[1]),
+                  alt_yaw_rad=float(best.params[2]), alt_height_m=float(best.params[5]))
+        return Candidate(alt, ex)
     return Candidate(best, ex, (
         f"two-fold planar ambiguity unresolved: the second solution fits almost as well "
         f"(delta chi2 = {dchi2:.2f} < {ambiguity_chi2}) but differs by {maha:.1f} sigma; "
