@@ -29,7 +29,7 @@ import numpy as np
 from deckpose.camera import CameraModel
 from deckpose.estimate.circle_pose import circle_planes, in_plane_alignment
 from deckpose.estimate.ellipse_fit import fit_ellipse_direct
-from deckpose.estimate.least_squares import Fit, evaluate_fit, levenberg_marquardt
+from deckpose.estimate.least_squares import Fit, chi2_at, evaluate_fit, levenberg_marquardt
 from deckpose.estimate.observations import Observations, build_observations
 from deckpose.estimate.pose_model import params_from_relative
 from deckpose.estimate.registry import EstimateOptions, register
@@ -39,6 +39,8 @@ from deckpose.records import Detections, PoseEstimate
 
 #: Ring beacons the ellipse fit needs (5 determine a conic).
 MIN_RING_BEACONS = 5
+#: The second candidate plane is kept only if its closed-form chi2 is within this of the first's.
+ALT_MARGIN_CHI2 = 1000.0
 
 
 def _polish(fit: Fit, obs: Observations, R_world_from_cam: np.ndarray, steps: int) -> Fit:
@@ -71,14 +73,19 @@ def conic_candidates(obs: Observations, layout: DeckLayout, R_world_from_cam: np
     planes = circle_planes(C, layout.radius_m)
     if not planes:
         return "the fitted conic is not the image of a circle in front of the camera"
-    fits = []
+    starts = []
     for plane in planes:
         aligned = in_plane_alignment(obs.xy, obs.points_deck_m, plane)
         if aligned is None:
             continue
         p0 = params_from_relative(aligned[0], aligned[1], R_world_from_cam)
-        if not np.all(np.isfinite(p0)):
-            continue
+        if np.all(np.isfinite(p0)):
+            starts.append((chi2_at(p0, obs, R_world_from_cam), p0))
+    starts.sort(key=lambda s: s[0])
+    fits = []
+    for chi2_0, p0 in starts:
+        if fits and not chi2_0 < starts[0][0] + ALT_MARGIN_CHI2:
+            continue  # the other plane reprojects far worse: not a competing solution
         if refine:
             fits.append(levenberg_marquardt(p0, obs, R_world_from_cam))
         else:
@@ -111,11 +118,18 @@ def estimate_conic(
                                         polish_steps=options.conic_polish_steps)
                 if isinstance(fits, str):
                     return fits
-                return pick_candidate(
-                    fits, ambiguity_chi2=options.ambiguity_chi2,
-                    assume_level_deck=options.assume_level_deck,
-                    extras={"centre_beacon_used": float(layout.centre_id in o.ids)
-                            if layout.centre_id is not None else 0.0})
+                extras = {"centre_beacon_used": float(layout.centre_id in o.ids)
+                          if layout.centre_id is not None else 0.0}
+                cand = pick_candidate(fits, ambiguity_chi2=options.ambiguity_chi2,
+                                      assume_level_deck=options.assume_level_deck, extras=extras)
+                if not options.refine and isinstance(cand, Candidate) and (
+                        cand.problem or "assumed_level_deck" in cand.extras):
+                    # Unconverged candidates can look ambiguous while they share one minimum:
+                    # settle it at the optima before reporting an ambiguity.
+                    converged = [levenberg_marquardt(f.params, o, R_wc) for f in fits]
+                    cand = pick_candidate(converged, ambiguity_chi2=options.ambiguity_chi2,
+                                          assume_level_deck=options.assume_level_deck, extras=extras)
+                return cand
 
             result, used, removed = solve_robust(
                 obs, solve, min_points=MIN_RING_BEACONS, outlier_chi2=options.outlier_chi2,

@@ -9,6 +9,7 @@ optimum is its first-order covariance.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -21,7 +22,7 @@ from deckpose.estimate.pose_model import project_normalised
 FloatArray = NDArray[np.float64]
 
 #: Stop when every parameter step is below this fraction of its standard deviation.
-STEP_TOL_SIGMA = 1e-5
+STEP_TOL_SIGMA = 1e-3
 
 
 @dataclass(frozen=True)
@@ -99,6 +100,18 @@ def _whitened(params: FloatArray, obs: Observations, R_world_from_cam: FloatArra
     return r, Jw, front, res
 
 
+def chi2_at(params: FloatArray, obs: Observations, R_world_from_cam: FloatArray) -> float:
+    """Sum of squared whitened residuals at ``params`` (inf if a point is behind the camera)."""
+    xy, _, Z = project_normalised(params, obs.points_deck_m, R_world_from_cam, jacobian=False)
+    if not bool(np.all(Z > 0)):
+        return math.inf
+    res = xy - obs.xy
+    L = obs.sqrt_info
+    r = L[:, :, 0] * res[:, 0:1] + L[:, :, 1] * res[:, 1:2]
+    c = float(np.sum(r * r))
+    return c if math.isfinite(c) else math.inf
+
+
 def evaluate_fit(params: FloatArray, obs: Observations, R_world_from_cam: FloatArray,
                  iterations: int = 0, converged: bool = True) -> Fit:
     """The fit quantities at ``params`` without iterating."""
@@ -149,17 +162,19 @@ def levenberg_marquardt(
         J2 = Jw.reshape(-1, 6)
         H = J2.T @ J2
         g = J2.T @ r.ravel()
-        dH = np.diag(H).copy()
+        dH = H.diagonal().copy()
+        A = H.copy()
+        A.flat[::7] += lam * dH
         try:
-            step = -np.linalg.solve(H + lam * np.diag(dH), g)
+            step = -np.linalg.solve(A, g)
         except np.linalg.LinAlgError:
-            break
-        if not np.all(np.isfinite(step)):
             break
         p_new = p + step
         r_new, J_new, front_new, _ = _whitened(p_new, obs, R_world_from_cam)
-        cost_new = float(np.sum(r_new * r_new)) if front_new else float("inf")
-        small = bool(np.all(np.abs(step) * np.sqrt(np.maximum(dH, 1e-300)) < STEP_TOL_SIGMA))
+        cost_new = float(np.sum(r_new * r_new)) if front_new else math.inf
+        if not math.isfinite(cost_new) and not math.isfinite(float(step.sum())):
+            break
+        small = float(np.max(np.abs(step) * np.sqrt(np.abs(dH)))) < STEP_TOL_SIGMA
         if cost_new <= cost:
             p, r, Jw, cost = p_new, r_new, J_new, cost_new
             lam = max(lam * 0.1, 1e-12)

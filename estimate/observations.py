@@ -11,6 +11,7 @@ to first order.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -92,6 +93,11 @@ def _common_isotropic_sigma(cov: np.ndarray) -> float | None:
     return float(np.sqrt(c0[0, 0]))
 
 
+@functools.lru_cache(maxsize=64)
+def _positions(layout: DeckLayout) -> FloatArray:
+    return layout.positions_deck_m()
+
+
 def _distortion_jacobian(camera: CameraModel, xy: FloatArray) -> FloatArray:
     """d(pixel)/d(normalised) at normalised points, (N, 2, 2), by central differences."""
     n = xy.shape[0]
@@ -133,29 +139,26 @@ def build_observations(
     ids_all = np.asarray(detections.beacon_ids, dtype=np.int64)
     pts_all = np.asarray(detections.points_px, dtype=float)
     cov_all = pixel_covariances(detections, sigma_px, use_detection_covariance)
-    a, b, c = cov_all[:, 0, 0], cov_all[:, 0, 1], cov_all[:, 1, 1]
+    sigma_iso = _common_isotropic_sigma(cov_all)
     with np.errstate(invalid="ignore"):
-        cov_ok = np.isfinite(cov_all).all(axis=(1, 2)) & (a > 0) & (a * c - b * b > 0) & (
-            np.abs(cov_all[:, 1, 0] - b) <= 1e-9 * (np.abs(b) + a + c)
-        )
-    keep = (ids_all >= 0) & (ids_all < layout.n_beacons) & np.isfinite(pts_all).all(axis=1) & cov_ok
+        keep = (ids_all >= 0) & (ids_all < layout.n_beacons) & np.isfinite(pts_all).all(axis=1)
+        if sigma_iso is None:
+            a, b, c = cov_all[:, 0, 0], cov_all[:, 0, 1], cov_all[:, 1, 1]
+            keep &= np.isfinite(cov_all).all(axis=(1, 2)) & (a > 0) & (a * c - b * b > 0) & (
+                np.abs(cov_all[:, 1, 0] - b) <= 1e-9 * (np.abs(b) + a + c))
     index = np.flatnonzero(keep)
     ids = ids_all[index]
-    P = layout.positions_deck_m()[ids]
+    P = _positions(layout)[ids]
     K = camera.K
     Kinv = np.linalg.inv(K)
     und = camera.undistort(pts_all[index]) if camera.has_distortion else pts_all[index]
     xy = und @ Kinv[:2, :2].T + Kinv[:2, 2]
     n = len(index)
-    sigma_iso = _common_isotropic_sigma(cov_all)
     if not camera.has_distortion and sigma_iso is not None:
         # Fast path: linear camera, one isotropic noise level: one whitening matrix for all.
         D = np.broadcast_to(K[:2, :2], (n, 2, 2))
         L = np.broadcast_to(K[:2, :2] / sigma_iso, (n, 2, 2))
-        ok = np.isfinite(xy).all(axis=1)
-        if not ok.all():
-            index, ids, P, xy, D, L = index[ok], ids[ok], P[ok], xy[ok], D[ok], L[ok]
-        return Observations(ids, index, P, xy, L, D, int(len(ids_all) - len(index)))
+        return Observations(ids, index, P, xy, L, D, int(len(ids_all) - n))
     if camera.has_distortion and n:
         D = _distortion_jacobian(camera, xy)
     else:

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 
 from deckpose.camera import CameraModel
-from deckpose.estimate.least_squares import Fit, levenberg_marquardt
+from deckpose.estimate.least_squares import Fit, evaluate_fit, levenberg_marquardt
 from deckpose.estimate.observations import Observations, build_observations
 from deckpose.estimate.pose_model import params_from_relative
 from deckpose.estimate.registry import EstimateOptions, register
@@ -27,6 +27,8 @@ from deckpose.rotation import wrap_angle_rad
 #: Identified beacons PnP needs (IPPE's minimum for a planar target).
 MIN_BEACONS = 4
 _EYE = np.eye(3)
+#: An unrefined alternative solution is refined only if its chi2 is within this of the best.
+ALT_MARGIN_CHI2 = 100.0
 
 
 def _params(rvec: np.ndarray, tvec: np.ndarray, R_world_from_cam: np.ndarray) -> np.ndarray:
@@ -38,6 +40,13 @@ def _same(a: np.ndarray, b: np.ndarray) -> bool:
     d = np.asarray(a - b)
     d[:3] = wrap_angle_rad(d[:3])
     return bool(np.all(np.abs(d[:3]) < 1e-6) and np.all(np.abs(d[3:]) < 1e-6 * (1 + abs(a[5]))))
+
+
+def _near(a: np.ndarray, b: np.ndarray) -> bool:
+    """Same basin of attraction for practical purposes (0.01 rad, 1 % of the height)."""
+    d = np.asarray(a - b)
+    d[:3] = wrap_angle_rad(d[:3])
+    return bool(np.all(np.abs(d[:3]) < 1e-2) and np.all(np.abs(d[3:]) < 1e-2 * (1 + abs(a[5]))))
 
 
 def pnp_candidates(obs: Observations, R_world_from_cam: np.ndarray) -> tuple[list[Fit], dict[str, float]] | str:
@@ -65,9 +74,14 @@ def pnp_candidates(obs: Observations, R_world_from_cam: np.ndarray) -> tuple[lis
     starts = [s for s in starts if np.all(np.isfinite(s))]
     if not starts:
         return "PnP found no pose (degenerate beacon configuration)"
-    fits: list[Fit] = []
-    for s in starts:
-        f = levenberg_marquardt(s, obs, R_world_from_cam)
+    # Refine the start with the lowest chi2 first; refine another only if it could compete
+    # (its unrefined chi2 within ALT_MARGIN_CHI2 of the best refined one) and is not the same basin.
+    raw = sorted((evaluate_fit(s, obs, R_world_from_cam) for s in starts), key=lambda f: f.chi2)
+    fits: list[Fit] = [levenberg_marquardt(raw[0].params, obs, R_world_from_cam)]
+    for f0 in raw[1:]:
+        if _near(f0.params, fits[0].params) or not f0.chi2 < fits[0].chi2 + ALT_MARGIN_CHI2:
+            continue
+        f = levenberg_marquardt(f0.params, obs, R_world_from_cam)
         if not any(_same(f.params, g.params) for g in fits):
             fits.append(f)
     return fits, extras
