@@ -25,6 +25,7 @@ import argparse  # noqa: E402
 import dataclasses  # noqa: E402
 import math  # noqa: E402
 import platform  # noqa: E402
+import re  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -102,7 +103,7 @@ def run_cell(sigma_px: float, height_m: float, cam_name: str, motion: np.ndarray
             times[label] += time.perf_counter() - t0
             if not est.ok:
                 fails[label] += 1
-                key_r = est.reason.split(":")[0][:60]
+                key_r = re.sub(r"-?\d+(\.\d+)?", "#", est.reason.split(";")[0])[:70]
                 reasons[label][key_r] = reasons[label].get(key_r, 0) + 1
                 continue
             e = np.array([est.roll_rad, est.pitch_rad, est.yaw_rad, est.height_m]) - truth
