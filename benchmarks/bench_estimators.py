@@ -21,30 +21,29 @@ import os
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import argparse  # noqa: E402
-import dataclasses  # noqa: E402
-import math  # noqa: E402
-import platform  # noqa: E402
-import re  # noqa: E402
-import sys  # noqa: E402
-import time  # noqa: E402
-from pathlib import Path  # noqa: E402
+import argparse
+import dataclasses
+import platform
+import re
+import sys
+import time
+from pathlib import Path
 
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+import cv2
+import numpy as np
+import pandas as pd
+from deckpose.estimate import registry
+from deckpose.estimate.batch import run_estimator
+from deckpose.estimate.crb import cramer_rao_bound
+from deckpose.estimate.registry import EstimateOptions
 
-from deckpose.atomic_io import atomic_path  # noqa: E402
-from deckpose.camera import preset  # noqa: E402
-from deckpose.estimate import registry  # noqa: E402
-from deckpose.estimate.batch import run_estimator  # noqa: E402
-from deckpose.estimate.crb import cramer_rao_bound  # noqa: E402
-from deckpose.estimate.registry import EstimateOptions  # noqa: E402
-from deckpose.layout import DeckLayout  # noqa: E402
-from deckpose.pose import CameraPose, ShipPose  # noqa: E402
-from deckpose.projection import project_layout  # noqa: E402
-from deckpose.records import Detections  # noqa: E402
-from deckpose.rotation import zyx_from_thesis  # noqa: E402
+from deckpose.atomic_io import atomic_path
+from deckpose.camera import preset
+from deckpose.layout import DeckLayout
+from deckpose.pose import CameraPose, ShipPose
+from deckpose.projection import project_layout
+from deckpose.records import Detections
+from deckpose.rotation import zyx_from_thesis
 
 cv2.setNumThreads(1)
 

@@ -10,10 +10,11 @@ from __future__ import annotations
 
 from collections.abc import Iterable
 
-from deckpose.camera import CameraModel
 from deckpose.estimate import registry
 from deckpose.estimate.refine import refine_estimate
 from deckpose.estimate.registry import EstimateOptions
+
+from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
 from deckpose.records import Detections, PoseEstimate
 

@@ -25,8 +25,6 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-
-from deckpose.camera import CameraModel
 from deckpose.estimate.circle_pose import circle_planes, in_plane_alignment
 from deckpose.estimate.ellipse_fit import fit_ellipse_direct
 from deckpose.estimate.least_squares import Fit, chi2_at, evaluate_fit, levenberg_marquardt
@@ -34,6 +32,8 @@ from deckpose.estimate.observations import Observations, build_observations
 from deckpose.estimate.pose_model import params_from_relative
 from deckpose.estimate.registry import EstimateOptions, register
 from deckpose.estimate.solution import Candidate, make_estimate, pick_candidate, solve_robust
+
+from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
 from deckpose.records import Detections, PoseEstimate
 

@@ -13,13 +13,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from deckpose.estimate.least_squares import evaluate_fit
+from deckpose.estimate.observations import build_observations
+from deckpose.estimate.pose_model import params_from_relative
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
 from deckpose.errors import ConfigError
-from deckpose.estimate.least_squares import evaluate_fit
-from deckpose.estimate.observations import build_observations
-from deckpose.estimate.pose_model import params_from_relative
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose, T_cam_from_deck
 from deckpose.projection import project_layout

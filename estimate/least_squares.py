@@ -14,10 +14,9 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
-from numpy.typing import NDArray
-
 from deckpose.estimate.observations import Observations
 from deckpose.estimate.pose_model import project_normalised
+from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
 

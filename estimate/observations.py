@@ -60,7 +60,7 @@ class Observations:
     def __len__(self) -> int:
         return int(self.ids.shape[0])
 
-    def subset(self, keep: NDArray[np.bool_] | NDArray[np.int64]) -> "Observations":
+    def subset(self, keep: NDArray[np.bool_] | NDArray[np.int64]) -> Observations:
         """The observations selected by a boolean mask or an index array."""
         return Observations(
             self.ids[keep], self.index[keep], self.points_deck_m[keep], self.xy[keep],

@@ -13,13 +13,13 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-
-from deckpose.camera import CameraModel
 from deckpose.estimate.least_squares import Fit, evaluate_fit, levenberg_marquardt
 from deckpose.estimate.observations import Observations, build_observations
 from deckpose.estimate.pose_model import params_from_relative
 from deckpose.estimate.registry import EstimateOptions, register
 from deckpose.estimate.solution import Candidate, make_estimate, pick_candidate, solve_robust
+
+from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
 from deckpose.records import Detections, PoseEstimate
 from deckpose.rotation import wrap_angle_rad

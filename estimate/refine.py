@@ -13,12 +13,12 @@ import math
 
 import cv2
 import numpy as np
-
-from deckpose.camera import CameraModel
 from deckpose.estimate.least_squares import levenberg_marquardt
 from deckpose.estimate.observations import Observations, build_observations
 from deckpose.estimate.registry import EstimateOptions
 from deckpose.estimate.solution import Candidate, make_estimate, solve_robust
+
+from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
 from deckpose.records import Detections, PoseEstimate
 

@@ -18,10 +18,10 @@ from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
-
 from deckpose.estimate.least_squares import Fit
 from deckpose.estimate.observations import Observations
 from deckpose.estimate.pose_model import relative_from_params
+
 from deckpose.records import POSE_PARAMS, PoseEstimate
 from deckpose.rotation import wrap_angle_rad
 

@@ -7,10 +7,10 @@ fit almost equally well.
 
 import numpy as np
 import pytest
-
-from deckpose.camera import preset
 from deckpose.estimate import registry
 from deckpose.estimate.registry import EstimateOptions
+
+from deckpose.camera import preset
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose
 from tests.estimate.synthetic import detections_for

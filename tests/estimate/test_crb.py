@@ -2,13 +2,13 @@ import json
 
 import numpy as np
 import pytest
+from deckpose.estimate import registry
+from deckpose.estimate.crb import cramer_rao_bound
+from deckpose.estimate.registry import EstimateOptions
 
 from deckpose.camera import preset
 from deckpose.cli import main
 from deckpose.errors import ConfigError
-from deckpose.estimate import registry
-from deckpose.estimate.crb import cramer_rao_bound
-from deckpose.estimate.registry import EstimateOptions
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.rotation import rot_x

@@ -1,5 +1,4 @@
 import numpy as np
-
 from deckpose.estimate.ellipse_fit import fit_ellipse_direct
 
 

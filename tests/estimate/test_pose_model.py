@@ -1,7 +1,11 @@
 import numpy as np
 import pytest
+from deckpose.estimate.pose_model import (
+    params_from_relative,
+    project_normalised,
+    relative_from_params,
+)
 
-from deckpose.estimate.pose_model import params_from_relative, project_normalised, relative_from_params
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose, T_cam_from_deck
 from deckpose.rotation import rot_x, rot_y

@@ -1,11 +1,11 @@
 import math
 
 import numpy as np
-
-from deckpose.camera import preset
 from deckpose.estimate import registry
 from deckpose.estimate.batch import estimate_many, run_estimator
 from deckpose.estimate.registry import EstimateOptions, register
+
+from deckpose.camera import preset
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.records import PoseEstimate

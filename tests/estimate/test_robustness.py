@@ -4,13 +4,13 @@ import math
 
 import numpy as np
 import pytest
+from deckpose.estimate import registry
+from deckpose.estimate.batch import run_estimator
+from deckpose.estimate.registry import EstimateOptions
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from deckpose.camera import preset
-from deckpose.estimate import registry
-from deckpose.estimate.batch import run_estimator
-from deckpose.estimate.registry import EstimateOptions
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.records import Detections

@@ -4,10 +4,10 @@ import dataclasses
 
 import numpy as np
 import pytest
-
-from deckpose.camera import CameraModel, preset
 from deckpose.estimate import registry
 from deckpose.estimate.registry import EstimateOptions
+
+from deckpose.camera import CameraModel, preset
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.records import POSE_PARAMS
