@@ -40,18 +40,58 @@ class EstimateOptions:
         Known camera attitude (e.g. from the UAV's IMU); default nadir, image top to bow.
     max_reprojection_rms_px : float
         Above this reprojection RMS an estimate is flagged not ok.
+    use_detection_covariance : bool
+        Weight by the detections' own covariances (when they are not all the
+        identity, the "unknown" default); otherwise by ``sigma_px``.
+    outlier_chi2 : float
+        A point whose squared Mahalanobis reprojection residual exceeds this is an
+        outlier (spurious point or wrong id): it is removed and the pose re-estimated.
+    max_outliers : int
+        At most this many points are removed; more outliers make the estimate not ok.
+    ambiguity_chi2 : float
+        The planar two-fold ambiguity counts as unresolved when the second solution's
+        chi-square exceeds the best one's by less than this while the two poses differ
+        by more than 3 sigma.
+    assume_level_deck : bool
+        When the two-fold ambiguity is unresolved, pick the solution whose deck is
+        closer to level (stated in the result's extras) instead of failing.
+    conic_polish_steps : int
+        Gauss-Newton steps on all identified beacons that polish the ``conic``
+        method's closed-form solution (0 = the pure geometric solution). ``refine``
+        iterates to convergence instead.
     """
 
     sigma_px: float = 1.0
     refine: bool = False
     R_world_from_cam: np.ndarray = field(default_factory=lambda: R_WORLD_FROM_NADIR_CAM)
     max_reprojection_rms_px: float = 10.0
+    use_detection_covariance: bool = True
+    outlier_chi2: float = 30.0
+    max_outliers: int = 3
+    ambiguity_chi2: float = 4.0
+    assume_level_deck: bool = False
+    conic_polish_steps: int = 1
 
     def __post_init__(self) -> None:
         if not self.sigma_px > 0:
             raise ConfigError(f"sigma_px must be positive, got {self.sigma_px}")
         if not self.max_reprojection_rms_px > 0:
             raise ConfigError("max_reprojection_rms_px must be positive")
+        R = np.array(self.R_world_from_cam, dtype=float)
+        if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+            raise ConfigError(f"R_world_from_cam must be a finite 3x3 matrix, got shape {R.shape}")
+        if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+            raise ConfigError("R_world_from_cam must be a proper rotation matrix (orthonormal, det +1)")
+        R.setflags(write=False)
+        object.__setattr__(self, "R_world_from_cam", R)
+        if not self.outlier_chi2 > 0:
+            raise ConfigError(f"outlier_chi2 must be positive, got {self.outlier_chi2}")
+        if int(self.max_outliers) < 0:
+            raise ConfigError(f"max_outliers must be >= 0, got {self.max_outliers}")
+        if int(self.conic_polish_steps) < 0:
+            raise ConfigError(f"conic_polish_steps must be >= 0, got {self.conic_polish_steps}")
+        if not self.ambiguity_chi2 >= 0:
+            raise ConfigError(f"ambiguity_chi2 must be >= 0, got {self.ambiguity_chi2}")
 
 
 EstimatorFn = Callable[[Detections, CameraModel, DeckLayout, EstimateOptions], PoseEstimate]
@@ -59,7 +99,11 @@ EstimatorFn = Callable[[Detections, CameraModel, DeckLayout, EstimateOptions], P
 _REGISTRY: dict[str, EstimatorFn] = {}
 
 #: Modules that register the built-in estimators when imported.
-_BUILTIN_MODULES: tuple[str, ...] = ("deckpose.estimate.thesis",)
+_BUILTIN_MODULES: tuple[str, ...] = (
+    "deckpose.estimate.thesis",
+    "deckpose.estimate.conic",
+    "deckpose.estimate.pnp",
+)
 
 
 def register(name: str) -> Callable[[EstimatorFn], EstimatorFn]:

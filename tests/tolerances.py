@@ -9,3 +9,8 @@ PROJECTION_PX = 1e-9
 THESIS_ROUNDTRIP_DEG = 1e-6
 #: Noise-free thesis height round trip, units.
 THESIS_ROUNDTRIP_HEIGHT = 1e-7
+#: Noise-free round trip of the conic/pnp estimators, radians. Exact points; the
+#: limits are the iterative undistortion (1e-12 criteria) and the conic's eigen-solve.
+ESTIMATOR_ROUNDTRIP_RAD = 1e-7
+#: Noise-free round trip of the conic/pnp estimators, metres (heights 20-80 m).
+ESTIMATOR_ROUNDTRIP_M = 1e-5

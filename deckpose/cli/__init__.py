@@ -16,14 +16,15 @@ from deckpose.errors import DeckposeError
 #: Modules that register a subcommand, in the order ``--help`` lists them.
 SUBCOMMAND_MODULES: tuple[str, ...] = (
     "deckpose.cli.demo_cmd",
-    "deckpose.cli.estimate_cmd",
-    "deckpose.cli.estimator_tables_cmd",
-    "deckpose.cli.evaluate_cmd",
-    "deckpose.cli.thesis_tables_cmd",
     "deckpose.cli.motion_cmd",
     "deckpose.cli.render_cmd",
     "deckpose.cli.detect_cmd",
     "deckpose.cli.bench_detectors_cmd",
+    "deckpose.cli.estimate_cmd",
+    "deckpose.cli.crb_cmd",
+    "deckpose.cli.evaluate_cmd",
+    "deckpose.cli.thesis_tables_cmd",
+    "deckpose.cli.estimator_tables_cmd",
 )
 
 

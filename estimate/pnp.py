@@ -1,0 +1,122 @@
+"""The ``pnp`` estimator: OpenCV SQPnP and IPPE on identified beacons, then Levenberg–Marquardt.
+
+The beacons are undistorted and normalised first (so the solvers see an ideal
+camera with ``K = I``); SQPnP gives the global minimiser of its algebraic error
+and IPPE the two solutions of the planar two-fold ambiguity. Each distinct
+solution is refined by minimising the (covariance-weighted) reprojection error;
+the better one wins, and the result reports IPPE's second solution, the ratio
+of IPPE's two reprojection errors and whether the ambiguity is resolved. EPnP is
+not used: it fails on this coplanar layout even without noise.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from deckpose.estimate.least_squares import Fit, evaluate_fit, levenberg_marquardt
+from deckpose.estimate.observations import Observations, build_observations
+from deckpose.estimate.pose_model import params_from_relative
+from deckpose.estimate.registry import EstimateOptions, register
+from deckpose.estimate.solution import Candidate, make_estimate, pick_candidate, solve_robust
+
+from deckpose.camera import CameraModel
+from deckpose.layout import DeckLayout
+from deckpose.records import Detections, PoseEstimate
+from deckpose.rotation import wrap_angle_rad
+
+#: Identified beacons PnP needs (IPPE's minimum for a planar target).
+MIN_BEACONS = 4
+_EYE = np.eye(3)
+#: An unrefined alternative solution is refined only if its chi2 is within this of the best.
+ALT_MARGIN_CHI2 = 100.0
+
+
+def _params(rvec: np.ndarray, tvec: np.ndarray, R_world_from_cam: np.ndarray) -> np.ndarray:
+    R = cv2.Rodrigues(rvec)[0]
+    return params_from_relative(R, np.asarray(tvec, dtype=float).ravel(), R_world_from_cam)
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    d = np.asarray(a - b)
+    d[:3] = wrap_angle_rad(d[:3])
+    return bool(np.all(np.abs(d[:3]) < 1e-6) and np.all(np.abs(d[3:]) < 1e-6 * (1 + abs(a[5]))))
+
+
+def _near(a: np.ndarray, b: np.ndarray) -> bool:
+    """Same basin of attraction for practical purposes (0.01 rad, 1 % of the height)."""
+    d = np.asarray(a - b)
+    d[:3] = wrap_angle_rad(d[:3])
+    return bool(np.all(np.abs(d[:3]) < 1e-2) and np.all(np.abs(d[3:]) < 1e-2 * (1 + abs(a[5]))))
+
+
+def pnp_candidates(obs: Observations, R_world_from_cam: np.ndarray) -> tuple[list[Fit], dict[str, float]] | str:
+    """SQPnP and both IPPE solutions, each refined by weighted least squares."""
+    if len(obs) < MIN_BEACONS:
+        return f"too few identified beacons for PnP: {len(obs)}, need at least {MIN_BEACONS}"
+    obj = np.ascontiguousarray(obs.points_deck_m, dtype=np.float64)
+    img = np.ascontiguousarray(obs.xy, dtype=np.float64)
+    starts: list[np.ndarray] = []
+    extras: dict[str, float] = {}
+    n_ippe, rvecs, tvecs, errs = cv2.solvePnPGeneric(obj, img, _EYE, None, flags=cv2.SOLVEPNP_IPPE)
+    for rv, tv in zip(rvecs[:n_ippe], tvecs[:n_ippe]):
+        starts.append(_params(rv, tv, R_world_from_cam))
+    if n_ippe >= 2:
+        e = np.asarray(errs, dtype=float).ravel()
+        extras["ippe_error_ratio"] = float(e[1] / e[0]) if e[0] > 0 else float("inf")
+        extras["ippe_alt_roll_rad"], extras["ippe_alt_pitch_rad"], extras["ippe_alt_yaw_rad"] = (
+            float(v) for v in starts[1][:3])
+        extras["ippe_alt_height_m"] = float(starts[1][5])
+    ok, rv, tv = cv2.solvePnP(obj, img, _EYE, None, flags=cv2.SOLVEPNP_SQPNP)
+    if ok:
+        p = _params(rv, tv, R_world_from_cam)
+        if not any(_same(p, s) for s in starts):
+            starts.insert(0, p)
+    starts = [s for s in starts if np.all(np.isfinite(s))]
+    if not starts:
+        return "PnP found no pose (degenerate beacon configuration)"
+    # Refine the start with the lowest chi2 first; refine another only if it could compete
+    # (its unrefined chi2 within ALT_MARGIN_CHI2 of the best refined one) and is not the same basin.
+    raw = sorted((evaluate_fit(s, obs, R_world_from_cam) for s in starts), key=lambda f: f.chi2)
+    fits: list[Fit] = [levenberg_marquardt(raw[0].params, obs, R_world_from_cam)]
+    for f0 in raw[1:]:
+        if _near(f0.params, fits[0].params) or not f0.chi2 < fits[0].chi2 + ALT_MARGIN_CHI2:
+            continue
+        f = levenberg_marquardt(f0.params, obs, R_world_from_cam)
+        if not any(_same(f.params, g.params) for g in fits):
+            fits.append(f)
+    return fits, extras
+
+
+@register("pnp")
+def estimate_pnp(
+    detections: Detections, camera: CameraModel, layout: DeckLayout, options: EstimateOptions
+) -> PoseEstimate:
+    """Estimate the deck pose by PnP on identified beacons (see module docstring).
+
+    Needs at least 4 identified beacons. The refinement always weights residuals
+    by the detections' covariances (or ``sigma_px``), so it is the maximum-likelihood
+    estimate with or without ``options.refine``.
+    """
+    method = "pnp"
+    R_wc = np.asarray(options.R_world_from_cam, dtype=float)
+    with np.errstate(all="ignore"):
+        try:
+            obs = build_observations(detections, camera, layout, sigma_px=options.sigma_px,
+                                     use_detection_covariance=options.use_detection_covariance)
+
+            def solve(o: Observations) -> Candidate | str:
+                res = pnp_candidates(o, R_wc)
+                if isinstance(res, str):
+                    return res
+                fits, extras = res
+                return pick_candidate(fits, ambiguity_chi2=options.ambiguity_chi2,
+                                      assume_level_deck=options.assume_level_deck, extras=extras)
+
+            result, used, removed = solve_robust(
+                obs, solve, min_points=MIN_BEACONS, outlier_chi2=options.outlier_chi2,
+                max_outliers=options.max_outliers)
+            return make_estimate(method, result, used, removed, R_world_from_cam=R_wc,
+                                 max_reprojection_rms_px=options.max_reprojection_rms_px,
+                                 refined=True)
+        except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, cv2.error) as exc:
+            return PoseEstimate.failed(method, f"numerical failure: {exc}")

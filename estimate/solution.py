@@ -1,0 +1,197 @@
+"""From candidate fits to an honest :class:`~deckpose.records.PoseEstimate`.
+
+Shared by every estimator of this package:
+
+* :func:`pick_candidate` — resolve the planar two-fold ambiguity by chi-square and
+  say when it cannot be resolved;
+* :func:`solve_robust` — detect spurious points and wrong ids by their
+  Mahalanobis reprojection residual and remove them (leave-one-out);
+* :func:`make_estimate` — covariance ``(J^T Sigma^-1 J)^-1``, per-parameter sigma,
+  reprojection RMS and the ``ok`` flag with its reason.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass, field
+
+import cv2
+import numpy as np
+from deckpose.estimate.least_squares import Fit
+from deckpose.estimate.observations import Observations
+from deckpose.estimate.pose_model import relative_from_params
+
+from deckpose.records import POSE_PARAMS, PoseEstimate
+from deckpose.rotation import wrap_angle_rad
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """A solution of one estimator on one set of observations.
+
+    Attributes
+    ----------
+    fit : Fit
+    extras : dict of str to float
+        Method-specific diagnostics.
+    problem : str
+        Non-empty when the solution must not be trusted (e.g. unresolved ambiguity).
+    """
+
+    fit: Fit
+    extras: dict[str, float] = field(default_factory=dict)
+    problem: str = ""
+
+
+SolveFn = Callable[[Observations], "Candidate | str"]
+
+
+def _param_delta(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
+    d[:3] = wrap_angle_rad(d[:3])
+    return d
+
+
+def pick_candidate(
+    fits: list[Fit], *, ambiguity_chi2: float, assume_level_deck: bool, extras: dict[str, float]
+) -> Candidate | str:
+    """Choose between the (up to two) solutions of the planar ambiguity.
+
+    The lower chi-square wins. When the runner-up is within ``ambiguity_chi2`` of
+    it while the two poses differ by more than 3 sigma (Mahalanobis, best fit's
+    covariance), the ambiguity is unresolved: the candidate carries a problem, or,
+    with ``assume_level_deck``, the more level deck is chosen and
+    ``extras["assumed_level_deck"] = 1`` says so.
+    """
+    good = [f for f in fits if math.isfinite(f.chi2) and np.all(np.isfinite(f.params))]
+    if not good:
+        return "no valid pose solution (points behind the camera or non-finite fit)"
+    good.sort(key=lambda f: f.chi2)
+    best = good[0]
+    ex = dict(extras)
+    ex["n_solutions"] = float(len(good))
+    if len(good) == 1:
+        return Candidate(best, ex)
+    alt = good[1]
+    delta = _param_delta(alt.params, best.params)
+    cov = best.covariance
+    maha = float(np.sqrt(delta @ np.linalg.solve(cov, delta))) if cov is not None else math.inf
+    dchi2 = alt.chi2 - best.chi2
+    ex.update(ambiguity_delta_chi2=dchi2, ambiguity_mahalanobis=maha,
+              alt_roll_rad=float(alt.params[0]), alt_pitch_rad=float(alt.params[1]),
+              alt_yaw_rad=float(alt.params[2]), alt_height_m=float(alt.params[5]))
+    if dchi2 >= ambiguity_chi2 or maha <= 3.0:
+        return Candidate(best, ex)
+    if assume_level_deck:
+        levelness = [math.cos(f.params[0]) * math.cos(f.params[1]) for f in (best, alt)]
+        ex["assumed_level_deck"] = 1.0
+        if levelness[0] >= levelness[1]:
+            return Candidate(best, ex)
+        # The runner-up is chosen: "alt_*" now describe the rejected (lower chi2) solution.
+        ex.update(alt_roll_rad=float(best.params[0]), alt_pitch_rad=float(best.params[1]),
+                  alt_yaw_rad=float(best.params[2]), alt_height_m=float(best.params[5]))
+        return Candidate(alt, ex)
+    return Candidate(best, ex, (
+        f"two-fold planar ambiguity unresolved: the second solution fits almost as well "
+        f"(delta chi2 = {dchi2:.2f} < {ambiguity_chi2}) but differs by {maha:.1f} sigma; "
+        "add beacons (the centre beacon) or set assume_level_deck"))
+
+
+def solve_robust(
+    obs: Observations, solve: SolveFn, *, min_points: int, outlier_chi2: float, max_outliers: int
+) -> tuple[Candidate | str, Observations, list[int]]:
+    """Solve, and while a point's residual is an outlier remove the point whose removal fits best.
+
+    Returns
+    -------
+    (Candidate or failure reason, observations used, ids removed)
+    """
+    removed: list[int] = []
+    result = solve(obs) if len(obs) >= min_points else _too_few(obs, min_points)
+    while isinstance(result, Candidate):
+        pc = result.fit.point_chi2()
+        if pc.size == 0 or float(np.max(pc)) <= outlier_chi2:
+            return result, obs, removed
+        if len(removed) >= max_outliers or len(obs) - 1 < min_points:
+            worst = int(obs.ids[int(np.argmax(pc))])
+            return Candidate(result.fit, result.extras, (
+                f"reprojection residual of beacon {worst} is {math.sqrt(float(np.max(pc))):.1f} sigma "
+                f"after removing {len(removed)} outlier(s): spurious point, wrong id, or sigma_px too small"
+            )), obs, removed
+        best: tuple[float, int, Candidate | None] = (math.inf, -1, None)
+        for i in range(len(obs)):
+            keep = np.ones(len(obs), dtype=bool)
+            keep[i] = False
+            r = solve(obs.subset(keep))
+            if isinstance(r, Candidate) and r.fit.chi2 < best[0]:
+                best = (r.fit.chi2, i, r)
+        if best[2] is None:
+            return result, obs, removed
+        keep = np.ones(len(obs), dtype=bool)
+        keep[best[1]] = False
+        removed.append(int(obs.ids[best[1]]))
+        obs = obs.subset(keep)
+        result = best[2]
+    return result, obs, removed
+
+
+def _too_few(obs: Observations, min_points: int) -> str:
+    return f"too few identified beacons: {len(obs)} usable, this method needs at least {min_points}"
+
+
+def make_estimate(
+    method: str,
+    result: Candidate | str,
+    obs: Observations,
+    removed: list[int],
+    *,
+    R_world_from_cam: np.ndarray,
+    max_reprojection_rms_px: float,
+    refined: bool,
+) -> PoseEstimate:
+    """Assemble the estimate with covariance, sigmas, reprojection RMS and honest flags."""
+    base = {"n_points": float(len(obs)), "n_ignored": float(obs.n_ignored),
+            "n_outliers_removed": float(len(removed)), "refined": float(refined)}
+    for k, i in enumerate(removed[:8]):
+        base[f"outlier_id_{k}"] = float(i)
+    if isinstance(result, str):
+        return PoseEstimate.failed(method, result, **base)
+    fit = result.fit
+    p = fit.params
+    extras = dict(base)
+    extras.update(result.extras)
+    extras["reprojection_rms_px"] = fit.rms_px
+    extras["chi2"] = fit.chi2
+    extras["dof"] = float(2 * len(obs) - 6)
+    problems = []
+    if result.problem:
+        problems.append(result.problem)
+    cov = fit.covariance if np.all(np.isfinite(p)) else None
+    if not np.all(np.isfinite(p)) or not math.isfinite(fit.chi2):
+        problems.append("non-finite pose or reprojection error")
+    elif cov is None:
+        problems.append("covariance undefined: the beacons do not constrain all six parameters")
+    if math.isfinite(fit.rms_px) and fit.rms_px > max_reprojection_rms_px:
+        problems.append(
+            f"reprojection RMS {fit.rms_px:.2f} px exceeds max_reprojection_rms_px={max_reprojection_rms_px}")
+    elif not math.isfinite(fit.rms_px):
+        problems.append("reprojection error is not finite")
+    if cov is not None:
+        for name, v in zip(POSE_PARAMS, np.diag(cov)):
+            extras["sigma_" + name] = float(np.sqrt(v))
+    if np.all(np.isfinite(p)):
+        R_cd, t_cd = relative_from_params(p, R_world_from_cam)
+        rvec = cv2.Rodrigues(R_cd)[0].ravel()
+        for k, ax in enumerate("xyz"):
+            extras[f"rvec_cam_from_deck_{ax}"] = float(rvec[k])
+            extras[f"t_cam_from_deck_{ax}_m"] = float(t_cd[k])
+    if problems:
+        for name, v in zip(POSE_PARAMS, p):
+            extras["untrusted_" + name] = float(v)
+        return PoseEstimate.failed(method, "; ".join(problems), **extras)
+    return PoseEstimate(
+        method=method, ok=True, roll_rad=float(p[0]), pitch_rad=float(p[1]), yaw_rad=float(p[2]),
+        height_m=float(p[5]), surge_m=float(p[3]), sway_m=float(p[4]), covariance=cov,
+        inliers=tuple(int(i) for i in obs.ids), extras=extras,
+    )
