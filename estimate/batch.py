@@ -53,11 +53,4 @@ def estimate_many(
     list of PoseEstimate
         One per frame, in order; failures are falsy estimates with a reason.
     """
-    fn = registry.get(name)
-    out = []
-    for det in detections:
-        est = fn(det, camera, layout, options)
-        if options.refine and est.ok and not est.extras.get("refined", 0.0):
-            est = refine_estimate(est, det, camera, layout, options)
-        out.append(est)
-    return out
+    return [run_estimator(name, det, camera, layout, options) for det in detections]

@@ -175,8 +175,9 @@ def registry_batch_estimator(method: str, options: "EstimateOptions | None" = No
     layout is the thesis's (no centre beacon).
     """
     from deckpose.estimate import registry
+    from deckpose.estimate.batch import run_estimator
 
-    fn = registry.get(method)
+    registry.get(method)  # fail early on an unknown name
     opts = options or registry.EstimateOptions()
     layout = thesis_layout()
 
@@ -188,7 +189,7 @@ def registry_batch_estimator(method: str, options: "EstimateOptions | None" = No
         for f in range(F):
             ids = np.flatnonzero(mask[f])
             uv = np.column_stack([points_c[f, ids, 0] + camera.cx, camera.cy - points_c[f, ids, 1]])
-            est = fn(Detections(uv, ids), camera, layout, opts)
+            est = run_estimator(method, Detections(uv, ids), camera, layout, opts)
             if not est.ok:
                 failure[f] = est.reason
                 continue

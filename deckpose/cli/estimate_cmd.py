@@ -60,7 +60,8 @@ def run(args: argparse.Namespace) -> int:
         if not args.radius > 0:
             raise ConfigError(f"--radius must be positive, got {args.radius}")
         layout = dataclasses.replace(layout, radius_m=float(args.radius))
-    estimator = registry.get(args.method)
+    from deckpose.estimate.batch import run_estimator
+
     options = registry.EstimateOptions(sigma_px=args.sigma_px, refine=args.refine)
     camera = read_camera_info(args.camera)
     frames = read_detections(args.detections, layout)
@@ -68,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
     for frame_id, det in tqdm(frames.items(), desc=f"estimate ({args.method})", unit="frame",
                               disable=None, leave=False):
         ids.append(frame_id)
-        results.append(estimator(det, camera, layout, options))
+        results.append(run_estimator(args.method, det, camera, layout, options))
     df = estimates_frame(ids, results)
     write_table(df, args.output, "estimates")
     n_ok = int(df["ok"].sum()) if len(df) else 0
@@ -104,7 +105,8 @@ def _run_folder(args: argparse.Namespace) -> int:
     rl.check_frames_match(frames.reset_index(), det_df, f"detections of {args.detector}",
                           f"deckpose detect {run.root} --detector {args.detector}")
     dets = detections_from_frame(det_df, layout, str(run.detections(args.detector)))
-    estimator = registry.get(args.method)
+    from deckpose.estimate.batch import run_estimator
+
     base = registry.EstimateOptions(sigma_px=args.sigma_px, refine=args.refine)
     ids, results = [], []
     from deckpose.records import Detections
@@ -114,7 +116,7 @@ def _run_folder(args: argparse.Namespace) -> int:
         det = dets.get(int(frame_id), Detections(np.zeros((0, 2)), np.zeros(0, dtype=np.int64), frame_id=int(frame_id)))
         opts = dataclasses.replace(base, R_world_from_cam=rl.R_world_from_cam(row))
         ids.append(int(frame_id))
-        results.append(estimator(det, cameras[row["camera"]], layout, opts))
+        results.append(run_estimator(args.method, det, cameras[row["camera"]], layout, opts))
     df = estimates_frame(ids, results)
     out = run.estimates(args.detector, args.method)
     write_table(df, out, "estimates")
