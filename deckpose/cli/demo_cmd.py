@@ -1,9 +1,19 @@
-"""``deckpose demo``: the main job end to end on the embedded default."""
+"""``deckpose demo``: the main job end to end on the embedded default.
+
+render (embedded smoke config: two small cameras x two heights x night/day)
+-> detect -> estimate (thesis, conic, pnp) -> evaluate (errors, resolution
+tables, MCAP log + Foxglove layout) -> report, plus the thesis's tables at
+reduced scale. Each step is the same code as its own subcommand; running the
+demo again resumes the dataset and rewrites the later stages' outputs.
+"""
 
 from __future__ import annotations
 
 import argparse
+import time
 from pathlib import Path
+
+METHODS = ("thesis", "conic", "pnp")
 
 
 def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None:
@@ -11,28 +21,63 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
         "demo",
         help="run the main job end to end on the embedded default (what the README's first command runs)",
         description=(
-            "Reproduce the thesis's error tables at reduced scale with the embedded motion series "
-            "and the faithful thesis estimator, and write the report into the output folder."
+            "Render the embedded default dataset, detect the beacons, estimate the pose with the "
+            "thesis, conic and pnp estimators, evaluate against the ground truth (tables, MCAP log for "
+            "Foxglove) and write a report; then reproduce the thesis's tables at reduced scale."
         ),
         formatter_class=argparse.ArgumentDefaultsHelpFormatter,
     )
     p.add_argument("-o", "--output", type=Path, default=Path("runs/demo"), help="output folder")
+    p.add_argument("--detector", default="cog", help="beacon detector")
+    p.add_argument("--workers", type=int, default=2, help="render worker processes")
     p.add_argument("--repetitions", type=int, default=20, help="thesis-table repetitions (500 = full scale)")
-    p.add_argument("--seed", type=int, default=20221, help="random seed")
-    p.add_argument("--workers", type=int, default=0, help="worker processes (0 = one per core)")
+    p.add_argument("--seed", type=int, default=20221, help="seed of the thesis-table Monte Carlo")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
+
+
+def _step(n: int, total: int, text: str) -> None:
+    print(f"[{n}/{total}] {text}", flush=True)
 
 
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
+    from deckpose.cli import main
+    from deckpose.errors import DeckposeError
     from deckpose.evaluate.thesis_tables import ThesisTablesConfig, cell_specs, run_thesis_tables
+    from deckpose.render.config import default_config
+    from deckpose.render.dataset import render_dataset
 
+    t0 = time.perf_counter()
     out = Path(args.output)
-    print(f"[1/1] thesis tables 4.2-4.15, {args.repetitions} x 495 images per cell -> {out}")
-    config = ThesisTablesConfig(repetitions=args.repetitions, seed=args.seed, workers=args.workers)
-    bar = tqdm(total=len(cell_specs()), desc="thesis tables", unit="cell", disable=None)
-    md = run_thesis_tables(config, out, lambda done, total: bar.update(done - bar.n))
+    run_dir = out / "run"
+    total = 6
+
+    def sub(argv: list[str]) -> None:
+        code = main(argv)
+        if code != 0:
+            raise DeckposeError(f"step 'deckpose {' '.join(argv)}' failed (exit {code}); see the message above")
+
+    _step(1, total, f"render the embedded default dataset -> {run_dir}")
+    render_dataset(default_config(), run_dir, workers=args.workers, resume=True, progress=not args.no_progress)
+    _step(2, total, f"detect beacons ({args.detector})")
+    sub(["detect", str(run_dir), "--detector", args.detector] + (["--no-progress"] if args.no_progress else []))
+    _step(3, total, f"estimate the pose ({', '.join(METHODS)})")
+    for m in METHODS:
+        sub(["estimate", "--run", str(run_dir), "--detector", args.detector, "--method", m])
+    _step(4, total, "evaluate against the ground truth, write the MCAP log")
+    sub(["evaluate", str(run_dir)])
+    _step(5, total, "write the report")
+    sub(["report", str(run_dir)])
+    _step(6, total, f"thesis tables 4.2-4.15, {args.repetitions} x 495 images per cell")
+    config = ThesisTablesConfig(repetitions=args.repetitions, seed=args.seed)
+    bar = tqdm(total=len(cell_specs()), desc="thesis tables", unit="cell", disable=True if args.no_progress else None)
+    md = run_thesis_tables(config, out, lambda done, _total: bar.update(done - bar.n))
     bar.close()
-    print(f"done. report: {md}")
+    print(f"\ndone in {time.perf_counter() - t0:.0f} s.")
+    print(f"  report:          {run_dir / 'report' / 'report.md'}")
+    print(f"  resolution tables: {run_dir / 'evaluation' / 'resolution_tables.md'}")
+    print(f"  MCAP log:        {run_dir / 'log.mcap'}  (open in Foxglove with {run_dir / 'foxglove_layout.json'})")
+    print(f"  thesis tables:   {md}")
     return 0

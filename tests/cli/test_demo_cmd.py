@@ -1,9 +1,14 @@
 from deckpose.cli import main
 
 
-def test_demo_writes_a_report(tmp_path, capsys):
+def test_demo_runs_the_whole_pipeline(tmp_path, capsys):
     out = tmp_path / "demo"
-    assert main(["demo", "-o", str(out), "--repetitions", "1", "--workers", "1"]) == 0
+    assert main(["demo", "-o", str(out), "--repetitions", "1", "--workers", "1", "--no-progress"]) == 0
     text = (out / "thesis_tables.md").read_text()
     assert "## Table 4.15" in text and "495 images per row" in text
-    assert str(out / "thesis_tables.md") in capsys.readouterr().out
+    run = out / "run"
+    for p in ("frames.parquet", "detections/cog.parquet", "estimates/cog--thesis.parquet",
+              "estimates/cog--pnp.parquet", "evaluation/errors.parquet", "log.mcap", "report/report.md"):
+        assert (run / p).exists(), p
+    printed = capsys.readouterr().out
+    assert str(run / "report" / "report.md") in printed and str(run / "log.mcap") in printed
