@@ -109,7 +109,9 @@ def test_thesis_series_converts_angles_and_heave() -> None:
     import pandas as pd
 
     series = thesis_series()
-    raw = pd.read_csv("/work/shared/reference/thesis_motion_series.csv")
+    import deckpose
+
+    raw = pd.read_csv(Path(deckpose.__file__).parent / "data" / "thesis_motion_series.csv")
     i = 123
     R_t = R_from_thesis(*np.radians(raw.loc[i, ["roll_deg", "pitch_deg", "yaw_deg"]].to_numpy(float)))
     R_z = R_from_zyx(series.roll_rad[i], series.pitch_rad[i], series.yaw_rad[i])
