@@ -255,6 +255,13 @@ def find_candidates(
     problem = frame_problem(st)
     if problem:
         return [], problem
+    spot_thr = 0.0
+    if options.spot_level > 0:
+        from deckpose.detect.spots import peak_channel, spot_boxes, spot_threshold
+
+        spot_thr = spot_threshold(image, options)[0]
+        if boxes_fn is coarse_boxes:
+            boxes_fn = spot_boxes
     boxes, reason = boxes_fn(image, options)
     if reason:
         return [], reason
@@ -278,8 +285,16 @@ def find_candidates(
         else:
             noise_box = st.noise_dn
             thr_box = max(thr, _border_median(pix) + k_noise)
+        if spot_thr > 0:
+            # Bright-spot search: the blob is the spot's bright core (peak channel);
+            # the mono threshold of the window is then half the core's height.
+            u0b, v0b, u1b, v1b = box
+            above = peak_channel(image[v0b:v1b, u0b:u1b]) > spot_thr
+            thr_box = _border_median(pix) + 0.5 * (float(pix.max()) - _border_median(pix))
+        else:
+            above = pix > thr_box
         n, labels, cstats, _ = cv2.connectedComponentsWithStats(
-            (pix > thr_box).astype(np.uint8), connectivity=8
+            above.astype(np.uint8), connectivity=8
         )
         for lab in range(1, n):
             x, y, w, h, area = (int(c) for c in cstats[lab])
