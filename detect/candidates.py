@@ -63,6 +63,11 @@ class Candidate:
         :func:`deckpose.detect.gain.estimate_gain`), DN per electron.
     threshold_dn : float
         Full-resolution threshold used for ``mask``, DN.
+    clip_signal : bool
+        Bright-spot search: ``background_dn`` is the spot's pedestal (the brightest
+        window pixel away from the core: a marking under the beacon, its glow) and
+        :meth:`signal` clips at 0, so a dark beacon housing or a white line around
+        the core does not pull the centre.
     """
 
     pixels: np.ndarray
@@ -75,6 +80,7 @@ class Candidate:
     noise_dn: float
     gain_dn_per_e: float
     threshold_dn: float
+    clip_signal: bool = False
 
     def grid(self) -> tuple[np.ndarray, np.ndarray]:
         """Full-resolution ``(u, v)`` coordinates of the window's pixels, each (h, w)."""
@@ -88,7 +94,8 @@ class Candidate:
         plane = (np.arange(h)[:, None] - (h - 1) / 2) * gv + (
             np.arange(w)[None, :] - (w - 1) / 2
         ) * gu
-        return self.pixels - self.background_dn - plane
+        s = self.pixels - self.background_dn - plane
+        return np.maximum(s, 0.0) if self.clip_signal else s
 
     def variance(self, signal_dn: np.ndarray | None = None) -> np.ndarray:
         """Per-pixel noise variance, DN^2: background noise plus shot noise of the signal."""
@@ -234,6 +241,17 @@ def _border_median(pixels: np.ndarray) -> float:
     )
 
 
+def spot_pedestal(pixels: np.ndarray, core: np.ndarray, border_level_dn: float) -> float:
+    """Level under a bright spot: the brightest window pixel 2+ px away from its core, DN.
+
+    At least ``border_level_dn`` (the window border's fitted level). Pixels the
+    beacon does not light (a white marking it sits on) stay below it.
+    """
+    near = cv2.dilate(core.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    away = pixels[~near]
+    return max(border_level_dn, float(away.max())) if away.size else border_level_dn
+
+
 BoxesFn = Callable[[np.ndarray, DetectorOptions], "tuple[list[tuple[int, int, int, int]], str]"]
 
 
@@ -320,14 +338,22 @@ def find_candidates(
             wpix, wsat = _window(image, wb, st.saturation_dn)
             mask = np.zeros(wpix.shape, bool)
             mask[gv0 - wb[1] : gv0 - wb[1] + h, gu0 - wb[0] : gu0 - wb[0] + w] = comp
-            raw.append((wpix, mask, wsat, wb[0], wb[1], border_plane(wpix), thr_box, noise_box))
+            if spot_thr > 0:  # measure the peak channel: the red bow is as bright as the rest
+                wpix = peak_channel(image[wb[1] : wb[3], wb[0] : wb[2]]).astype(np.float64)
+            plane = border_plane(wpix)
+            if spot_thr > 0:
+                plane = (spot_pedestal(wpix, mask, plane[0]), 0.0, 0.0)
+            raw.append((wpix, mask, wsat, wb[0], wb[1], plane, thr_box, noise_box))
     if not raw:
         return [], (
             f"dark frame: no blob above {thr:.1f} DN (background {st.background_dn:.1f} DN, "
             f"noise {st.noise_dn:.2f} DN, brightest sample {st.max_dn:.0f} DN)"
         )
     cands = [
-        Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, options.gain_dn_per_e or 1.0, t)
+        Candidate(
+            p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, options.gain_dn_per_e or 1.0, t,
+            clip_signal=spot_thr > 0,
+        )
         for p, m, s, u0, v0, bg, t, nz in raw
     ]
     if options.gain_dn_per_e is None:

@@ -53,3 +53,41 @@ def redness(rgb_flux: FloatArray) -> FloatArray:
     tot = f.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(tot > 0, f[:, 0] / tot, np.nan)
+
+
+def blob_peak_rgb(image: np.ndarray, points_px: FloatArray, radii_px: FloatArray) -> FloatArray:
+    """Per-channel peak of each blob above its surroundings, DN.
+
+    For saturated spots, whose flux is clipped: the largest value of each channel
+    within ``radius`` of the centre, minus the channel's median on a ring of
+    1.5 to 2.5 radii. A red beacon keeps its red channel at the top while green
+    and blue stay well below; a white one has all three at the top.
+
+    Parameters
+    ----------
+    image : (H, W, 3) array
+    points_px : (N, 2) array of float
+    radii_px : (N,) array of float
+
+    Returns
+    -------
+    (N, 3) array of float, DN
+    """
+    img = np.asarray(image)
+    check_shape("image", img, (None, None, 3))
+    pts = np.asarray(points_px, dtype=float).reshape(-1, 2)
+    H, W = img.shape[:2]
+    out = np.zeros((pts.shape[0], 3))
+    for i, ((u, v), r) in enumerate(zip(pts, np.broadcast_to(radii_px, (pts.shape[0],)))):
+        R = 2.5 * r + 1.0
+        u0, u1 = max(0, int(math.floor(u - R))), min(W, int(math.ceil(u + R)) + 1)
+        v0, v1 = max(0, int(math.floor(v - R))), min(H, int(math.ceil(v + R)) + 1)
+        block = img[v0:v1, u0:u1].astype(float)
+        vv, uu = np.mgrid[v0:v1, u0:u1]
+        d = np.hypot(uu - u, vv - v)
+        ap, ann = d <= r, (d >= 1.5 * r) & (d <= R)
+        if not ap.any():
+            continue
+        bg = np.median(block[ann], axis=0) if ann.any() else np.zeros(3)
+        out[i] = block[ap].max(axis=0) - bg
+    return out
