@@ -88,7 +88,15 @@ def detect_frame(
     """
     fn = registry.get(detector)
     t0 = time.perf_counter()
-    blobs: Blobs = fn(frame, options)
+    try:
+        blobs: Blobs = fn(frame, options)
+    except Exception as exc:  # a detector bug must not end a batch: the frame fails
+        return FrameDetections.failed(
+            frame.frame_id,
+            detector,
+            f"detector {detector!r} raised {type(exc).__name__}: {exc}",
+            time.perf_counter() - t0,
+        )
     if not blobs:
         return FrameDetections.failed(
             frame.frame_id, detector, blobs.reason, time.perf_counter() - t0
