@@ -274,7 +274,7 @@ def find_candidates(
     if problem:
         return [], problem
     spot_thr = 0.0
-    if options.spot_level > 0:
+    if options.spot_level > 0 and options.background_kernel_px == 0:
         from deckpose.detect.spots import peak_channel, spot_boxes, spot_threshold
 
         spot_thr = spot_threshold(image, options)[0]
@@ -288,7 +288,15 @@ def find_candidates(
     H, W = image.shape[:2]
     raw: list[
         tuple[
-            np.ndarray, np.ndarray, np.ndarray, int, int, tuple[float, float, float], float, float
+            np.ndarray,
+            np.ndarray,
+            np.ndarray,
+            int,
+            int,
+            tuple[float, float, float],
+            float,
+            float,
+            bool,
         ]
     ]
     raw = []
@@ -308,7 +316,6 @@ def find_candidates(
             # the mono threshold of the window is then half the core's height.
             u0b, v0b, u1b, v1b = box
             above = peak_channel(image[v0b:v1b, u0b:u1b]) > spot_thr
-            thr_box = _border_median(pix) + 0.5 * (float(pix.max()) - _border_median(pix))
         else:
             above = pix > thr_box
         n, labels, cstats, _ = cv2.connectedComponentsWithStats(
@@ -341,9 +348,19 @@ def find_candidates(
             if spot_thr > 0:  # measure the peak channel: the red bow is as bright as the rest
                 wpix = peak_channel(image[wb[1] : wb[3], wb[0] : wb[2]]).astype(np.float64)
             plane = border_plane(wpix)
+            clip = False
             if spot_thr > 0:
-                plane = (spot_pedestal(wpix, mask, plane[0]), 0.0, 0.0)
-            raw.append((wpix, mask, wsat, wb[0], wb[1], plane, thr_box, noise_box))
+                ped = spot_pedestal(wpix, mask, plane[0])
+                # Structure around the core (a marking, a housing, glow) above the noise:
+                # measure the core above its pedestal. A clean spot keeps the border plane.
+                clip = ped > plane[0] + options.threshold_sigma * max(
+                    border_noise(wpix), noise_floor_dn(image)
+                )
+                if clip:
+                    plane = (ped, 0.0, 0.0)
+                # half the core's height above the background, peak-channel DN
+                thr_box = plane[0] + 0.5 * (float(wpix[mask].max()) - plane[0])
+            raw.append((wpix, mask, wsat, wb[0], wb[1], plane, thr_box, noise_box, clip))
     if not raw:
         return [], (
             f"dark frame: no blob above {thr:.1f} DN (background {st.background_dn:.1f} DN, "
@@ -352,9 +369,9 @@ def find_candidates(
     cands = [
         Candidate(
             p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, options.gain_dn_per_e or 1.0, t,
-            clip_signal=spot_thr > 0,
+            clip_signal=clip,
         )
-        for p, m, s, u0, v0, bg, t, nz in raw
+        for p, m, s, u0, v0, bg, t, nz, clip in raw
     ]
     if options.gain_dn_per_e is None:
         from deckpose.detect.gain import estimate_gain  # gain uses cog, which uses this module

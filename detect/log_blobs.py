@@ -43,7 +43,7 @@ def log_boxes(
         threshold=0.40 * options.threshold_sigma,
         overlap=0.5,
     )
-    if options.spot_level > 0:
+    if options.spot_level > 0 and options.background_kernel_px == 0:
         # Bright-spot search: keep the LoG blobs that hold a beacon-bright core.
         from deckpose.detect.spots import block_max, peak_channel, spot_threshold
 

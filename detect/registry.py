@@ -73,7 +73,8 @@ class DetectorOptions:
         its bright-spot level (beacon cores), so deck markings, texture and the lit
         sea are not candidates. 0 switches it off: every blob ``threshold_sigma``
         noise sigmas above the background is a candidate (dark frames of
-        unsaturated spots of very different brightness).
+        unsaturated spots of very different brightness). Not used with
+        ``background_kernel_px`` > 0, which selects the opening-based search.
     """
 
     threshold_sigma: float = 6.0
