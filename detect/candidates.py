@@ -242,12 +242,16 @@ def _border_median(pixels: np.ndarray) -> float:
 
 
 def spot_pedestal(pixels: np.ndarray, core: np.ndarray, border_level_dn: float) -> float:
-    """Level under a bright spot: the brightest window pixel 2+ px away from its core, DN.
+    """Level under a bright spot: the brightest window pixel away from its core, DN.
 
-    At least ``border_level_dn`` (the window border's fitted level). Pixels the
-    beacon does not light (a white marking it sits on) stay below it.
+    "Away" is farther than ``2 r + 2`` px from the core, ``r`` the core's
+    equivalent radius, beyond the spot's own wings. At least ``border_level_dn``
+    (the window border's fitted level). Pixels the beacon does not light (a
+    white marking it sits on) stay below it.
     """
-    near = cv2.dilate(core.astype(np.uint8), np.ones((5, 5), np.uint8)).astype(bool)
+    r_px = int(math.ceil(2.0 * math.sqrt(core.sum() / math.pi) + 2.0))
+    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r_px + 1, 2 * r_px + 1))
+    near = cv2.dilate(core.astype(np.uint8), disc).astype(bool)
     away = pixels[~near]
     return max(border_level_dn, float(away.max())) if away.size else border_level_dn
 
