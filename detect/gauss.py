@@ -7,7 +7,8 @@ the modelled noise variance (background noise plus shot noise of the model),
 updated once from the first fit, which makes the fit close to the Poisson
 maximum-likelihood estimate; the centre covariance is the ``(u, v)`` block of
 ``inv(J^T W J)``, the Fisher information of the fitted model. Saturated pixels
-are left out of the fit.
+are left out of the fit. A bright-spot candidate measured above its pedestal
+(:attr:`~deckpose.detect.candidates.Candidate.clip_signal`) keeps its ``cog`` centre.
 """
 
 from __future__ import annotations
@@ -47,6 +48,10 @@ def gauss_fit(cand: Candidate, window_sigma: float = 3.0) -> Row | None:
     start = cog_centroid(cand, window_sigma)
     if start is None:
         return None
+    if cand.clip_signal:
+        # A core measured above its pedestal (a marking or housing around it) is not a
+        # Gaussian on a plane: keep the windowed centroid.
+        return start
     u0, v0, _, F0, s0, _ = start
     h, w = cand.pixels.shape
     xs = np.arange(w, dtype=float) + cand.u0
