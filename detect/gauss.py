@@ -96,4 +96,13 @@ def gauss_fit(cand: Candidate, window_sigma: float = 3.0) -> Row | None:
 @register("gauss")
 def detect_gauss(frame: Frame, options: DetectorOptions) -> Blobs:
     """Weighted least-squares pixel-integrated Gaussian fit per blob (with covariance)."""
-    return measure_candidates(frame, options, lambda c: gauss_fit(c, options.window_sigma))
+
+    def measure(c: Candidate) -> Row | None:
+        row = gauss_fit(c, options.window_sigma)
+        if row is None and c.saturated[c.mask].any():
+            # A clipped core leaves only the wings to fit (on a beacon's dark housing they
+            # are no Gaussian): keep the windowed centroid rather than lose the beacon.
+            return cog_centroid(c, options.window_sigma)
+        return row
+
+    return measure_candidates(frame, options, measure)

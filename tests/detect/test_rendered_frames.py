@@ -30,7 +30,6 @@ MAX_ERR_PX = 1.0
 
 @pytest.fixture(scope="module")
 def smoke_dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    pytest.importorskip("pyrender")
     from deckpose.render.config import load_config
     from deckpose.render.dataset import render_dataset
 
