@@ -43,7 +43,9 @@ class Candidate:
     Attributes
     ----------
     pixels : (h, w) array of float
-        Mono signal of the window (sum of channels), DN, background not removed.
+        Mono signal of the window (sum of channels), DN, background not removed;
+        with the bright-spot search (``DetectorOptions.spot_level``) the peak
+        channel (largest channel per pixel).
     mask : (h, w) array of bool
         The blob's connected pixels above the full-resolution threshold.
     saturated : (h, w) array of bool
@@ -241,21 +243,6 @@ def _border_median(pixels: np.ndarray) -> float:
     )
 
 
-def spot_pedestal(pixels: np.ndarray, core: np.ndarray, border_level_dn: float) -> float:
-    """Level under a bright spot: the brightest window pixel away from its core, DN.
-
-    "Away" is farther than ``2 r + 2`` px from the core, ``r`` the core's
-    equivalent radius, beyond the spot's own wings. At least ``border_level_dn``
-    (the window border's fitted level). Pixels the beacon does not light (a
-    white marking it sits on) stay below it.
-    """
-    r_px = int(math.ceil(2.0 * math.sqrt(core.sum() / math.pi) + 2.0))
-    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r_px + 1, 2 * r_px + 1))
-    near = cv2.dilate(core.astype(np.uint8), disc).astype(bool)
-    away = pixels[~near]
-    return max(border_level_dn, float(away.max())) if away.size else border_level_dn
-
-
 BoxesFn = Callable[[np.ndarray, DetectorOptions], "tuple[list[tuple[int, int, int, int]], str]"]
 
 
@@ -279,9 +266,9 @@ def find_candidates(
         return [], problem
     spot_thr = 0.0
     if options.spot_level > 0 and options.background_kernel_px == 0:
-        from deckpose.detect.spots import peak_channel, spot_boxes, spot_threshold
+        from deckpose.detect.spots import peak_channel, spot_boxes, spot_pedestal, spot_threshold
 
-        spot_thr = spot_threshold(image, options)[0]
+        spot_thr, _, _, spot_noise = spot_threshold(image, options)
         if boxes_fn is coarse_boxes:
             boxes_fn = spot_boxes
     boxes, reason = boxes_fn(image, options)
@@ -316,8 +303,7 @@ def find_candidates(
             noise_box = st.noise_dn
             thr_box = max(thr, _border_median(pix) + k_noise)
         if spot_thr > 0:
-            # Bright-spot search: the blob is the spot's bright core (peak channel);
-            # the mono threshold of the window is then half the core's height.
+            # Bright-spot search: the blob is the spot's bright core (peak channel).
             u0b, v0b, u1b, v1b = box
             above = peak_channel(image[v0b:v1b, u0b:u1b]) > spot_thr
         else:
@@ -357,8 +343,9 @@ def find_candidates(
                 ped = spot_pedestal(wpix, mask, plane[0])
                 # Structure around the core (a marking, a housing, glow) above the noise:
                 # measure the core above its pedestal. A clean spot keeps the border plane.
+                noise_box = spot_noise
                 clip = ped > plane[0] + options.threshold_sigma * max(
-                    border_noise(wpix), noise_floor_dn(image)
+                    border_noise(wpix), spot_noise
                 )
                 if clip:
                     plane = (ped, 0.0, 0.0)
@@ -370,11 +357,9 @@ def find_candidates(
             f"dark frame: no blob above {thr:.1f} DN (background {st.background_dn:.1f} DN, "
             f"noise {st.noise_dn:.2f} DN, brightest sample {st.max_dn:.0f} DN)"
         )
+    gain0 = options.gain_dn_per_e or 1.0
     cands = [
-        Candidate(
-            p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, options.gain_dn_per_e or 1.0, t,
-            clip_signal=clip,
-        )
+        Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, gain0, t, clip_signal=clip)
         for p, m, s, u0, v0, bg, t, nz, clip in raw
     ]
     if options.gain_dn_per_e is None:

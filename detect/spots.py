@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 
 from deckpose.detect.registry import DetectorOptions
@@ -37,8 +38,10 @@ def peak_channel(pixels: np.ndarray) -> np.ndarray:
     return a.astype(np.float32)
 
 
-def spot_threshold(image: np.ndarray, options: DetectorOptions) -> tuple[float, float, float]:
-    """``(threshold, background, bright level)`` of the peak-channel image, DN.
+def spot_threshold(
+    image: np.ndarray, options: DetectorOptions
+) -> tuple[float, float, float, float]:
+    """``(threshold, background, bright level, noise)`` of the peak-channel image, DN.
 
     The threshold lies ``options.spot_level`` of the way from the background to
     the bright-spot level, and at least ``threshold_sigma`` noise sigmas above
@@ -55,7 +58,7 @@ def spot_threshold(image: np.ndarray, options: DetectorOptions) -> tuple[float, 
     bright = float(np.partition(flat, flat.size - k)[flat.size - k])
     noise = max(difference_noise(pk), noise_floor_dn(pk))
     thr = max(bg + options.spot_level * (bright - bg), bg + options.threshold_sigma * noise)
-    return thr, bg, bright
+    return thr, bg, bright, noise
 
 
 def block_max(pk: np.ndarray, factor: int) -> np.ndarray:
@@ -76,11 +79,9 @@ def spot_boxes(
 
     Returns the boxes and, when there are none or too many, the reason.
     """
-    import cv2
-
     from deckpose.detect.candidates import coarse_factor
 
-    thr, bg, bright = spot_threshold(image, options)
+    thr, bg, bright, _ = spot_threshold(image, options)
     pk = peak_channel(image)
     f = coarse_factor(pk.shape, options.coarse_max_px)
     small = block_max(pk, f)
@@ -108,3 +109,18 @@ def spot_boxes(
         for x, y, w, h, _a in stats[1:]
     ]
     return boxes, ""
+
+
+def spot_pedestal(pixels: np.ndarray, core: np.ndarray, border_level_dn: float) -> float:
+    """Level under a bright spot: the brightest window pixel away from its core, DN.
+
+    "Away" is farther than ``2 r + 2`` px from the core, ``r`` the core's
+    equivalent radius, beyond the spot's own wings. At least ``border_level_dn``
+    (the window border's fitted level). Pixels the beacon does not light (a
+    white marking it sits on) stay below it.
+    """
+    r_px = int(math.ceil(2.0 * math.sqrt(core.sum() / math.pi) + 2.0))
+    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * r_px + 1, 2 * r_px + 1))
+    near = cv2.dilate(core.astype(np.uint8), disc).astype(bool)
+    away = pixels[~near]
+    return max(border_level_dn, float(away.max())) if away.size else border_level_dn
