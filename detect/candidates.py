@@ -10,6 +10,13 @@
 
 Thresholds adapt to the frame: background and noise are measured per frame
 (:mod:`deckpose.detect.background`), never fixed constants.
+
+By default (``DetectorOptions.spot_level`` > 0) steps 1-2 are replaced by the
+bright-spot search of :mod:`deckpose.detect.spots`: candidates are the cores
+that approach the frame's brightest level in their largest channel (rendered
+and real beacons saturate; deck markings, texture and the lit sea do not), and
+each is measured on the peak channel, above its pedestal where a marking or
+the beacon's housing surrounds it.
 """
 
 from __future__ import annotations
