@@ -10,6 +10,13 @@
 
 Thresholds adapt to the frame: background and noise are measured per frame
 (:mod:`deckpose.detect.background`), never fixed constants.
+
+By default (``DetectorOptions.spot_level`` > 0) steps 1-2 are replaced by the
+bright-spot search of :mod:`deckpose.detect.spots`: candidates are the cores
+that approach the frame's brightest level in their largest channel (rendered
+and real beacons saturate; deck markings, texture and the lit sea do not), and
+each is measured on the peak channel, above its pedestal where a marking or
+the beacon's housing surrounds it.
 """
 
 from __future__ import annotations
@@ -43,7 +50,9 @@ class Candidate:
     Attributes
     ----------
     pixels : (h, w) array of float
-        Mono signal of the window (sum of channels), DN, background not removed.
+        Mono signal of the window (sum of channels), DN, background not removed;
+        with the bright-spot search (``DetectorOptions.spot_level``) the peak
+        channel (largest channel per pixel).
     mask : (h, w) array of bool
         The blob's connected pixels above the full-resolution threshold.
     saturated : (h, w) array of bool
@@ -63,6 +72,11 @@ class Candidate:
         :func:`deckpose.detect.gain.estimate_gain`), DN per electron.
     threshold_dn : float
         Full-resolution threshold used for ``mask``, DN.
+    clip_signal : bool
+        Bright-spot search: ``background_dn`` is the spot's pedestal (the brightest
+        window pixel away from the core: a marking under the beacon, its glow) and
+        :meth:`signal` clips at 0, so a dark beacon housing or a white line around
+        the core does not pull the centre.
     """
 
     pixels: np.ndarray
@@ -75,6 +89,7 @@ class Candidate:
     noise_dn: float
     gain_dn_per_e: float
     threshold_dn: float
+    clip_signal: bool = False
 
     def grid(self) -> tuple[np.ndarray, np.ndarray]:
         """Full-resolution ``(u, v)`` coordinates of the window's pixels, each (h, w)."""
@@ -88,7 +103,8 @@ class Candidate:
         plane = (np.arange(h)[:, None] - (h - 1) / 2) * gv + (
             np.arange(w)[None, :] - (w - 1) / 2
         ) * gu
-        return self.pixels - self.background_dn - plane
+        s = self.pixels - self.background_dn - plane
+        return np.maximum(s, 0.0) if self.clip_signal else s
 
     def variance(self, signal_dn: np.ndarray | None = None) -> np.ndarray:
         """Per-pixel noise variance, DN^2: background noise plus shot noise of the signal."""
@@ -255,6 +271,13 @@ def find_candidates(
     problem = frame_problem(st)
     if problem:
         return [], problem
+    spot_thr = 0.0
+    if options.spot_level > 0 and options.background_kernel_px == 0:
+        from deckpose.detect.spots import peak_channel, spot_boxes, spot_pedestal, spot_threshold
+
+        spot_thr, _, _, spot_noise = spot_threshold(image, options)
+        if boxes_fn is coarse_boxes:
+            boxes_fn = spot_boxes
     boxes, reason = boxes_fn(image, options)
     if reason:
         return [], reason
@@ -263,7 +286,15 @@ def find_candidates(
     H, W = image.shape[:2]
     raw: list[
         tuple[
-            np.ndarray, np.ndarray, np.ndarray, int, int, tuple[float, float, float], float, float
+            np.ndarray,
+            np.ndarray,
+            np.ndarray,
+            int,
+            int,
+            tuple[float, float, float],
+            float,
+            float,
+            bool,
         ]
     ]
     raw = []
@@ -278,8 +309,14 @@ def find_candidates(
         else:
             noise_box = st.noise_dn
             thr_box = max(thr, _border_median(pix) + k_noise)
+        if spot_thr > 0:
+            # Bright-spot search: the blob is the spot's bright core (peak channel).
+            u0b, v0b, u1b, v1b = box
+            above = peak_channel(image[v0b:v1b, u0b:u1b]) > spot_thr
+        else:
+            above = pix > thr_box
         n, labels, cstats, _ = cv2.connectedComponentsWithStats(
-            (pix > thr_box).astype(np.uint8), connectivity=8
+            above.astype(np.uint8), connectivity=8
         )
         for lab in range(1, n):
             x, y, w, h, area = (int(c) for c in cstats[lab])
@@ -305,15 +342,32 @@ def find_candidates(
             wpix, wsat = _window(image, wb, st.saturation_dn)
             mask = np.zeros(wpix.shape, bool)
             mask[gv0 - wb[1] : gv0 - wb[1] + h, gu0 - wb[0] : gu0 - wb[0] + w] = comp
-            raw.append((wpix, mask, wsat, wb[0], wb[1], border_plane(wpix), thr_box, noise_box))
+            if spot_thr > 0:  # measure the peak channel: the red bow is as bright as the rest
+                wpix = peak_channel(image[wb[1] : wb[3], wb[0] : wb[2]]).astype(np.float64)
+            plane = border_plane(wpix)
+            clip = False
+            if spot_thr > 0:
+                ped = spot_pedestal(wpix, mask, plane[0])
+                # Structure around the core (a marking, a housing, glow) above the noise:
+                # measure the core above its pedestal. A clean spot keeps the border plane.
+                noise_box = spot_noise
+                clip = ped > plane[0] + options.threshold_sigma * max(
+                    border_noise(wpix), spot_noise
+                )
+                if clip:
+                    plane = (ped, 0.0, 0.0)
+                # half the core's height above the background, peak-channel DN
+                thr_box = plane[0] + 0.5 * (float(wpix[mask].max()) - plane[0])
+            raw.append((wpix, mask, wsat, wb[0], wb[1], plane, thr_box, noise_box, clip))
     if not raw:
         return [], (
             f"dark frame: no blob above {thr:.1f} DN (background {st.background_dn:.1f} DN, "
             f"noise {st.noise_dn:.2f} DN, brightest sample {st.max_dn:.0f} DN)"
         )
+    gain0 = options.gain_dn_per_e or 1.0
     cands = [
-        Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, options.gain_dn_per_e or 1.0, t)
-        for p, m, s, u0, v0, bg, t, nz in raw
+        Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, gain0, t, clip_signal=clip)
+        for p, m, s, u0, v0, bg, t, nz, clip in raw
     ]
     if options.gain_dn_per_e is None:
         from deckpose.detect.gain import estimate_gain  # gain uses cog, which uses this module

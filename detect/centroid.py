@@ -67,6 +67,8 @@ def cog_centroid(
         c1 = min(w, int(np.ceil(u - cand.u0 + R + 2)))
         r0 = max(0, int(np.floor(v - cand.v0 - R - 1)))
         r1 = min(h, int(np.ceil(v - cand.v0 + R + 2)))
+        if c1 <= c0 or r1 <= r0:  # the estimate left the candidate's window: degenerate
+            return None
         s = s_full[r0:r1, c0:c1]
         du = (np.arange(c0, c1, dtype=float) + cand.u0 - u)[None, :]
         dv = (np.arange(r0, r1, dtype=float) + cand.v0 - v)[:, None]

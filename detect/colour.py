@@ -53,3 +53,4 @@ def redness(rgb_flux: FloatArray) -> FloatArray:
     tot = f.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         return np.where(tot > 0, f[:, 0] / tot, np.nan)
+

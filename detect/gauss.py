@@ -7,7 +7,8 @@ the modelled noise variance (background noise plus shot noise of the model),
 updated once from the first fit, which makes the fit close to the Poisson
 maximum-likelihood estimate; the centre covariance is the ``(u, v)`` block of
 ``inv(J^T W J)``, the Fisher information of the fitted model. Saturated pixels
-are left out of the fit.
+are left out of the fit. A bright-spot candidate measured above its pedestal
+(:attr:`~deckpose.detect.candidates.Candidate.clip_signal`) keeps its ``cog`` centre.
 """
 
 from __future__ import annotations
@@ -47,6 +48,10 @@ def gauss_fit(cand: Candidate, window_sigma: float = 3.0) -> Row | None:
     start = cog_centroid(cand, window_sigma)
     if start is None:
         return None
+    if cand.clip_signal:
+        # A core measured above its pedestal (a marking or housing around it) is not a
+        # Gaussian on a plane: keep the windowed centroid.
+        return start
     u0, v0, _, F0, s0, _ = start
     h, w = cand.pixels.shape
     xs = np.arange(w, dtype=float) + cand.u0
@@ -91,4 +96,13 @@ def gauss_fit(cand: Candidate, window_sigma: float = 3.0) -> Row | None:
 @register("gauss")
 def detect_gauss(frame: Frame, options: DetectorOptions) -> Blobs:
     """Weighted least-squares pixel-integrated Gaussian fit per blob (with covariance)."""
-    return measure_candidates(frame, options, lambda c: gauss_fit(c, options.window_sigma))
+
+    def measure(c: Candidate) -> Row | None:
+        row = gauss_fit(c, options.window_sigma)
+        if row is None and c.saturated[c.mask].any():
+            # A clipped core leaves only the wings to fit (on a beacon's dark housing they
+            # are no Gaussian): keep the windowed centroid rather than lose the beacon.
+            return cog_centroid(c, options.window_sigma)
+        return row
+
+    return measure_candidates(frame, options, measure)

@@ -43,6 +43,22 @@ def log_boxes(
         threshold=0.40 * options.threshold_sigma,
         overlap=0.5,
     )
+    if options.spot_level > 0 and options.background_kernel_px == 0:
+        # Bright-spot search: keep the LoG blobs that hold a beacon-bright core.
+        from deckpose.detect.spots import block_max, peak_channel, spot_threshold
+
+        bright = block_max(peak_channel(image), f) > spot_threshold(image, options)[0]
+        hb, wb = bright.shape
+        found = np.array(
+            [
+                b
+                for b in found
+                if bright[
+                    max(0, int(b[0] - 2 * b[2] - 1)) : min(hb, int(b[0] + 2 * b[2] + 2)),
+                    max(0, int(b[1] - 2 * b[2] - 1)) : min(wb, int(b[1] + 2 * b[2] + 2)),
+                ].any()
+            ]
+        ).reshape(-1, 3)
     if len(found) > options.max_blobs:
         return [], f"{len(found)} LoG blobs exceed max_blobs={options.max_blobs}"
     H, W = image.shape[:2]

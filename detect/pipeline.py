@@ -88,7 +88,15 @@ def detect_frame(
     """
     fn = registry.get(detector)
     t0 = time.perf_counter()
-    blobs: Blobs = fn(frame, options)
+    try:
+        blobs: Blobs = fn(frame, options)
+    except Exception as exc:  # a detector bug must not end a batch: the frame fails
+        return FrameDetections.failed(
+            frame.frame_id,
+            detector,
+            f"detector {detector!r} raised {type(exc).__name__}: {exc}",
+            time.perf_counter() - t0,
+        )
     if not blobs:
         return FrameDetections.failed(
             frame.frame_id, detector, blobs.reason, time.perf_counter() - t0
@@ -101,11 +109,15 @@ def detect_frame(
         if frame.image.ndim == 3:
             radii = np.maximum(2.0, 2.0 * blobs.size_px)
             rgb = blob_rgb_flux(frame.image, blobs.points_px, radii)
-        ident = identify_beacons(
-            blobs.points_px, layout, frame.camera, rgb_flux=rgb, options=identify_options
-        )
-        ids = np.asarray(ident.beacon_ids)
-        reason = "" if ident else f"identification: {ident.reason}"
+        try:
+            ident = identify_beacons(
+                blobs.points_px, layout, frame.camera, rgb_flux=rgb, options=identify_options
+            )
+            ids = np.asarray(ident.beacon_ids)
+            reason = "" if ident else f"identification: {ident.reason}"
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            # degenerate geometry the identification did not foresee: the frame fails
+            reason = f"identification raised {type(exc).__name__}: {exc}"
     seconds = time.perf_counter() - t0
     dets = Detections(
         blobs.points_px, ids, blobs.covariance_px2, blobs.score, frame_id=frame.frame_id

@@ -67,6 +67,14 @@ class DetectorOptions:
         the candidate search first removes an uneven background (a lit deck) by a
         grey opening with a disc of this diameter, full-resolution pixels; it
         must exceed the largest beacon's diameter.
+    spot_level : float
+        Bright-spot search (:mod:`deckpose.detect.spots`): candidates are pixels whose
+        largest channel lies this fraction of the way from the frame's background to
+        its bright-spot level (beacon cores), so deck markings, texture and the lit
+        sea are not candidates. 0 switches it off: every blob ``threshold_sigma``
+        noise sigmas above the background is a candidate (dark frames of
+        unsaturated spots of very different brightness). Not used with
+        ``background_kernel_px`` > 0, which selects the opening-based search.
     """
 
     threshold_sigma: float = 6.0
@@ -76,6 +84,7 @@ class DetectorOptions:
     window_sigma: float = 3.0
     gain_dn_per_e: float | None = None
     background_kernel_px: int = 0
+    spot_level: float = 0.8
 
     def __post_init__(self) -> None:
         if not self.threshold_sigma > 0:
@@ -88,6 +97,8 @@ class DetectorOptions:
             raise ConfigError(f"window_sigma must be >= 1, got {self.window_sigma}")
         if self.background_kernel_px < 0:
             raise ConfigError(f"background_kernel_px must be >= 0, got {self.background_kernel_px}")
+        if not 0.0 <= self.spot_level < 1.0:
+            raise ConfigError(f"spot_level must be in [0, 1), got {self.spot_level}")
         if self.gain_dn_per_e is not None and not self.gain_dn_per_e > 0:
             raise ConfigError(f"gain_dn_per_e must be positive or None, got {self.gain_dn_per_e}")
 

@@ -31,6 +31,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         "(pixels, larger than any beacon) before the candidate search; 0 = flat background",
     )
     p.add_argument(
+        "--spot-level",
+        type=float,
+        default=0.8,
+        help="bright-spot search: candidates reach this fraction of the way from the frame's "
+        "background to its brightest level (largest channel); 0 = every blob threshold-sigma "
+        "above the background (default 0.8)",
+    )
+    p.add_argument(
         "--plugin",
         action="append",
         default=[],
@@ -56,7 +64,9 @@ def run(args: argparse.Namespace) -> int:
     for n in names:
         registry.get(n)
     options = DetectorOptions(
-        threshold_sigma=args.threshold_sigma, background_kernel_px=args.background_kernel_px
+        threshold_sigma=args.threshold_sigma,
+        background_kernel_px=args.background_kernel_px,
+        spot_level=args.spot_level,
     )
     summary, matches = run_benchmark(
         args.dataset, names, options=options, progress=not args.no_progress

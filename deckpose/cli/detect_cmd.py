@@ -50,6 +50,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         "(pixels, larger than any beacon) before the candidate search; 0 = flat background",
     )
     p.add_argument(
+        "--spot-level",
+        type=float,
+        default=0.8,
+        help="bright-spot search: candidates reach this fraction of the way from the frame's "
+        "background to its brightest level (largest channel); 0 = every blob threshold-sigma "
+        "above the background (default 0.8)",
+    )
+    p.add_argument(
         "--plugin",
         action="append",
         default=[],
@@ -91,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
         threshold_sigma=args.threshold_sigma,
         gain_dn_per_e=args.gain,
         background_kernel_px=args.background_kernel_px,
+        spot_level=args.spot_level,
     )
     ident = IdentifyOptions()
     dets, frames = detect_frames(
