@@ -15,6 +15,40 @@ from deckpose.evaluate.resolution_tables import resolution_markdown, resolution_
 from deckpose.tables import write_table
 
 
+def frame_crb(run: rl.RunPaths, frames: pd.DataFrame, centroid_rms_px: pd.Series) -> pd.DataFrame:
+    """Per-frame Cramér–Rao bound of roll, pitch, yaw (deg) and height (m).
+
+    The pixel noise of a frame is taken as the detector's measured per-axis
+    centroid error there (centroid RMS / sqrt(2)), so the bound says how well any
+    unbiased estimator could do with those detections. NaN where unknown.
+    """
+    import math
+
+    import numpy as np
+
+    from deckpose.estimate.crb import cramer_rao_bound
+    from deckpose.pose import CameraPose, ShipPose
+    from deckpose.records import POSE_PARAMS
+
+    layout = rl.read_layout(run)
+    cameras = rl.read_cameras(run, sorted(frames["camera"].unique()))
+    idx = {p: i for i, p in enumerate(POSE_PARAMS)}
+    rows = []
+    for _, fr in frames.iterrows():
+        f = int(fr["frame_id"])
+        rms = float(centroid_rms_px.get(f, float("nan")))
+        out = {"frame_id": f, "crb_roll_deg": math.nan, "crb_pitch_deg": math.nan,
+               "crb_yaw_deg": math.nan, "crb_height_m": math.nan}
+        if math.isfinite(rms) and rms > 0:
+            ship = ShipPose(fr["roll_rad"], fr["pitch_rad"], fr["yaw_rad"], fr["heave_m"], fr["surge_m"], fr["sway_m"])
+            pose = CameraPose(rl.R_world_from_cam(fr), np.array([fr["cam_x_m"], fr["cam_y_m"], fr["cam_z_m"]]))
+            sd = np.sqrt(np.diag(cramer_rao_bound(layout, cameras[fr["camera"]], ship, pose, rms / math.sqrt(2.0)).covariance))
+            out.update(crb_roll_deg=math.degrees(sd[idx["roll_rad"]]), crb_pitch_deg=math.degrees(sd[idx["pitch_rad"]]),
+                       crb_yaw_deg=math.degrees(sd[idx["yaw_rad"]]), crb_height_m=float(sd[idx["height_m"]]))
+        rows.append(out)
+    return pd.DataFrame(rows)
+
+
 def compute_errors(run: rl.RunPaths) -> pd.DataFrame:
     """Per-frame errors of every (detector, method) pair with estimates in the run."""
     frames = rl.read_frames(run)
@@ -26,13 +60,18 @@ def compute_errors(run: rl.RunPaths) -> pd.DataFrame:
                 else f"deckpose detect {run.root} --detector cog, then deckpose estimate --run {run.root} --detector cog")
         raise InputDataError(f"{run.root} has no estimates (folder {run.root / 'estimates'}); make them with: {hint}")
     parts = []
+    crb_by_detector: dict[str, pd.DataFrame] = {}
     for det, method in pairs:
         d = rl.read_detections(run, det)
         e = rl.read_estimates(run, det, method)
         rl.check_frames_match(frames, d, f"detections of {det}", f"deckpose detect {run.root} --detector {det}")
         rl.check_frames_match(frames, e, f"estimates of {det}+{method}",
                               f"deckpose estimate --run {run.root} --detector {det} --method {method}")
-        parts.append(run_errors(frames, beacons, d, e, det))
+        errs = run_errors(frames, beacons, d, e, det)
+        if det not in crb_by_detector:
+            rms = errs.set_index("frame_id")["centroid_rms_px"]
+            crb_by_detector[det] = frame_crb(run, frames[frames["frame_id"].isin(errs["frame_id"])], rms)
+        parts.append(errs.merge(crb_by_detector[det], on="frame_id", how="left"))
     return pd.concat(parts, ignore_index=True)
 
 

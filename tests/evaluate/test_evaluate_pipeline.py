@@ -40,6 +40,11 @@ def test_errors_against_truth(run):
     assert e.centroid_rms_px.mean() == pytest.approx(0.3 * np.sqrt(2), rel=0.2)
     assert (e.recall == 1.0).all()
     assert e.surge_err_m.isna().all()  # the thesis method gives no surge
+    # the per-frame bound: finite, positive, and (for an efficient-ish estimator) of the
+    # same order as the observed errors
+    assert (e.crb_roll_deg > 0).all() and (e.crb_height_m > 0).all()
+    ratio = np.sqrt(np.mean(e.roll_err_deg**2)) / np.sqrt(np.mean(e.crb_roll_deg**2))
+    assert 0.2 < ratio < 5.0
 
 
 def test_frame_errors_wrap_yaw_and_use_true_height():
