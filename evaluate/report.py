@@ -137,8 +137,8 @@ def thesis_comparison(table: pd.DataFrame) -> list[str]:
         if res is None or h not in ref.MAX_ERROR[(res, 4)]:
             continue
         t = ref.MAX_ERROR[(res, 4)][h]
-        lines.append(f"| {r.detector}+{r.method} | {res} | {h} | {r.max_roll:.3f} / {t[0]:.3f} | "
-                     f"{r.max_pitch:.3f} / {t[1]:.3f} | {r.max_yaw:.3f} / {t[2]:.3f} | {r.max_height:.3f} / {t[3]:.3f} | "
+        lines.append(f"| {r.detector}+{r.method} | {res} | {h} | {r.max_roll:.4f} / {t[0]:.3f} | "
+                     f"{r.max_pitch:.4f} / {t[1]:.3f} | {r.max_yaw:.4f} / {t[2]:.3f} | {r.max_height:.4f} / {t[3]:.3f} | "
                      f"{r.centroid_rms_mean_px:.3f} / {t[4]:.2f} |")
         n += 1
     if not n:

@@ -71,8 +71,8 @@ def resolution_markdown(table: pd.DataFrame) -> str:
                   "|---|---|---|---|---|---|---|---|---|"]
         for _, r in g.sort_values("table_height_m").iterrows():
             lines.append(
-                f"| {r.table_height_m:g} | {_f(r.max_roll, 3)} | {_f(r.max_pitch, 3)} | {_f(r.max_yaw, 3)} | "
-                f"{_f(r.max_height, 3)} | {_f(r.centroid_rms_mean_px, 3)} | {_f(r.centroid_rms_sigma_px, 3)} | "
+                f"| {r.table_height_m:g} | {_f(r.max_roll, 4)} | {_f(r.max_pitch, 4)} | {_f(r.max_yaw, 4)} | "
+                f"{_f(r.max_height, 4)} | {_f(r.centroid_rms_mean_px, 3)} | {_f(r.centroid_rms_sigma_px, 3)} | "
                 f"{r.failure_rate:.1%} | {r.n_frames} |")
         lines += ["", "| Height | Roll sigma [deg] | Pitch sigma [deg] | Yaw sigma [deg] | Height sigma [m] |"
                   + (" CRB roll [deg] | CRB pitch [deg] | CRB yaw [deg] | CRB height [m] |" if has_crb else ""),
