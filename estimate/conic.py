@@ -23,15 +23,14 @@ likelihood optimum before the choice.
 
 from __future__ import annotations
 
-import cv2
 import numpy as np
 from deckpose.estimate.circle_pose import circle_planes, in_plane_alignment
 from deckpose.estimate.ellipse_fit import fit_ellipse_direct
 from deckpose.estimate.least_squares import Fit, chi2_at, evaluate_fit, levenberg_marquardt
-from deckpose.estimate.observations import Observations, build_observations
+from deckpose.estimate.observations import Observations
 from deckpose.estimate.pose_model import params_from_relative
 from deckpose.estimate.registry import EstimateOptions, register
-from deckpose.estimate.solution import Candidate, make_estimate, pick_candidate, solve_robust
+from deckpose.estimate.solution import Candidate, estimate_robustly, pick_candidate
 
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
@@ -106,36 +105,23 @@ def estimate_conic(
     resolves the two-fold ambiguity. Never raises on bad detections: failures come
     back as a falsy estimate with a reason.
     """
-    method = "conic"
-    R_wc = np.asarray(options.R_world_from_cam, dtype=float)
-    with np.errstate(all="ignore"):
-        try:
-            obs = build_observations(detections, camera, layout, sigma_px=options.sigma_px,
-                                     use_detection_covariance=options.use_detection_covariance)
+    def solve(o: Observations, R_wc: np.ndarray) -> Candidate | str:
+        fits = conic_candidates(o, layout, R_wc, refine=options.refine,
+                                polish_steps=options.conic_polish_steps)
+        if isinstance(fits, str):
+            return fits
+        extras = {"centre_beacon_used": float(layout.centre_id in o.ids)
+                  if layout.centre_id is not None else 0.0}
+        cand = pick_candidate(fits, ambiguity_chi2=options.ambiguity_chi2,
+                              assume_level_deck=options.assume_level_deck, extras=extras)
+        if not options.refine and isinstance(cand, Candidate) and (
+                cand.problem or "assumed_level_deck" in cand.extras):
+            # Unconverged candidates can look ambiguous while they share one minimum:
+            # settle it at the optima before reporting an ambiguity.
+            converged = [levenberg_marquardt(f.params, o, R_wc) for f in fits]
+            cand = pick_candidate(converged, ambiguity_chi2=options.ambiguity_chi2,
+                                  assume_level_deck=options.assume_level_deck, extras=extras)
+        return cand
 
-            def solve(o: Observations) -> Candidate | str:
-                fits = conic_candidates(o, layout, R_wc, refine=options.refine,
-                                        polish_steps=options.conic_polish_steps)
-                if isinstance(fits, str):
-                    return fits
-                extras = {"centre_beacon_used": float(layout.centre_id in o.ids)
-                          if layout.centre_id is not None else 0.0}
-                cand = pick_candidate(fits, ambiguity_chi2=options.ambiguity_chi2,
-                                      assume_level_deck=options.assume_level_deck, extras=extras)
-                if not options.refine and isinstance(cand, Candidate) and (
-                        cand.problem or "assumed_level_deck" in cand.extras):
-                    # Unconverged candidates can look ambiguous while they share one minimum:
-                    # settle it at the optima before reporting an ambiguity.
-                    converged = [levenberg_marquardt(f.params, o, R_wc) for f in fits]
-                    cand = pick_candidate(converged, ambiguity_chi2=options.ambiguity_chi2,
-                                          assume_level_deck=options.assume_level_deck, extras=extras)
-                return cand
-
-            result, used, removed = solve_robust(
-                obs, solve, min_points=MIN_RING_BEACONS, outlier_chi2=options.outlier_chi2,
-                max_outliers=options.max_outliers)
-            return make_estimate(method, result, used, removed, R_world_from_cam=R_wc,
-                                 max_reprojection_rms_px=options.max_reprojection_rms_px,
-                                 refined=options.refine)
-        except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, cv2.error) as exc:
-            return PoseEstimate.failed(method, f"numerical failure: {exc}")
+    return estimate_robustly("conic", solve, detections, camera, layout, options,
+                             min_points=MIN_RING_BEACONS, refined=options.refine)

@@ -14,10 +14,10 @@ from __future__ import annotations
 import cv2
 import numpy as np
 from deckpose.estimate.least_squares import Fit, evaluate_fit, levenberg_marquardt
-from deckpose.estimate.observations import Observations, build_observations
+from deckpose.estimate.observations import Observations
 from deckpose.estimate.pose_model import params_from_relative
 from deckpose.estimate.registry import EstimateOptions, register
-from deckpose.estimate.solution import Candidate, make_estimate, pick_candidate, solve_robust
+from deckpose.estimate.solution import Candidate, estimate_robustly, pick_candidate
 
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
@@ -97,26 +97,13 @@ def estimate_pnp(
     by the detections' covariances (or ``sigma_px``), so it is the maximum-likelihood
     estimate with or without ``options.refine``.
     """
-    method = "pnp"
-    R_wc = np.asarray(options.R_world_from_cam, dtype=float)
-    with np.errstate(all="ignore"):
-        try:
-            obs = build_observations(detections, camera, layout, sigma_px=options.sigma_px,
-                                     use_detection_covariance=options.use_detection_covariance)
+    def solve(o: Observations, R_wc: np.ndarray) -> Candidate | str:
+        res = pnp_candidates(o, R_wc)
+        if isinstance(res, str):
+            return res
+        fits, extras = res
+        return pick_candidate(fits, ambiguity_chi2=options.ambiguity_chi2,
+                              assume_level_deck=options.assume_level_deck, extras=extras)
 
-            def solve(o: Observations) -> Candidate | str:
-                res = pnp_candidates(o, R_wc)
-                if isinstance(res, str):
-                    return res
-                fits, extras = res
-                return pick_candidate(fits, ambiguity_chi2=options.ambiguity_chi2,
-                                      assume_level_deck=options.assume_level_deck, extras=extras)
-
-            result, used, removed = solve_robust(
-                obs, solve, min_points=MIN_BEACONS, outlier_chi2=options.outlier_chi2,
-                max_outliers=options.max_outliers)
-            return make_estimate(method, result, used, removed, R_world_from_cam=R_wc,
-                                 max_reprojection_rms_px=options.max_reprojection_rms_px,
-                                 refined=True)
-        except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, cv2.error) as exc:
-            return PoseEstimate.failed(method, f"numerical failure: {exc}")
+    return estimate_robustly("pnp", solve, detections, camera, layout, options,
+                             min_points=MIN_BEACONS, refined=True)

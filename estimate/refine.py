@@ -11,12 +11,11 @@ from __future__ import annotations
 import dataclasses
 import math
 
-import cv2
 import numpy as np
 from deckpose.estimate.least_squares import levenberg_marquardt
-from deckpose.estimate.observations import Observations, build_observations
+from deckpose.estimate.observations import Observations
 from deckpose.estimate.registry import EstimateOptions
-from deckpose.estimate.solution import Candidate, make_estimate, solve_robust
+from deckpose.estimate.solution import Candidate, estimate_robustly
 
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
@@ -62,23 +61,15 @@ def refine_estimate(
     p0 = initial_params(estimate)
     if p0 is None:
         return estimate
-    R_wc = np.asarray(options.R_world_from_cam, dtype=float)
-    with np.errstate(all="ignore"):
-        try:
-            obs = build_observations(detections, camera, layout, sigma_px=options.sigma_px,
-                                     use_detection_covariance=options.use_detection_covariance)
 
-            def solve(o: Observations) -> Candidate | str:
-                return Candidate(levenberg_marquardt(p0, o, R_wc))
+    def solve(o: Observations, R_wc: np.ndarray) -> Candidate | str:
+        return Candidate(levenberg_marquardt(p0, o, R_wc))
 
-            result, used, removed = solve_robust(
-                obs, solve, min_points=MIN_BEACONS, outlier_chi2=options.outlier_chi2,
-                max_outliers=options.max_outliers)
-            refined = make_estimate(estimate.method, result, used, removed, R_world_from_cam=R_wc,
-                                    max_reprojection_rms_px=options.max_reprojection_rms_px,
-                                    refined=True)
-        except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, cv2.error) as exc:
-            return PoseEstimate.failed(estimate.method, f"refinement failed numerically: {exc}")
+    refined = estimate_robustly(estimate.method, solve, detections, camera, layout, options,
+                                min_points=MIN_BEACONS, refined=True,
+                                failure_prefix="refinement failed numerically")
+    if not refined.ok and refined.reason.startswith("refinement failed numerically"):
+        return refined
     extras = {k: v for k, v in estimate.extras.items() if k not in refined.extras}
     for name in ("roll_rad", "pitch_rad", "yaw_rad", "height_m", "surge_m", "sway_m"):
         extras["unrefined_" + name] = float(getattr(estimate, name))

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
@@ -24,6 +25,12 @@ from deckpose.estimate.pose_model import relative_from_params
 
 from deckpose.records import POSE_PARAMS, PoseEstimate
 from deckpose.rotation import wrap_angle_rad
+
+if TYPE_CHECKING:
+    from deckpose.camera import CameraModel
+    from deckpose.estimate.registry import EstimateOptions
+    from deckpose.layout import DeckLayout
+    from deckpose.records import Detections
 
 
 @dataclass(frozen=True)
@@ -195,3 +202,39 @@ def make_estimate(
         height_m=float(p[5]), surge_m=float(p[3]), sway_m=float(p[4]), covariance=cov,
         inliers=tuple(int(i) for i in obs.ids), extras=extras,
     )
+
+
+def estimate_robustly(
+    method: str,
+    solve: Callable[[Observations, np.ndarray], Candidate | str],
+    detections: "Detections",
+    camera: "CameraModel",
+    layout: "DeckLayout",
+    options: "EstimateOptions",
+    *,
+    min_points: int,
+    refined: bool,
+    failure_prefix: str = "numerical failure",
+) -> PoseEstimate:
+    """The shared frame of every least-squares estimator here.
+
+    Builds the observations, runs ``solve(observations, R_world_from_cam)`` under
+    :func:`solve_robust` (outlier removal), and turns the result into a
+    :class:`PoseEstimate`; a numerical exception becomes a failed estimate whose
+    reason starts with ``failure_prefix``.
+    """
+    from deckpose.estimate.observations import build_observations
+
+    R_wc = np.asarray(options.R_world_from_cam, dtype=float)
+    with np.errstate(all="ignore"):
+        try:
+            obs = build_observations(detections, camera, layout, sigma_px=options.sigma_px,
+                                     use_detection_covariance=options.use_detection_covariance)
+            result, used, removed = solve_robust(
+                obs, lambda o: solve(o, R_wc), min_points=min_points,
+                outlier_chi2=options.outlier_chi2, max_outliers=options.max_outliers)
+            return make_estimate(method, result, used, removed, R_world_from_cam=R_wc,
+                                 max_reprojection_rms_px=options.max_reprojection_rms_px,
+                                 refined=refined)
+        except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, cv2.error) as exc:
+            return PoseEstimate.failed(method, f"{failure_prefix}: {exc}")

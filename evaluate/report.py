@@ -19,7 +19,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from deckpose.atomic_io import atomic_open, atomic_path  # noqa: E402
+from deckpose.atomic_io import atomic_open  # noqa: E402
 from deckpose.camera import THESIS_RESOLUTIONS  # noqa: E402
 from deckpose.errors import InputDataError  # noqa: E402
 from deckpose.evaluate import run_layout as rl  # noqa: E402

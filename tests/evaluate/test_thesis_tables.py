@@ -8,7 +8,7 @@ import pytest
 
 from deckpose.evaluate import thesis_reference as ref
 from deckpose.evaluate.thesis_sim import CellSpec, load_thesis_motion, simulate_cell
-from deckpose.evaluate.thesis_tables import ThesisTablesConfig, results_frame, run_cells, write_outputs
+from deckpose.evaluate.thesis_tables import ThesisTablesConfig, run_cells, write_outputs
 
 
 def test_embedded_motion_series_is_the_shared_one(shared_dir):
