@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from deckpose.cli.detect_cmd import add_detector_arguments
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = subparsers.add_parser(
@@ -23,28 +25,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     p.add_argument(
         "--threshold-sigma", type=float, default=6.0, help="detection threshold (sigmas)"
     )
-    p.add_argument(
-        "--background-kernel-px",
-        type=int,
-        default=0,
-        help="remove an uneven background (lit deck) with a grey opening of this diameter "
-        "(pixels, larger than any beacon) before the candidate search; 0 = flat background",
-    )
-    p.add_argument(
-        "--spot-level",
-        type=float,
-        default=0.8,
-        help="bright-spot search: candidates reach this fraction of the way from the frame's "
-        "background to its brightest level (largest channel); 0 = every blob threshold-sigma "
-        "above the background (default 0.8)",
-    )
-    p.add_argument(
-        "--plugin",
-        action="append",
-        default=[],
-        metavar="MODULE",
-        help="import MODULE first (it may register more detectors); repeatable",
-    )
+    add_detector_arguments(p)
     p.add_argument("--note", default="", help="a line of text for the top of the report")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)

@@ -42,6 +42,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         default=None,
         help="sensor gain in DN per electron (default: estimated per frame)",
     )
+    add_detector_arguments(p)
+    p.add_argument("--list", action="store_true", help="list the detectors and exit")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def add_detector_arguments(p: argparse.ArgumentParser) -> None:
+    """Options shared by ``detect`` and ``bench-detectors``: candidate search and plugins."""
     p.add_argument(
         "--background-kernel-px",
         type=int,
@@ -64,9 +72,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         metavar="MODULE",
         help="import MODULE first (it may register more detectors); repeatable",
     )
-    p.add_argument("--list", action="store_true", help="list the detectors and exit")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
