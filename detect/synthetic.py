@@ -43,7 +43,7 @@ class SensorModel:
     offset_dn : float
         Black level added after the gain, DN.
     bit_depth : int
-        8 or 16; values clip at ``2**bit_depth - 1``.
+        8, 12 or 16; values clip at ``2**bit_depth - 1`` (12-bit images are uint16).
     """
 
     gain_dn_per_e: float = 1.0
@@ -57,8 +57,8 @@ class SensorModel:
             raise ConfigError(f"gain_dn_per_e must be positive, got {self.gain_dn_per_e}")
         if not (self.read_noise_e >= 0 and self.background_e >= 0 and self.offset_dn >= 0):
             raise ConfigError("read_noise_e, background_e and offset_dn must be >= 0")
-        if self.bit_depth not in (8, 16):
-            raise ConfigError(f"bit_depth must be 8 or 16, got {self.bit_depth}")
+        if self.bit_depth not in (8, 12, 16):
+            raise ConfigError(f"bit_depth must be 8, 12 or 16, got {self.bit_depth}")
 
     @property
     def max_dn(self) -> int:

@@ -42,12 +42,24 @@ class Splat:
         Radiance profile (white = 1 before the colour).
     rgb : (3,) array of float32
         Beacon colour.
+    beacon_id : int
+        Index of the beacon in the layout.
+    sigma_px : float
+        Gaussian-equivalent standard deviation of the core, pixels: ``det(S)**(1/4)``
+        of the core's second-moment matrix ``S`` over the exposure (mean of the
+        sub-pose covariances plus the spread of the sub-pose centres).
+    core_flux : float
+        Radiance summed over the core (white = 1 before the colour), radiance x pixels;
+        the halo (``halo_fraction`` of the light) is not included.
     """
 
     row0: int
     col0: int
     patch: NDArray[np.float32]
     rgb: NDArray[np.float32]
+    beacon_id: int = -1
+    sigma_px: float = float("nan")
+    core_flux: float = float("nan")
 
 
 def _centre_and_jacobian(layout: DeckLayout, ship: ShipPose, camera_pose: CameraPose,
@@ -130,7 +142,11 @@ def beacon_splats(layout: DeckLayout, poses: tuple[ShipPose, ...], camera_pose: 
                 patch += _gaussian_patch(c, cov * sensor.halo_scale ** 2, sensor.halo_fraction * flux / k,
                                          row0, col0, n, n)
         rgb = layout.bow_rgb if i == layout.bow_id else layout.beacon_rgb
-        out.append(Splat(row0, col0, patch, np.asarray(rgb, np.float32)))
+        core_flux = (1.0 - sensor.halo_fraction) * sum(f for _, _, f in comps) / k
+        spread = centres - centres.mean(axis=0)
+        S = sum(cv for _, cv, _ in comps) / k + spread.T @ spread / k
+        sigma = float(np.linalg.det(S)) ** 0.25
+        out.append(Splat(row0, col0, patch, np.asarray(rgb, np.float32), i, sigma, float(core_flux)))
     return out
 
 

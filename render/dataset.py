@@ -102,9 +102,25 @@ def _manifest(cfg: RenderConfig, plan: list[FrameSpec], complete: bool) -> dict[
         "config": config_to_dict(cfg),
         "versions": _versions(),
         "layout": layout_to_dict(cfg.layout),
+        "sensor": sensor_block(cfg),
+        "sensor_channels": 1 if cfg.sensor.color == "mono" else 3,
         "cameras": [{"name": n, "file": f"cameras/{n}.yaml", "camera_info": camera_to_dict(c)}
                     for n, c in cams.items()],
     }
+
+
+def sensor_block(cfg: RenderConfig) -> dict[str, Any]:
+    """The manifest's ``sensor`` block: the per-channel noise model behind every frame.
+
+    ``gain_dn_per_e`` (DN per electron, ``(2**bit_depth - 1) / full_well_e``),
+    ``read_noise_e``, ``full_well_e``, ``bit_depth``, ``offset_dn`` (black level, 0) and
+    ``background_e``: 0, because the rendered scene is the background; the level under
+    each beacon is ``spot_background_e`` in ``beacons.parquet`` (summed over channels).
+    """
+    s = cfg.sensor
+    return {"gain_dn_per_e": (2 ** s.bit_depth - 1) / s.full_well_e, "read_noise_e": s.read_noise_e,
+            "full_well_e": s.full_well_e, "bit_depth": s.bit_depth, "offset_dn": 0.0,
+            "background_e": 0.0, "noise": s.noise}
 
 
 def _write_json(path: Path, doc: dict[str, Any]) -> None:

@@ -19,7 +19,7 @@ from deckpose.render.beacons import beacon_splats
 from deckpose.render.config import RenderConfig
 from deckpose.render.plan import FrameSpec
 from deckpose.render.scene import DeckRenderer, radiance_scale
-from deckpose.render.sensor import distort, expose
+from deckpose.render.sensor import SpotRecord, distort, expose, spot_record
 
 
 @dataclass(frozen=True)
@@ -30,6 +30,7 @@ class RenderedFrame:
     truth: GroundTruth
     projection: BeaconProjection
     spec: FrameSpec
+    spots: SpotRecord
 
 
 def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
@@ -51,13 +52,15 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
     poses = spec.blur_poses or (spec.ship,)
     splats = beacon_splats(cfg.layout, poses, cam_pose, camera, cfg.sensor)
     rng = np.random.default_rng(spec.seed)
-    image = expose(raster, radiance_scale(spec.lighting, cfg.scene.shading), splats, cfg.sensor, rng)
+    scale = radiance_scale(spec.lighting, cfg.scene.shading)
+    image = expose(raster, scale, splats, cfg.sensor, rng)
+    spots = spot_record(raster, scale, splats, cfg.sensor, cfg.layout.n_beacons)
     image.setflags(write=False)  # Frame keeps a read-only array as is (no 200 MB copy at 64 MP)
     proj = project_layout(cfg.layout, spec.ship, cam_pose, camera)
     truth = GroundTruth(spec.ship, cam_pose, proj.points_px, proj.visible, proj.apparent_radius_px,
                         spec.frame_id, spec.stamp_ns, spec.seed)
     frame = Frame(image, camera, spec.frame_id, spec.stamp_ns)
-    return RenderedFrame(frame, truth, proj, spec)
+    return RenderedFrame(frame, truth, proj, spec, spots)
 
 
 def frame_row(rf: RenderedFrame, image_relpath: str) -> dict[str, Any]:
@@ -82,11 +85,19 @@ def frame_row(rf: RenderedFrame, image_relpath: str) -> dict[str, Any]:
 
 
 def beacon_rows(rf: RenderedFrame) -> list[dict[str, Any]]:
-    """The ``beacons.parquet`` rows of a rendered frame, one per beacon id."""
-    p = rf.projection
+    """The ``beacons.parquet`` rows of a rendered frame, one per beacon id.
+
+    Besides the projection, each row carries the beacon's spot model
+    (:class:`~deckpose.render.sensor.SpotRecord`): ``spot_sigma_px``, ``spot_flux_e``,
+    ``spot_background_e`` and ``spot_peak_e`` (NaN where the beacon has no spot), which
+    the detector benchmark turns into the centroid Cramér–Rao bound.
+    """
+    p, sp = rf.projection, rf.spots
     return [
         {"frame_id": rf.spec.frame_id, "beacon_id": i, "u_px": float(p.points_px[i, 0]),
          "v_px": float(p.points_px[i, 1]), "visible": bool(p.visible[i]), "in_image": bool(p.in_image[i]),
-         "facing": bool(p.facing[i]), "apparent_radius_px": float(p.apparent_radius_px[i])}
+         "facing": bool(p.facing[i]), "apparent_radius_px": float(p.apparent_radius_px[i]),
+         "spot_sigma_px": float(sp.sigma_px[i]), "spot_flux_e": float(sp.flux_e[i]),
+         "spot_background_e": float(sp.background_e[i]), "spot_peak_e": float(sp.peak_e[i])}
         for i in range(p.points_px.shape[0])
     ]

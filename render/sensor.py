@@ -21,6 +21,9 @@ five times faster than numpy's here), re-seeded for every strip from the frame's
 
 from __future__ import annotations
 
+import math
+from dataclasses import dataclass
+
 import cv2
 import numpy as np
 from numpy.typing import NDArray
@@ -129,3 +132,86 @@ def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: li
     if sensor.bit_depth == 12:
         np.minimum(out, np.uint16(dn_max), out=out)
     return out
+
+
+@dataclass(frozen=True)
+class SpotRecord:
+    """Per-beacon spot model in electrons: what the centroid Cramér–Rao bound needs.
+
+    All arrays are (N,) over the layout's beacons; NaN for a beacon with no splat.
+    Electrons are summed over the image's channels (RGB: R + G + B; mono: the one
+    channel), matching a detector that measures the channel sum.
+
+    Attributes
+    ----------
+    sigma_px : (N,) array of float
+        Gaussian-equivalent standard deviation of the core, pixels (point-sampled
+        Gaussian, :attr:`deckpose.render.beacons.Splat.sigma_px`).
+    flux_e : (N,) array of float
+        Electrons in the core (halo excluded), summed over channels.
+    background_e : (N,) array of float
+        Mean background electrons per pixel within 2 sigma of the centre (the
+        rendered deck or sea under the beacon), summed over channels.
+    peak_e : (N,) array of float
+        Expected electrons of the brightest pixel in the brightest channel, beacon
+        light (core + halo) plus background; at or above the full well the core saturates.
+    """
+
+    sigma_px: np.ndarray
+    flux_e: np.ndarray
+    background_e: np.ndarray
+    peak_e: np.ndarray
+
+    def __post_init__(self) -> None:
+        n = np.shape(self.sigma_px)
+        for name in ("sigma_px", "flux_e", "background_e", "peak_e"):
+            arr = np.array(getattr(self, name), dtype=float)
+            if arr.ndim != 1 or arr.shape != n:
+                raise ValueError(f"SpotRecord.{name}: expected shape {n}, got {arr.shape}")
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+
+
+def spot_record(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: list[Splat],
+                sensor: SensorSpec, n_beacons: int) -> SpotRecord:
+    """The :class:`SpotRecord` of a frame's splats, under the same exposure as :func:`expose`.
+
+    Parameters
+    ----------
+    raster : (H, W, 3) array of uint8
+        The distorted raster passed to :func:`expose`.
+    scale_rgb : (3,) array of float32
+        Raster value to radiance, per channel.
+    splats : list of Splat
+    sensor : SensorSpec
+    n_beacons : int
+        Number of beacons in the layout (length of the arrays).
+    """
+    e_per_rad = sensor.exposure * sensor.full_well_e
+    scale = np.asarray(scale_rgb, np.float64) * e_per_rad  # electrons per raster unit, per channel
+    mono = sensor.color == "mono"
+    out = {k: np.full(n_beacons, np.nan) for k in ("sigma_px", "flux_e", "background_e", "peak_e")}
+    H, W = raster.shape[:2]
+    for sp in splats:
+        rgb = sp.rgb.astype(np.float64)
+        weights = np.array([rgb.mean()]) if mono else rgb
+        n = sp.patch.shape[0]
+        rc = sp.row0 + n // 2
+        cc = sp.col0 + n // 2
+        h = int(math.ceil(2.0 * sp.sigma_px))
+        r0, r1 = max(0, rc - h), min(H, rc + h + 1)
+        c0, c1 = max(0, cc - h), min(W, cc + h + 1)
+        mean_raster = np.zeros(3)
+        if r0 < r1 and c0 < c1:
+            vv, uu = np.mgrid[r0:r1, c0:c1]
+            disc = (vv - rc) ** 2 + (uu - cc) ** 2 <= h * h
+            if disc.any():
+                mean_raster = raster[r0:r1, c0:c1][disc].reshape(-1, 3).mean(axis=0)
+        # expose(): mono frames are the grey raster (luma) times the luma-weighted scale
+        bg = np.array([float(mean_raster @ _LUMA) * float(scale @ _LUMA)]) if mono else mean_raster * scale
+        i = sp.beacon_id
+        out["sigma_px"][i] = sp.sigma_px
+        out["flux_e"][i] = sp.core_flux * e_per_rad * float(weights.sum())
+        out["background_e"][i] = float(bg.sum())
+        out["peak_e"][i] = float(np.max(float(sp.patch.max()) * e_per_rad * weights + bg))
+    return SpotRecord(**out)

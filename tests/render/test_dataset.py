@@ -28,7 +28,8 @@ FRAME_COLS = ["frame_id", "image", "camera", "stamp_ns", "t_s", "camera_height_m
               "yaw_rad", "heave_m", "surge_m", "sway_m", "thesis_roll_deg", "thesis_pitch_deg",
               "thesis_yaw_deg", "lighting", "seed", "n_visible", *[f"r{i}{j}" for i in range(3) for j in range(3)],
               "cam_x_m", "cam_y_m", "cam_z_m"]
-BEACON_COLS = ["frame_id", "beacon_id", "u_px", "v_px", "visible", "in_image", "facing", "apparent_radius_px"]
+BEACON_COLS = ["frame_id", "beacon_id", "u_px", "v_px", "visible", "in_image", "facing", "apparent_radius_px",
+               "spot_sigma_px", "spot_flux_e", "spot_background_e", "spot_peak_e"]
 
 
 def _images(ds: Path) -> dict[str, bytes]:
@@ -53,6 +54,10 @@ def test_dataset_follows_the_contract(reference: Path) -> None:
     assert man["format"] == FORMAT and man["complete"] and man["seed"] == 3 and man["n_frames"] == 8
     assert {"numpy", "scikit-robot-pyrender", "PyOpenGL"} <= set(man["versions"])
     assert man["layout"]["n_ring"] == 12
+    # the noise model behind the CRB: 8-bit, default full well 20000 e, read noise 5 e, RGB
+    assert man["sensor"]["gain_dn_per_e"] == pytest.approx(255 / 20000.0)
+    assert man["sensor"]["read_noise_e"] == 5 and man["sensor"]["full_well_e"] == 20000.0
+    assert man["sensor"]["bit_depth"] == 8 and man["sensor_channels"] == 3
     cam = read_camera_info(reference / man["cameras"][0]["file"])
     assert (cam.width_px, cam.height_px) == (320, 240)
     frames = pd.read_parquet(reference / "frames.parquet")
@@ -65,6 +70,9 @@ def test_dataset_follows_the_contract(reference: Path) -> None:
         assert img.shape == (240, 320, 3) and img.dtype == np.uint8
         b = beacons[beacons.frame_id == row.frame_id]
         assert row.n_visible == b.visible.sum()
+        vis = b[b.visible]
+        assert (vis.spot_sigma_px > 0).all() and (vis.spot_flux_e > 0).all()
+        assert (vis.spot_peak_e > vis.spot_background_e).all()
     # the bow beacon (id 0) is red, the others white: check the pixel at its projection
     f0 = frames.iloc[0]
     img = cv2.imread(str(reference / f0.image))  # BGR
