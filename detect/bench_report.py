@@ -9,6 +9,7 @@ and ``error_vs_size.png`` (RMS error vs apparent beacon radius).
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 from pathlib import Path
 
@@ -26,13 +27,53 @@ from deckpose.detect.synthetic_dataset import summed_channels_sensor
 
 
 def dataset_sensor(frameset: FrameSet) -> SensorModel | None:
-    """The summed-channel sensor model of a dataset that declares one (else None)."""
-    doc = frameset.manifest.get("sensor")
-    if not isinstance(doc, dict):
+    """The summed-channel sensor model of a dataset (:func:`manifest_sensor` of its manifest)."""
+    return manifest_sensor(frameset.manifest)
+
+
+def manifest_sensor(manifest: dict) -> SensorModel | None:
+    """The summed-channel sensor model of a dataset that declares one (else None).
+
+    Reads the manifest's ``sensor`` block (synthetic datasets, and rendered datasets
+    from the renderer that records spot models); keys other than
+    :class:`~deckpose.detect.synthetic.SensorModel`'s fields (``full_well_e``) are
+    ignored. ``None`` for datasets without the block or rendered without noise.
+    """
+    doc = manifest.get("sensor")
+    if not isinstance(doc, dict) or doc.get("noise", True) is False:
         return None
-    return summed_channels_sensor(
-        SensorModel(**doc), int(frameset.manifest.get("sensor_channels", 1))
-    )
+    known = {f.name for f in dataclasses.fields(SensorModel)}
+    try:
+        sensor = SensorModel(**{k: v for k, v in doc.items() if k in known})
+    except (TypeError, ValueError):
+        return None
+    return summed_channels_sensor(sensor, int(manifest.get("sensor_channels", 1)))
+
+
+def crb_note(beacons: pd.DataFrame, sensor: SensorModel | None) -> str:
+    """Why the CRB column stays empty for a dataset ("" when it can be filled)."""
+    missing = [c for c in ("spot_sigma_px", "spot_flux_e") if c not in beacons.columns]
+    if sensor is None:
+        return (
+            "CRB left empty: the dataset's manifest has no sensor block (or it was rendered "
+            "without noise); re-render it with this version of deckpose to get the bound."
+        )
+    if missing:
+        return (
+            f"CRB left empty: beacons.parquet lacks {', '.join(missing)} (a dataset rendered "
+            "before the renderer recorded its spot model); re-render it to get the bound."
+        )
+    return ""
+
+
+def saturated_flags(beacons: pd.DataFrame, manifest: dict) -> np.ndarray:
+    """Per beacon row: whether its core reaches the full well (NaN where unknown)."""
+    doc = manifest.get("sensor")
+    full = doc.get("full_well_e") if isinstance(doc, dict) else None
+    if full is None or "spot_peak_e" not in beacons.columns:
+        return np.full(len(beacons), np.nan)
+    peak = beacons["spot_peak_e"].to_numpy(float)
+    return np.where(np.isfinite(peak), (peak >= float(full)).astype(float), np.nan)
 
 
 def run_benchmark(
@@ -63,6 +104,7 @@ def run_benchmark(
         m["crb_var_px2"] = crb_cache.reindex(
             pd.MultiIndex.from_frame(m[["frame_id", "beacon_id"]])
         ).to_numpy()
+        m["saturated"] = saturated_flags(m, fs.manifest)
         m["detector"] = name
         summaries.append(summarise(name, m, dets, fout, frames))
         matches.append(m)
@@ -76,14 +118,14 @@ def _fmt(x: float, nd: int = 3) -> str:
 def markdown_table(summary: pd.DataFrame) -> str:
     """The summary as a Markdown table."""
     head = (
-        "| detector | camera | height m | radius px | RMS px | CRB px | RMS/CRB | bias px | p95 px "
-        "| recall | precision | id acc. | ms/frame |"
+        "| detector | camera | height m | radius px | sat. | RMS px | CRB px | RMS/CRB | bias px "
+        "| p95 px | recall | precision | id acc. | ms/frame |"
     )
-    lines = [head, "|" + "|".join(["---"] * 13) + "|"]
+    lines = [head, "|" + "|".join(["---"] * 14) + "|"]
     for r in summary.sort_values(["camera", "height_m", "detector"]).itertuples():
         lines.append(
             f"| {r.detector} | {r.camera} | {r.height_m:g} | {r.radius_px:.2f} | "
-            f"{_fmt(r.rms_px, 4)} | {_fmt(r.crb_px, 4)} | {_fmt(r.rms_over_crb, 2)} | "
+            f"{_fmt(getattr(r, 'saturated', math.nan), 2)} | {_fmt(r.rms_px, 4)} | {_fmt(r.crb_px, 4)} | {_fmt(r.rms_over_crb, 2)} | "
             f"{_fmt(r.bias_px, 4)} | {_fmt(r.p95_px, 4)} | {_fmt(r.recall, 3)} | "
             f"{_fmt(r.precision, 3)} | {_fmt(r.id_accuracy, 3)} | {_fmt(r.ms_per_frame, 1)} |"
         )
@@ -180,6 +222,7 @@ def write_report(
     plot_error_vs_height(summary, out / "error_vs_height.png")
     plot_error_vs_size(matches, out / "error_vs_size.png")
     gen = manifest.get("generator", "a rendered deckpose dataset")
+    missing_crb = crb_note(matches, manifest_sensor(manifest))
     md = [
         "# Detector benchmark",
         "",
@@ -187,14 +230,17 @@ def write_report(
         "",
         note,
         "",
+        *([missing_crb, ""] if missing_crb else []),
         f"Detector options: `{dataclasses.asdict(options)}`.",
         "",
         markdown_table(summary),
         "",
         "RMS = per-axis RMS centroid error against the exact projected beacon centre; "
         "CRB = per-axis RMS of the centroid Cramér–Rao bound (unknown centre, width, flux and "
-        "background; Poisson + read + quantisation noise), '—' where the dataset does not "
-        "declare its spot model and sensor; bias = length of the mean error vector; "
+        "background; Poisson + read + quantisation noise; pixels assumed unclipped), '—' where "
+        "the dataset does not declare its spot model and sensor; sat. = fraction of the cell's "
+        "beacons whose core reaches the full well (the bound is optimistic for those); "
+        "bias = length of the mean error vector; "
         "p95 = 95th percentile of the radial error; recall and "
         "precision from one-to-one matching within max(3 px, 2 apparent radii); id acc. = matched "
         "detections with the right beacon id; ms/frame = median detection + identification time "

@@ -15,7 +15,11 @@ Per detector x camera (resolution) x camera height:
   The bound needs each spot's width and electrons and the sensor model; it is
   computed when the dataset provides them (``spot_sigma_px``, ``spot_flux_e``
   columns in ``beacons.parquet`` and a ``sensor`` block in the manifest, as
-  the synthetic datasets do) and left NaN otherwise.
+  the synthetic datasets and the renderer write them; a per-beacon
+  ``spot_background_e`` replaces the sensor's uniform background) and left NaN
+  otherwise. The bound assumes unclipped pixels: for a saturated core it is
+  optimistic, so ``saturated`` (fraction of the cell's beacons whose core
+  reaches the full well, from ``spot_peak_e``) is reported beside it.
 
 A detection matches the nearest visible beacon within
 ``max(3, 2 * apparent_radius_px)`` pixels, one-to-one, nearest pairs first.
@@ -23,6 +27,7 @@ A detection matches the nearest visible beacon within
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -84,16 +89,15 @@ def crb_per_beacon(beacons: pd.DataFrame, sensor: SensorModel | None) -> np.ndar
     out = np.full(len(beacons), np.nan)
     if sensor is None or not {"spot_sigma_px", "spot_flux_e"} <= set(beacons.columns):
         return out
+    has_bg = "spot_background_e" in beacons.columns
     for k, r in enumerate(beacons.itertuples(index=False)):
-        if r.spot_flux_e > 0 and r.spot_sigma_px > 0:
-            out[k] = (
-                float(
-                    np.trace(
-                        centroid_crb_px2(r.u_px, r.v_px, r.spot_sigma_px, r.spot_flux_e, sensor)
-                    )
-                )
-                / 2
-            )
+        if not (r.spot_flux_e > 0 and r.spot_sigma_px > 0):  # also False for NaN
+            continue
+        s = sensor
+        if has_bg and np.isfinite(r.spot_background_e):
+            s = dataclasses.replace(sensor, background_e=max(float(r.spot_background_e), 0.0))
+        crb = centroid_crb_px2(r.u_px, r.v_px, r.spot_sigma_px, r.spot_flux_e, s)
+        out[k] = float(np.trace(crb)) / 2
     return out
 
 
@@ -135,6 +139,7 @@ def summarise(
         crb = m["crb_var_px2"].to_numpy(float) if "crb_var_px2" in m else np.full(len(m), np.nan)
         rms = math.sqrt(np.mean((du**2 + dv**2) / 2)) if len(m) else math.nan
         crb_rms = math.sqrt(np.mean(crb)) if len(m) and np.all(np.isfinite(crb)) else math.nan
+        sat = g["saturated"].to_numpy(float) if "saturated" in g else np.full(len(g), np.nan)
         rows.append(
             {
                 "detector": detector,
@@ -148,6 +153,7 @@ def summarise(
                 "p95_px": float(np.percentile(np.hypot(du, dv), 95)) if len(m) else math.nan,
                 "crb_px": crb_rms,
                 "rms_over_crb": rms / crb_rms if crb_rms > 0 else math.nan,
+                "saturated": float(np.mean(sat)) if len(g) and np.all(np.isfinite(sat)) else math.nan,
                 "recall": len(m) / len(g) if len(g) else math.nan,
                 "precision": len(m) / n_det if n_det else math.nan,
                 "id_accuracy": float((m["det_beacon_id"] == m["beacon_id"]).mean())
