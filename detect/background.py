@@ -9,6 +9,7 @@ mono signal the detectors work on.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -86,17 +87,25 @@ def robust_stats(values: np.ndarray) -> tuple[float, float]:
     return med, sigma
 
 
-def difference_noise(image: np.ndarray, *, samples: int = 30_000) -> float:
+def difference_noise(
+    image: np.ndarray,
+    *,
+    samples: int = 30_000,
+    signal: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> float:
     """Noise standard deviation from differences of horizontally adjacent pixels, DN.
 
     Smooth background structure (a lit deck, vignetting) cancels in the
     differences, so unlike the spread of pixel values this measures the noise
     alone: ``sigma = 1.4826 * MAD(d) / sqrt(2)`` over strided pixel pairs.
+    ``signal`` turns sampled pixels into the signal measured (default :func:`mono`,
+    the channel sum); only the samples are converted, never the whole frame.
     """
+    to_signal = mono if signal is None else signal
     H, W = image.shape[:2]
     step = max(1, int(math.sqrt(H * W / samples)))
-    a = mono(image[::step, 0 : W - 1 : step])
-    b = mono(image[::step, 1::step])
+    a = np.asarray(to_signal(image[::step, 0 : W - 1 : step]), np.float64)
+    b = np.asarray(to_signal(image[::step, 1::step]), np.float64)
     n = min(a.shape[1], b.shape[1])
     d = (b[:, :n] - a[:, :n]).ravel()
     _, s = robust_stats(d)

@@ -40,6 +40,13 @@ from deckpose.detect.background import (
     tile_stats,
 )
 from deckpose.detect.registry import Blobs, DetectorOptions
+from deckpose.detect.spots import (
+    SpotSearch,
+    coarse_factor,
+    spot_boxes,
+    spot_pedestal,
+    spot_search,
+)
 from deckpose.records import Frame
 
 
@@ -147,11 +154,6 @@ class Candidate:
 MeasureFn = Callable[[Candidate], "tuple[float, float, np.ndarray, float, float, float] | None"]
 
 
-def coarse_factor(shape: tuple[int, int], coarse_max_px: int) -> int:
-    """Integer block size that brings ``H * W`` down to at most ``coarse_max_px``."""
-    return max(1, math.ceil(math.sqrt(shape[0] * shape[1] / coarse_max_px)))
-
-
 def coarse_image(image: np.ndarray, factor: int) -> np.ndarray:
     """Block means of ``factor x factor`` pixels (mono), float32."""
     if factor == 1:
@@ -165,12 +167,17 @@ def coarse_image(image: np.ndarray, factor: int) -> np.ndarray:
 
 
 def coarse_boxes(
-    image: np.ndarray, options: DetectorOptions
+    image: np.ndarray, options: DetectorOptions, search: SpotSearch | None = None
 ) -> tuple[list[tuple[int, int, int, int]], str]:
     """Full-resolution boxes ``(u0, v0, u1, v1)`` (exclusive ends) around coarse detections.
 
-    Returns the boxes and, when there are none or too many, the reason.
+    Returns the boxes and, when there are none or too many, the reason. With the
+    frame's bright-spot search (``search``, see :mod:`deckpose.detect.spots`) the boxes
+    are its bright spots (:func:`~deckpose.detect.spots.spot_boxes`); otherwise blobs
+    ``threshold_sigma`` noise sigmas above the block-averaged frame's background.
     """
+    if search is not None:
+        return spot_boxes(image, options, search)
     f = coarse_factor(image.shape[:2], options.coarse_max_px)
     small = coarse_image(image, f)
     step = max(1, int(math.sqrt(small.size / 30_000)))
@@ -250,7 +257,10 @@ def _border_median(pixels: np.ndarray) -> float:
     )
 
 
-BoxesFn = Callable[[np.ndarray, DetectorOptions], "tuple[list[tuple[int, int, int, int]], str]"]
+BoxesFn = Callable[
+    [np.ndarray, DetectorOptions, "SpotSearch | None"],
+    "tuple[list[tuple[int, int, int, int]], str]",
+]
 
 
 def find_candidates(
@@ -263,22 +273,23 @@ def find_candidates(
     frame : Frame
     options : DetectorOptions
     boxes_fn : callable, optional
-        ``(image, options) -> (boxes, reason)``: where to look at full resolution;
-        default :func:`coarse_boxes`.
+        ``(image, options, search) -> (boxes, reason)``: where to look at full
+        resolution; ``search`` is the frame's :class:`~deckpose.detect.spots.SpotSearch`
+        (``None`` when the bright-spot search is off); default :func:`coarse_boxes`.
     """
     image = frame.image
     st = frame_stats(image)
     problem = frame_problem(st)
     if problem:
         return [], problem
-    spot_thr = 0.0
+    search = None
+    spot_thr = spot_noise = 0.0
     if options.spot_level > 0 and options.background_kernel_px == 0:
-        from deckpose.detect.spots import peak_channel, spot_boxes, spot_pedestal, spot_threshold
-
-        spot_thr, _, _, spot_noise = spot_threshold(image, options)
-        if boxes_fn is coarse_boxes:
-            boxes_fn = spot_boxes
-    boxes, reason = boxes_fn(image, options)
+        # One bright-spot search per frame: levels, peak channel and block maxima are
+        # shared by the box search and every candidate window.
+        search = spot_search(image, options)
+        spot_thr, spot_noise = search.threshold_dn, search.noise_dn
+    boxes, reason = boxes_fn(image, options, search)
     if reason:
         return [], reason
     thr = st.background_dn + options.threshold_sigma * st.noise_dn
@@ -309,10 +320,10 @@ def find_candidates(
         else:
             noise_box = st.noise_dn
             thr_box = max(thr, _border_median(pix) + k_noise)
-        if spot_thr > 0:
+        if search is not None:
             # Bright-spot search: the blob is the spot's bright core (peak channel).
             u0b, v0b, u1b, v1b = box
-            above = peak_channel(image[v0b:v1b, u0b:u1b]) > spot_thr
+            above = search.peak(u0b, v0b, u1b, v1b) > spot_thr
         else:
             above = pix > thr_box
         n, labels, cstats, _ = cv2.connectedComponentsWithStats(
@@ -342,11 +353,11 @@ def find_candidates(
             wpix, wsat = _window(image, wb, st.saturation_dn)
             mask = np.zeros(wpix.shape, bool)
             mask[gv0 - wb[1] : gv0 - wb[1] + h, gu0 - wb[0] : gu0 - wb[0] + w] = comp
-            if spot_thr > 0:  # measure the peak channel: the red bow is as bright as the rest
-                wpix = peak_channel(image[wb[1] : wb[3], wb[0] : wb[2]]).astype(np.float64)
+            if search is not None:  # measure the peak channel: the red bow is as bright as the rest
+                wpix = search.peak(*wb).astype(np.float64)
             plane = border_plane(wpix)
             clip = False
-            if spot_thr > 0:
+            if search is not None:
                 ped = spot_pedestal(wpix, mask, plane[0])
                 # Structure around the core (a marking, a housing, glow) above the noise:
                 # measure the core above its pedestal. A clean spot keeps the border plane.

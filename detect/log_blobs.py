@@ -16,6 +16,7 @@ from deckpose.detect.background import difference_noise, noise_floor_dn, robust_
 from deckpose.detect.candidates import coarse_factor, coarse_image, measure_candidates
 from deckpose.detect.centroid import cog_centroid
 from deckpose.detect.registry import Blobs, DetectorOptions, register
+from deckpose.detect.spots import SpotSearch, peak_block_max
 from deckpose.records import Frame
 
 #: The LoG scale space is searched on at most this many coarse pixels.
@@ -23,9 +24,13 @@ LOG_MAX_PX = 500_000
 
 
 def log_boxes(
-    image: np.ndarray, options: DetectorOptions
+    image: np.ndarray, options: DetectorOptions, search: SpotSearch | None = None
 ) -> tuple[list[tuple[int, int, int, int]], str]:
-    """Full-resolution boxes around LoG blobs of the coarse frame."""
+    """Full-resolution boxes around LoG blobs of the coarse frame.
+
+    With the frame's bright-spot search (``search``), only LoG blobs that hold a
+    beacon-bright core are kept.
+    """
     f = coarse_factor(image.shape[:2], min(options.coarse_max_px, LOG_MAX_PX))
     small = coarse_image(image, f)
     step = max(1, int(math.sqrt(small.size / 60_000)))
@@ -43,11 +48,9 @@ def log_boxes(
         threshold=0.40 * options.threshold_sigma,
         overlap=0.5,
     )
-    if options.spot_level > 0 and options.background_kernel_px == 0:
+    if search is not None:
         # Bright-spot search: keep the LoG blobs that hold a beacon-bright core.
-        from deckpose.detect.spots import block_max, peak_channel, spot_threshold
-
-        bright = block_max(peak_channel(image), f) > spot_threshold(image, options)[0]
+        bright = peak_block_max(search.image, f) > search.threshold_dn
         hb, wb = bright.shape
         found = np.array(
             [

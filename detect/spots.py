@@ -15,11 +15,19 @@ background to its bright-spot level. Both levels are measured per frame:
 
 Large frames are searched on a block-*maximum* copy (block means would dilute
 small spots below the level), then at full resolution in boxes around it.
+
+All of it is computed once per frame (:func:`spot_search`) and shared by the
+box search and the candidate windows. The full frame is read by one OpenCV
+dilation that keeps its integer type (block maxima of the peak channel, straight
+from the interleaved RGB pixels); the peak channel itself is made only for
+strided samples and small windows, and the bright level is ranked among the
+pixels of the brightest blocks only.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -29,75 +37,215 @@ from deckpose.detect.registry import DetectorOptions
 #: The bright-spot level is the value of this brightest pixel (rank from the top).
 BRIGHT_RANK = 20
 
+#: dtypes OpenCV's max and dilate handle natively.
+_CV_DTYPES = (np.uint8, np.uint16, np.int16, np.float32, np.float64)
+
+
+def coarse_factor(shape: tuple[int, int], coarse_max_px: int) -> int:
+    """Integer block size that brings ``H * W`` down to at most ``coarse_max_px``."""
+    return max(1, math.ceil(math.sqrt(shape[0] * shape[1] / coarse_max_px)))
+
 
 def peak_channel(pixels: np.ndarray) -> np.ndarray:
-    """Per-pixel largest channel of an (h, w, 3) block, or the block itself; float32."""
+    """Per-pixel largest channel of an (h, w, 3) block, or the block itself; (h, w), dtype kept.
+
+    Integer and float32 images keep their dtype (OpenCV's per-element maximum, no float
+    copy of a whole frame); other dtypes become float32.
+    """
     a = np.asarray(pixels)
-    if a.ndim == 3:
-        return a.max(axis=2).astype(np.float32)
-    return a.astype(np.float32)
+    if a.dtype.type not in _CV_DTYPES:
+        a = a.astype(np.float32)
+    if a.ndim == 2:
+        return a
+    # element-wise maximum of the channel views (a reduction over the short last axis,
+    # a.max(axis=2), is ~50x slower; cv2.split copies every channel first)
+    return np.maximum(np.maximum(a[..., 0], a[..., 1]), a[..., 2])
+
+
+def block_max(pk: np.ndarray, factor: int) -> np.ndarray:
+    """Maxima of ``factor x factor`` blocks of an (H, W) image, (ceil(H/f), ceil(W/f)).
+
+    Block ``(i, j)`` covers rows ``i*f .. i*f+f-1`` and columns ``j*f .. j*f+f-1``
+    (edge blocks are cut by the image border). Computed as a dilation with an
+    ``f x f`` rectangle anchored at its top-left corner, sampled every ``f``
+    pixels; the dtype is kept.
+    """
+    if factor == 1:
+        return pk
+    a = pk if pk.dtype.type in _CV_DTYPES else pk.astype(np.float32)
+    kernel = np.ones((factor, factor), np.uint8)
+    dil = cv2.dilate(a, kernel, anchor=(0, 0), borderType=cv2.BORDER_REPLICATE)
+    return dil[::factor, ::factor]
+
+
+def peak_block_max(image: np.ndarray, factor: int) -> np.ndarray:
+    """:func:`block_max` of the peak-channel image, without making the peak-channel image.
+
+    An (H, W, 3) frame is dilated as its (H, 3W) interleaved view with an
+    ``f x 3f`` rectangle: at column ``3j`` the rectangle spans every channel of
+    pixels ``j .. j+f-1``. One pass over the frame, no copy of it.
+    """
+    a = np.asarray(image)
+    if a.ndim == 2 or factor == 1:
+        return block_max(peak_channel(a), factor)
+    if a.dtype.type not in _CV_DTYPES:
+        a = a.astype(np.float32)
+    H, W, _ = a.shape
+    wide = np.ascontiguousarray(a).reshape(H, 3 * W)
+    kernel = np.ones((factor, 3 * factor), np.uint8)
+    dil = cv2.dilate(wide, kernel, anchor=(0, 0), borderType=cv2.BORDER_REPLICATE)
+    return dil[::factor, :: 3 * factor]
+
+
+@dataclass(frozen=True)
+class SpotSearch:
+    """The bright-spot search of one frame, computed once by :func:`spot_search`.
+
+    Attributes
+    ----------
+    image : (H, W) or (H, W, 3) array
+        The frame (not copied).
+    small : (ceil(H/f), ceil(W/f)) array
+        Block maxima of the peak-channel image (:func:`peak_block_max`).
+    factor : int
+        Block size ``f``, pixels.
+    threshold_dn : float
+        Spot threshold: ``spot_level`` of the way from the background to the bright
+        level, and at least ``threshold_sigma`` noise sigmas above the background, DN.
+    background_dn : float
+        Median of the peak-channel image (strided sample), DN.
+    bright_dn : float
+        Value of the ``BRIGHT_RANK``-th brightest peak-channel pixel, DN.
+    noise_dn : float
+        Noise of the peak-channel image (pixel differences), DN.
+    """
+
+    image: np.ndarray
+    small: np.ndarray
+    factor: int
+    threshold_dn: float
+    background_dn: float
+    bright_dn: float
+    noise_dn: float
+
+    def peak(self, u0: int, v0: int, u1: int, v1: int) -> np.ndarray:
+        """Peak-channel pixels of the window ``[v0:v1, u0:u1]``, (v1 - v0, u1 - u0)."""
+        return peak_channel(self.image[v0:v1, u0:u1])
+
+
+def bright_level(image: np.ndarray, small: np.ndarray, factor: int, rank: int = BRIGHT_RANK) -> float:
+    """Value of the ``rank``-th brightest peak-channel pixel of ``image``, exactly.
+
+    ``small`` holds the peak-channel maxima of ``factor x factor`` blocks; its own
+    ``g x g`` blocks give a still coarser copy. The ``rank`` largest maxima of any
+    block grid are ``rank`` distinct pixels, so the answer is at least the
+    ``rank``-th largest coarse maximum ``t``, and every pixel at or above ``t`` lies
+    in a coarse block whose maximum is at or above ``t``. Only those blocks' pixels
+    are ranked.
+    """
+    g = max(1, math.ceil(math.sqrt(small.size / 16_384)))
+    tiny = block_max(small, g)
+    flat = tiny.ravel()
+    k = min(rank, flat.size)
+    t = np.partition(flat, flat.size - k)[flat.size - k]
+    ys, xs = np.nonzero(tiny >= t)
+    b = factor * g  # coarse block side, full-resolution pixels
+    H, W = image.shape[:2]
+    if ys.size * b * b > H * W // 8:  # a flat or saturated frame: rank the whole frame
+        pk = peak_channel(image)
+        vals = pk[pk >= t]
+    else:
+        vals = np.concatenate(
+            [peak_channel(image[y * b : (y + 1) * b, x * b : (x + 1) * b]).ravel() for y, x in zip(ys, xs)]
+        )
+        vals = vals[vals >= t]
+    k = min(rank, vals.size)
+    return float(np.partition(vals, vals.size - k)[vals.size - k])
+
+
+def spot_search(image: np.ndarray, options: DetectorOptions) -> SpotSearch:
+    """Block maxima and the spot levels of a frame's peak channel (:class:`SpotSearch`).
+
+    The threshold lies ``options.spot_level`` of the way from the background to the
+    bright-spot level, and at least ``threshold_sigma`` noise sigmas above the
+    background (noise of the peak-channel image from pixel differences).
+    """
+    from deckpose.detect.background import MIN_NOISE_DN, difference_noise
+
+    H, W = image.shape[:2]
+    f = coarse_factor((H, W), options.coarse_max_px)
+    small = peak_block_max(image, f)
+    step = max(1, int(math.sqrt(H * W / 30_000)))
+    bg = float(np.median(peak_channel(image[::step, ::step])))
+    bright = bright_level(image, small, f)
+    # floor: the quantisation noise of one channel, 1/sqrt(12) DN
+    noise = max(difference_noise(image, signal=peak_channel), MIN_NOISE_DN)
+    thr = max(bg + options.spot_level * (bright - bg), bg + options.threshold_sigma * noise)
+    return SpotSearch(image, small, f, thr, bg, bright, noise)
 
 
 def spot_threshold(
     image: np.ndarray, options: DetectorOptions
 ) -> tuple[float, float, float, float]:
-    """``(threshold, background, bright level, noise)`` of the peak-channel image, DN.
+    """``(threshold, background, bright level, noise)`` of the peak-channel image, DN."""
+    s = spot_search(image, options)
+    return s.threshold_dn, s.background_dn, s.bright_dn, s.noise_dn
 
-    The threshold lies ``options.spot_level`` of the way from the background to
-    the bright-spot level, and at least ``threshold_sigma`` noise sigmas above
-    the background (noise of the peak-channel image from pixel differences).
+
+def bright_components(mask: np.ndarray, tile_px: int = 16_384) -> np.ndarray:
+    """Bounding boxes ``(x, y, w, h)`` of the 8-connected components of a sparse mask, (n, 4).
+
+    The same boxes as ``cv2.connectedComponentsWithStats`` on the whole mask
+    (sorted by top row, then left column), but found in two levels: components of a ``g x g`` block-max
+    copy with about ``tile_px`` pixels first, then components inside each of
+    those. Every component of ``mask`` lies within one component of the coarse
+    copy (8-adjacent pixels have equal or 8-adjacent blocks), so labelling the
+    pixels of each coarse component apart gives exactly the full labelling; only
+    the few bright regions of a frame are labelled at full size.
     """
-    from deckpose.detect.background import difference_noise, noise_floor_dn
-
-    pk = peak_channel(image)
-    H, W = pk.shape
-    step = max(1, int(math.sqrt(H * W / 30_000)))
-    bg = float(np.median(pk[::step, ::step]))
-    flat = pk.ravel()
-    k = min(BRIGHT_RANK, flat.size)
-    bright = float(np.partition(flat, flat.size - k)[flat.size - k])
-    noise = max(difference_noise(pk), noise_floor_dn(pk))
-    thr = max(bg + options.spot_level * (bright - bg), bg + options.threshold_sigma * noise)
-    return thr, bg, bright, noise
-
-
-def block_max(pk: np.ndarray, factor: int) -> np.ndarray:
-    """Maxima of ``factor x factor`` blocks (edge blocks padded), (ceil(H/f), ceil(W/f))."""
-    if factor == 1:
-        return pk
-    H, W = pk.shape
-    h, w = -(-H // factor), -(-W // factor)
-    pad = np.full((h * factor, w * factor), -np.inf, np.float32)
-    pad[:H, :W] = pk
-    return pad.reshape(h, factor, w, factor).max(axis=(1, 3))
+    m = np.ascontiguousarray(mask, dtype=np.uint8)
+    g = max(1, math.ceil(math.sqrt(m.size / tile_px)))
+    if g == 1:
+        n, _, st, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
+        return st[1:, :4].astype(int)
+    coarse = block_max(m, g)
+    n_c, lab_c, st_c, _ = cv2.connectedComponentsWithStats(coarse, connectivity=8)
+    h_m, w_m = m.shape
+    boxes = []
+    for k in range(1, n_c):
+        x, y, w, h, _ = (int(c) for c in st_c[k])
+        r0, r1, c0, c1 = y * g, min(h_m, (y + h) * g), x * g, min(w_m, (x + w) * g)
+        own = np.repeat(np.repeat(lab_c[y : y + h, x : x + w] == k, g, axis=0), g, axis=1)
+        sub = m[r0:r1, c0:c1] * own[: r1 - r0, : c1 - c0]
+        n, _, st, _ = cv2.connectedComponentsWithStats(sub, connectivity=8)
+        boxes.extend((int(a) + c0, int(b) + r0, int(cw), int(ch)) for a, b, cw, ch, _ in st[1:])
+    boxes.sort(key=lambda b: (b[1], b[0]))
+    return np.array(boxes, int).reshape(-1, 4)
 
 
 def spot_boxes(
-    image: np.ndarray, options: DetectorOptions
+    image: np.ndarray, options: DetectorOptions, search: SpotSearch | None = None
 ) -> tuple[list[tuple[int, int, int, int]], str]:
     """Full-resolution boxes ``(u0, v0, u1, v1)`` around the frame's bright spots.
 
-    Returns the boxes and, when there are none or too many, the reason.
+    Returns the boxes and, when there are none or too many, the reason. ``search``
+    is the frame's :func:`spot_search` when the caller has it already.
     """
-    from deckpose.detect.candidates import coarse_factor
-
-    thr, bg, bright, _ = spot_threshold(image, options)
-    pk = peak_channel(image)
-    f = coarse_factor(pk.shape, options.coarse_max_px)
-    small = block_max(pk, f)
-    mask = (small > thr).astype(np.uint8)
-    n, _, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-    if n - 1 > options.max_blobs:
+    s = spot_search(image, options) if search is None else search
+    thr, bg, bright, f = s.threshold_dn, s.background_dn, s.bright_dn, s.factor
+    stats = bright_components(s.small > thr)
+    n_spots = stats.shape[0]
+    if n_spots > options.max_blobs:
         return [], (
-            f"{n - 1} bright spots above {thr:.0f} DN exceed max_blobs={options.max_blobs} "
+            f"{n_spots} bright spots above {thr:.0f} DN exceed max_blobs={options.max_blobs} "
             f"(background {bg:.0f} DN, bright level {bright:.0f} DN): glare or noise"
         )
-    if n == 1:
+    if n_spots == 0:
         return [], (
             f"dark frame: no spot above {thr:.1f} DN (peak channel background {bg:.1f} DN, "
             f"bright level {bright:.0f} DN)"
         )
-    H, W = pk.shape
+    H, W = s.image.shape[:2]
     pad = f + 2
     boxes = [
         (
@@ -106,7 +254,7 @@ def spot_boxes(
             min(W, (x + w) * f + pad),
             min(H, (y + h) * f + pad),
         )
-        for x, y, w, h, _a in stats[1:]
+        for x, y, w, h in stats
     ]
     return boxes, ""
 

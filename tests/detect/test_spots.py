@@ -1,0 +1,74 @@
+"""The bright-spot search's shortcuts give exactly what the plain computations give."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+
+from deckpose.detect.registry import DetectorOptions
+from deckpose.detect.spots import (
+    bright_components,
+    bright_level,
+    peak_block_max,
+    peak_channel,
+    spot_search,
+)
+
+
+def _spotty_image(rng: np.random.Generator, rgb: bool, dtype: type) -> np.ndarray:
+    H, W = (int(x) for x in rng.integers(20, 300, 2))
+    img = rng.integers(0, 50, (H, W, 3) if rgb else (H, W)).astype(dtype)
+    for _ in range(int(rng.integers(0, 30))):
+        y, x = int(rng.integers(0, H)), int(rng.integers(0, W))
+        img[y : y + int(rng.integers(1, 8)), x : x + int(rng.integers(1, 8))] = rng.integers(50, 255)
+    return img
+
+
+def _block_max_reference(pk: np.ndarray, f: int) -> np.ndarray:
+    H, W = pk.shape
+    h, w = -(-H // f), -(-W // f)
+    pad = np.full((h * f, w * f), -np.inf)
+    pad[:H, :W] = pk
+    return pad.reshape(h, f, w, f).max(axis=(1, 3))
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.float32])
+@pytest.mark.parametrize("rgb", [False, True])
+def test_block_maxima_and_bright_level_are_exact(dtype: type, rgb: bool) -> None:
+    rng = np.random.default_rng(int(rgb) + 2 * np.dtype(dtype).itemsize)
+    for _ in range(40):
+        img = _spotty_image(rng, rgb, dtype)
+        pk = img.max(axis=2) if rgb else img
+        np.testing.assert_array_equal(peak_channel(img), pk)
+        f = int(rng.integers(1, 7))
+        small = peak_block_max(img, f)
+        np.testing.assert_array_equal(small, _block_max_reference(pk.astype(float), f))
+        flat = np.sort(pk.ravel())
+        want = float(flat[max(0, flat.size - 20)])  # the 20th brightest pixel
+        assert bright_level(img, small, f) == want
+
+
+def test_components_match_a_full_labelling() -> None:
+    rng = np.random.default_rng(5)
+    for _ in range(60):
+        H, W = (int(x) for x in rng.integers(50, 900, 2))
+        m = np.zeros((H, W), np.uint8)
+        for _ in range(int(rng.integers(0, 40))):
+            centre = (int(rng.integers(0, W)), int(rng.integers(0, H)))
+            cv2.circle(m, centre, int(rng.integers(0, 6)), 1, -1)
+        m |= (rng.random((H, W)) < rng.choice([0.0, 1e-4, 1e-2])).astype(np.uint8)
+        _, _, stats, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
+        got = bright_components(m.astype(bool), tile_px=int(rng.choice([100, 1000, 16_384])))
+        assert sorted(map(tuple, stats[1:, :4].tolist())) == sorted(map(tuple, got.tolist()))
+
+
+def test_spot_threshold_lies_between_background_and_the_spots() -> None:
+    rng = np.random.default_rng(1)
+    img = rng.normal(100.0, 3.0, (400, 600, 3)).clip(0, 65535).astype(np.uint16)
+    for u, v in ((100, 100), (300, 200), (500, 350)):
+        img[v - 3 : v + 4, u - 3 : u + 4, 0] = 5000  # red spots: only the peak channel sees them
+    s = spot_search(img, DetectorOptions(coarse_max_px=10_000))
+    assert s.factor == 5 and s.bright_dn == 5000.0
+    assert abs(s.background_dn - 103.0) < 3.0  # median of the largest of three N(100, 3)
+    assert s.threshold_dn == pytest.approx(s.background_dn + 0.8 * (5000.0 - s.background_dn))
