@@ -289,6 +289,8 @@ def find_candidates(
         # shared by the box search and every candidate window.
         search = spot_search(image, options)
         spot_thr, spot_noise = search.threshold_dn, search.noise_dn
+    # a 12-bit frame stored in 16 bits clips at 4095, not at the dtype maximum
+    sat_dn = st.saturation_dn if search is None else search.saturation_dn
     boxes, reason = boxes_fn(image, options, search)
     if reason:
         return [], reason
@@ -311,7 +313,7 @@ def find_candidates(
     raw = []
     seen: set[tuple[int, int]] = set()
     for box in boxes:
-        pix, _ = _window(image, box, st.saturation_dn)
+        pix, _ = _window(image, box, sat_dn)
         # The threshold follows the local background (the box border) where it is brighter;
         # with an uneven background, the local noise too.
         if options.background_kernel_px > 0:
@@ -350,7 +352,7 @@ def find_candidates(
                 min(W, gu0 + w + pad),
                 min(H, gv0 + h + pad),
             )
-            wpix, wsat = _window(image, wb, st.saturation_dn)
+            wpix, wsat = _window(image, wb, sat_dn)
             mask = np.zeros(wpix.shape, bool)
             mask[gv0 - wb[1] : gv0 - wb[1] + h, gu0 - wb[0] : gu0 - wb[0] + w] = comp
             if search is not None:  # measure the peak channel: the red bow is as bright as the rest

@@ -24,10 +24,12 @@ DEFAULT_GAIN_DN_PER_E = 1.0
 def estimate_gain(cands: list[Candidate], window_sigma: float = 3.0, max_blobs: int = 6) -> float:
     """Pooled shot-noise gain of a frame's candidates, DN per electron (clipped to [1e-3, 1e3]).
 
-    Uses the ``max_blobs`` largest blobs (most shot-noise signal; fewer model fits).
+    Uses the ``max_blobs`` largest blobs (most shot-noise signal; fewer model fits)
+    whose cores do not saturate: a clipped core is no Gaussian of its ``cog`` flux.
     """
     num = den = 0.0
-    by_size = sorted(cands, key=lambda c: -int(c.mask.sum()))
+    unclipped = [c for c in cands if not c.saturated[c.mask].any()]
+    by_size = sorted(unclipped, key=lambda c: -int(c.mask.sum()))
     for c in by_size[:max_blobs]:
         row = cog_centroid(c, window_sigma)
         if row is None:

@@ -6,9 +6,14 @@ parameters (centre, two widths, flux, background). Weights are the inverse of
 the modelled noise variance (background noise plus shot noise of the model),
 updated once from the first fit, which makes the fit close to the Poisson
 maximum-likelihood estimate; the centre covariance is the ``(u, v)`` block of
-``inv(J^T W J)``, the Fisher information of the fitted model. Saturated pixels
-are left out of the fit. A bright-spot candidate measured above its pedestal
-(:attr:`~deckpose.detect.candidates.Candidate.clip_signal`) keeps its ``cog`` centre.
+``inv(J^T W J)``, the Fisher information of the fitted model.
+
+A core that saturates, or that sits on a pedestal (a marking, a housing or glow
+around it: :attr:`~deckpose.detect.candidates.Candidate.clip_signal`), is fitted
+by :func:`deckpose.detect.core_fit.core_fit` instead: a censored least-squares
+fit of an elliptical Gaussian to the unsaturated wings of the core, saturated
+pixels counting only as "at or above full scale". ``gauss`` falls back to the
+``cog`` centre only when that fit fails (too few unsaturated pixels).
 """
 
 from __future__ import annotations
@@ -20,6 +25,7 @@ from scipy.optimize import least_squares
 
 from deckpose.detect.candidates import Candidate, measure_candidates
 from deckpose.detect.centroid import Row, cog_centroid
+from deckpose.detect.core_fit import core_fit
 from deckpose.detect.crb import gaussian_pixel_terms
 from deckpose.detect.registry import Blobs, DetectorOptions, register
 from deckpose.records import Frame
@@ -48,10 +54,10 @@ def gauss_fit(cand: Candidate, window_sigma: float = 3.0) -> Row | None:
     start = cog_centroid(cand, window_sigma)
     if start is None:
         return None
-    if cand.clip_signal:
-        # A core measured above its pedestal (a marking or housing around it) is not a
-        # Gaussian on a plane: keep the windowed centroid.
-        return start
+    if cand.clip_signal or cand.saturated[cand.mask].any():
+        # A clipped core, or one framed by a marking or housing: fit the core's own
+        # wings, saturated pixels censored.
+        return core_fit(cand, start, window_sigma)
     u0, v0, _, F0, s0, _ = start
     h, w = cand.pixels.shape
     xs = np.arange(w, dtype=float) + cand.u0
@@ -99,9 +105,9 @@ def detect_gauss(frame: Frame, options: DetectorOptions) -> Blobs:
 
     def measure(c: Candidate) -> Row | None:
         row = gauss_fit(c, options.window_sigma)
-        if row is None and c.saturated[c.mask].any():
-            # A clipped core leaves only the wings to fit (on a beacon's dark housing they
-            # are no Gaussian): keep the windowed centroid rather than lose the beacon.
+        if row is None and (c.clip_signal or c.saturated[c.mask].any()):
+            # Too few unsaturated core pixels to fit: keep the windowed centroid rather
+            # than lose the beacon.
             return cog_centroid(c, options.window_sigma)
         return row
 

@@ -118,6 +118,8 @@ class SpotSearch:
         Value of the ``BRIGHT_RANK``-th brightest peak-channel pixel, DN.
     noise_dn : float
         Noise of the peak-channel image (pixel differences), DN.
+    saturation_dn : float
+        Value at which a channel clips (:func:`clip_level`), DN.
     """
 
     image: np.ndarray
@@ -127,6 +129,7 @@ class SpotSearch:
     background_dn: float
     bright_dn: float
     noise_dn: float
+    saturation_dn: float
 
     def peak(self, u0: int, v0: int, u1: int, v1: int) -> np.ndarray:
         """Peak-channel pixels of the window ``[v0:v1, u0:u1]``, (v1 - v0, u1 - u0)."""
@@ -163,6 +166,30 @@ def bright_level(image: np.ndarray, small: np.ndarray, factor: int, rank: int = 
     return float(np.partition(vals, vals.size - k)[vals.size - k])
 
 
+#: Sensor bit depths whose full scale a uint16 frame may hold (10-, 12- and 14-bit data).
+_PACKED_BIT_DEPTHS = (10, 12, 14)
+
+
+def clip_level(dtype: np.dtype, bright_dn: float) -> float:
+    """The value at which a frame's channels clip, DN.
+
+    The dtype maximum of an integer image (inf for float images), except that a
+    uint16 frame whose bright level (its ``BRIGHT_RANK``-th brightest peak-channel
+    pixel) is exactly the full scale of a 10-, 12- or 14-bit sensor holds a
+    saturated plateau of at least ``BRIGHT_RANK`` pixels at that value: the data
+    are ``bits``-bit, stored in 16 bits (a 12-bit PNG), and clip there.
+    """
+    dt = np.dtype(dtype)
+    if not np.issubdtype(dt, np.integer):
+        return math.inf
+    top = float(np.iinfo(dt).max)
+    if dt == np.uint16:
+        for bits in _PACKED_BIT_DEPTHS:
+            if bright_dn == 2**bits - 1:
+                return bright_dn
+    return top
+
+
 def spot_search(image: np.ndarray, options: DetectorOptions) -> SpotSearch:
     """Block maxima and the spot levels of a frame's peak channel (:class:`SpotSearch`).
 
@@ -181,7 +208,7 @@ def spot_search(image: np.ndarray, options: DetectorOptions) -> SpotSearch:
     # floor: the quantisation noise of one channel, 1/sqrt(12) DN
     noise = max(difference_noise(image, signal=peak_channel), MIN_NOISE_DN)
     thr = max(bg + options.spot_level * (bright - bg), bg + options.threshold_sigma * noise)
-    return SpotSearch(image, small, f, thr, bg, bright, noise)
+    return SpotSearch(image, small, f, thr, bg, bright, noise, clip_level(image.dtype, bright))
 
 
 def spot_threshold(
