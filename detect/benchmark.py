@@ -8,8 +8,8 @@ Per detector x camera (resolution) x camera height:
 * ``recall``: matched / visible beacons; ``precision``: matched / detections;
 * ``id_accuracy``: matched detections carrying the right beacon id (of the
   frames' matched detections; unassigned counts as wrong);
-* ``ms_per_frame``: median detection + identification time (image decoding
-  excluded);
+* ``ms_per_frame``: median detection + identification wall time (image decoding
+  excluded); ``cpu_ms_per_frame``: the same work's median CPU time on its thread;
 * ``crb_px``: per-axis RMS of the centroid Cramér–Rao bound
   (:mod:`deckpose.detect.crb`) over the matched beacons, and ``rms_over_crb``.
   The bound needs each spot's width and electrons and the sensor model; it is
@@ -161,6 +161,9 @@ def summarise(
                 else math.nan,
                 "frames_ok": int(f["ok"].sum()),
                 "ms_per_frame": 1000.0 * float(f["seconds"].median()) if len(f) else math.nan,
+                "cpu_ms_per_frame": 1000.0 * float(f["cpu_seconds"].median())
+                if len(f) and "cpu_seconds" in f
+                else math.nan,
             }
         )
     return pd.DataFrame(rows)

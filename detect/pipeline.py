@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
@@ -38,6 +39,9 @@ class FrameDetections:
         identification failed.
     seconds : float
         Wall time of detection plus identification.
+    cpu_seconds : float
+        CPU time of this thread for the same work (on a shared machine, the
+        one-core cost: wall time also counts time other processes held the core).
     """
 
     detections: Detections
@@ -47,16 +51,22 @@ class FrameDetections:
     ok: bool
     reason: str
     seconds: float
+    cpu_seconds: float = math.nan
 
     def __bool__(self) -> bool:
         return self.ok
 
     @classmethod
     def failed(
-        cls, frame_id: int, detector: str, reason: str, seconds: float = 0.0
+        cls,
+        frame_id: int,
+        detector: str,
+        reason: str,
+        seconds: float = 0.0,
+        cpu_seconds: float = math.nan,
     ) -> "FrameDetections":
         empty = Detections(np.zeros((0, 2)), np.zeros(0, np.int64), frame_id=frame_id)
-        return cls(empty, np.zeros(0), np.zeros(0), detector, False, reason, seconds)
+        return cls(empty, np.zeros(0), np.zeros(0), detector, False, reason, seconds, cpu_seconds)
 
 
 def detect_frame(
@@ -87,7 +97,7 @@ def detect_frame(
         Never raises for a bad frame: failures come back with a reason.
     """
     fn = registry.get(detector)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.thread_time()
     try:
         blobs: Blobs = fn(frame, options)
     except Exception as exc:  # a detector bug must not end a batch: the frame fails
@@ -96,10 +106,15 @@ def detect_frame(
             detector,
             f"detector {detector!r} raised {type(exc).__name__}: {exc}",
             time.perf_counter() - t0,
+            time.thread_time() - c0,
         )
     if not blobs:
         return FrameDetections.failed(
-            frame.frame_id, detector, blobs.reason, time.perf_counter() - t0
+            frame.frame_id,
+            detector,
+            blobs.reason,
+            time.perf_counter() - t0,
+            time.thread_time() - c0,
         )
     n = len(blobs)
     ids = np.full(n, UNASSIGNED, np.int64)
@@ -118,7 +133,7 @@ def detect_frame(
         except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
             # degenerate geometry the identification did not foresee: the frame fails
             reason = f"identification raised {type(exc).__name__}: {exc}"
-    seconds = time.perf_counter() - t0
+    seconds, cpu_seconds = time.perf_counter() - t0, time.thread_time() - c0
     dets = Detections(
         blobs.points_px, ids, blobs.covariance_px2, blobs.score, frame_id=frame.frame_id
     )
@@ -130,4 +145,5 @@ def detect_frame(
         not reason,
         reason,
         float(seconds),
+        float(cpu_seconds),
     )

@@ -42,39 +42,73 @@ def detect_frames(
     progress: bool = False,
 ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Detect in every frame; returns ``(detections table, frames table)``."""
+    return detect_frames_with(
+        frameset,
+        [detector],
+        options=options,
+        identify_options=identify_options,
+        progress=progress,
+    )[detector]
+
+
+def detect_frames_with(
+    frameset: FrameSet,
+    detectors: list[str],
+    *,
+    options: DetectorOptions = DetectorOptions(),
+    identify_options: IdentifyOptions = IdentifyOptions(),
+    progress: bool = False,
+) -> dict[str, tuple[pd.DataFrame, pd.DataFrame]]:
+    """Run several detectors on every frame, decoding each image once.
+
+    Returns
+    -------
+    dict
+        Detector name to ``(detections table, frames table)``, as :func:`detect_frames`.
+    """
     from tqdm import tqdm
 
-    det_parts, frame_rows = [], []
-    it = tqdm(frameset.sources, desc=f"detect {detector}", unit="frame", disable=not progress)
-    for src in it:
+    det_parts: dict[str, list[pd.DataFrame]] = {d: [] for d in detectors}
+    frame_rows: dict[str, list[dict[str, Any]]] = {d: [] for d in detectors}
+    desc = f"detect {','.join(detectors)}"
+    for src in tqdm(frameset.sources, desc=desc, unit="frame", disable=not progress):
         frame = load_frame(src, frameset.cameras[src.camera_name])
-        if isinstance(frame, str):
-            fd = FrameDetections.failed(src.frame_id, detector, frame)
-        else:
-            fd = detect_frame(
-                frame, detector, frameset.layout, options=options, identify_options=identify_options
+        for detector in detectors:
+            if isinstance(frame, str):
+                fd = FrameDetections.failed(src.frame_id, detector, frame)
+            else:
+                fd = detect_frame(
+                    frame,
+                    detector,
+                    frameset.layout,
+                    options=options,
+                    identify_options=identify_options,
+                )
+            det_parts[detector].append(detection_rows(fd))
+            frame_rows[detector].append(
+                {
+                    "frame_id": src.frame_id,
+                    "ok": fd.ok,
+                    "reason": fd.reason,
+                    "n_detections": len(fd.detections),
+                    "seconds": fd.seconds,
+                    "cpu_seconds": fd.cpu_seconds,
+                    "n_identified": int((fd.detections.beacon_ids >= 0).sum()),
+                    "camera": src.camera_name,
+                    "stamp_ns": src.stamp_ns,
+                    "image": os.path.relpath(src.image_path, frameset.root),
+                }
             )
-        det_parts.append(detection_rows(fd))
-        frame_rows.append(
-            {
-                "frame_id": src.frame_id,
-                "ok": fd.ok,
-                "reason": fd.reason,
-                "n_detections": len(fd.detections),
-                "seconds": fd.seconds,
-                "n_identified": int((fd.detections.beacon_ids >= 0).sum()),
-                "camera": src.camera_name,
-                "stamp_ns": src.stamp_ns,
-                "image": os.path.relpath(src.image_path, frameset.root),
-            }
+    out = {}
+    for detector in detectors:
+        parts = [d for d in det_parts[detector] if len(d)]  # (concatenating empties is deprecated)
+        dets = (
+            pd.concat(parts, ignore_index=True)
+            if parts
+            else detection_rows(FrameDetections.failed(-1, detector, "none"))
         )
-    det_parts = [d for d in det_parts if len(d)]  # (concatenating empty frames is deprecated)
-    dets = (
-        pd.concat(det_parts, ignore_index=True)
-        if det_parts
-        else detection_rows(FrameDetections.failed(-1, detector, "none"))
-    )
-    return dets, pd.DataFrame(frame_rows)
+        out[detector] = (dets, pd.DataFrame(frame_rows[detector]))
+    return out
 
 
 def write_run(

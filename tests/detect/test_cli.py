@@ -135,3 +135,19 @@ def test_detect_dataset_default_output_is_the_run_layout(tiny_dataset, tmp_path)
     meta = json.loads((ds / "detections" / "cog.run.json").read_text())
     assert meta["detections"] == "cog.parquet"
     assert (ds / "detections" / meta["cameras"]["640x360"]).resolve().is_file()
+
+
+def test_bench_detectors_on_a_dataset_without_spot_model(tiny_dataset, tmp_path, capsys):
+    """A dataset rendered before the spot model was recorded: the CRB stays empty, with a note."""
+    ds = tmp_path / "old"
+    shutil.copytree(tiny_dataset, ds)
+    beacons = pd.read_parquet(ds / "beacons.parquet")
+    beacons.drop(columns=["spot_sigma_px", "spot_flux_e"]).to_parquet(ds / "beacons.parquet")
+    out = tmp_path / "bench"
+    argv = ["bench-detectors", str(ds), "--detectors", "cog", "--out", str(out), "--no-progress"]
+    assert main(argv) == 0
+    table = pd.read_csv(out / "bench_detectors.csv")
+    assert table.crb_px.isna().all() and (table.recall == 1.0).all()
+    md = (out / "bench_detectors.md").read_text()
+    assert "CRB left empty: beacons.parquet lacks spot_sigma_px, spot_flux_e" in md
+    assert "cpu_ms_per_frame" in table.columns and (table.cpu_ms_per_frame > 0).all()
