@@ -46,6 +46,7 @@ from deckpose.detect.spots import (
     spot_boxes,
     spot_pedestal,
     spot_search,
+    tophat_spot_search,
 )
 from deckpose.records import Frame
 
@@ -284,10 +285,14 @@ def find_candidates(
         return [], problem
     search = None
     spot_thr = spot_noise = 0.0
-    if options.spot_level > 0 and options.background_kernel_px == 0:
+    if options.spot_level > 0:
         # One bright-spot search per frame: levels, peak channel and block maxima are
-        # shared by the box search and every candidate window.
-        search = spot_search(image, options)
+        # shared by the box search and every candidate window; on an uneven background
+        # (background_kernel_px) the search runs on the frame minus its grey opening.
+        if options.background_kernel_px > 0:
+            search = tophat_spot_search(image, options)
+        else:
+            search = spot_search(image, options)
         spot_thr, spot_noise = search.threshold_dn, search.noise_dn
     # a 12-bit frame stored in 16 bits clips at 4095, not at the dtype maximum
     sat_dn = st.saturation_dn if search is None else search.saturation_dn

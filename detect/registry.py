@@ -66,15 +66,18 @@ class DetectorOptions:
         0: one background level for the whole frame (dark sea or sky). Otherwise
         the candidate search first removes an uneven background (a lit deck) by a
         grey opening with a disc of this diameter, full-resolution pixels; it
-        must exceed the largest beacon's diameter.
+        must exceed the largest beacon's diameter. With ``spot_level`` > 0 the
+        bright-spot search runs on the frame minus its opening (a white top-hat,
+        :func:`deckpose.detect.spots.tophat_spot_search`) and the windows are
+        measured there; with ``spot_level`` = 0 every blob ``threshold_sigma``
+        local noise sigmas above the opened, block-averaged frame is a candidate.
     spot_level : float
         Bright-spot search (:mod:`deckpose.detect.spots`): candidates are pixels whose
         largest channel lies this fraction of the way from the frame's background to
         its bright-spot level (beacon cores), so deck markings, texture and the lit
         sea are not candidates. 0 switches it off: every blob ``threshold_sigma``
         noise sigmas above the background is a candidate (dark frames of
-        unsaturated spots of very different brightness). Not used with
-        ``background_kernel_px`` > 0, which selects the opening-based search.
+        unsaturated spots of very different brightness).
     """
 
     threshold_sigma: float = 6.0

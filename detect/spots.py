@@ -26,6 +26,7 @@ pixels of the brightest blocks only.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -209,6 +210,27 @@ def spot_search(image: np.ndarray, options: DetectorOptions) -> SpotSearch:
     noise = max(difference_noise(image, signal=peak_channel), MIN_NOISE_DN)
     thr = max(bg + options.spot_level * (bright - bg), bg + options.threshold_sigma * noise)
     return SpotSearch(image, small, f, thr, bg, bright, noise, clip_level(image.dtype, bright))
+
+
+def tophat_spot_search(image: np.ndarray, options: DetectorOptions) -> SpotSearch:
+    """:func:`spot_search` on the peak channel minus its grey opening (a white top-hat).
+
+    For frames whose background is uneven on scales larger than a beacon (a lit,
+    textured deck, vignetting): the opening with a disc of
+    ``options.background_kernel_px`` pixels keeps every bright structure wider than
+    the disc (the deck, its lighting, wide markings) and the top-hat removes it,
+    leaving the beacons on a level near zero. The bright-spot criterion then keeps
+    only the brightest compact spots (``spot_level``), so deck texture and thin
+    markings, which also survive a top-hat, are not candidates. Windows are
+    measured on the top-hat; the clip level is the frame's own.
+    """
+    pk = peak_channel(image)
+    k = 2 * (int(options.background_kernel_px) // 2) + 1
+    disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k))
+    tophat = cv2.morphologyEx(pk, cv2.MORPH_TOPHAT, disc)
+    s = spot_search(tophat, options)
+    bright_pk = bright_level(pk, block_max(pk, s.factor), s.factor)
+    return dataclasses.replace(s, saturation_dn=clip_level(image.dtype, bright_pk))
 
 
 def spot_threshold(

@@ -42,7 +42,9 @@ def smoke_dataset(tmp_path_factory: pytest.TempPathFactory) -> Path:
     )
 
 
-def _score(root: Path, detector: str, every: int = 1) -> tuple[list[str], np.ndarray, set[str]]:
+def _score(
+    root: Path, detector: str, every: int = 1, options: DetectorOptions = DetectorOptions()
+) -> tuple[list[str], np.ndarray, set[str]]:
     fs = open_dataset(root)
     frames = pd.read_parquet(root / "frames.parquet").set_index("frame_id")
     gt = pd.read_parquet(root / "beacons.parquet")
@@ -51,7 +53,7 @@ def _score(root: Path, detector: str, every: int = 1) -> tuple[list[str], np.nda
         frame = load_frame(src, fs.cameras[src.camera_name])
         assert not isinstance(frame, str), frame
         lights.add(str(frames.loc[src.frame_id, "lighting"]))
-        fd = detect_frame(frame, detector, fs.layout)
+        fd = detect_frame(frame, detector, fs.layout, options=options)
         if not fd.ok:
             fails.append(f"frame {src.frame_id}: {fd.reason}")
             continue
@@ -109,3 +111,14 @@ def test_opening_background_never_raises(smoke_dataset: Path) -> None:
         assert not isinstance(frame, str)
         blobs = registry.get("cog")(frame, opts)
         assert blobs.ok or blobs.reason
+
+
+@pytest.mark.parametrize("kernel_px", [9, 25])
+def test_opening_mode_identifies_day_and_night_frames(smoke_dataset: Path, kernel_px: int) -> None:
+    # --background-kernel-px: the bright-spot search on the frame minus its grey opening.
+    # It used to take every bit of lit deck texture for a candidate and fail day frames.
+    opts = DetectorOptions(background_kernel_px=kernel_px)
+    fails, err, lights = _score(smoke_dataset, "cog", options=opts)
+    assert not fails, fails
+    assert lights == {"night", "day"} and err.size == 24 * 13
+    assert np.sqrt(np.mean(err**2)) < MAX_RMS_PX and err.max() < MAX_ERR_PX
