@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import cv2
 import numpy as np
 import pandas as pd
 import pytest
@@ -122,3 +123,59 @@ def test_opening_mode_identifies_day_and_night_frames(smoke_dataset: Path, kerne
     assert not fails, fails
     assert lights == {"night", "day"} and err.size == 24 * 13
     assert np.sqrt(np.mean(err**2)) < MAX_RMS_PX and err.max() < MAX_ERR_PX
+
+
+def _hide_and_glint(
+    image: np.ndarray, truth: pd.DataFrame, hide_id: int, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """The frame with beacon ``hide_id`` painted out and one glint added; and the glint (u, v).
+
+    The beacon's core and housing are inpainted from their surroundings (OpenCV
+    Telea); the glint is a saturated white Gaussian spot as large as the beacons,
+    at least 40 px from every beacon.
+    """
+    img = image.copy()
+    row = truth.loc[hide_id]
+    mask = np.zeros(img.shape[:2], np.uint8)
+    r_px = int(np.ceil(3.0 * row.apparent_radius_px + 3))
+    cv2.circle(mask, (int(round(row.u_px)), int(round(row.v_px))), r_px, 1, -1)
+    img = cv2.inpaint(img, mask, 3, cv2.INPAINT_TELEA)
+    H, W = img.shape[:2]
+    beacons = truth[["u_px", "v_px"]].to_numpy(float)
+    while True:
+        g = rng.uniform([20.0, 20.0], [W - 20.0, H - 20.0])
+        if np.min(np.linalg.norm(beacons - g, axis=1)) > 40.0:
+            break
+    sigma = max(1.0, float(truth.apparent_radius_px.median()) / 2.0)
+    vv, uu = np.mgrid[0:H, 0:W]
+    spot = 5.0 * 255.0 * np.exp(-((uu - g[0]) ** 2 + (vv - g[1]) ** 2) / (2 * sigma**2))
+    img = np.clip(img.astype(float) + spot[..., None], 0, 255).astype(np.uint8)
+    return img, g
+
+
+@pytest.mark.parametrize("detector", ["cog", "gauss"])
+def test_identification_with_one_hidden_beacon_and_one_glint(smoke_dataset: Path, detector: str):
+    # The issue's case on rendered frames (night and day, both cameras): a ring beacon
+    # painted out and a saturated glint added; the rest keep their ids, the glint gets none.
+    from deckpose.records import Frame
+
+    fs = open_dataset(smoke_dataset)
+    gt = pd.read_parquet(smoke_dataset / "beacons.parquet")
+    rng = np.random.default_rng(17)
+    for src in fs.sources[::2]:
+        frame = load_frame(src, fs.cameras[src.camera_name])
+        assert not isinstance(frame, str)
+        truth = gt[(gt.frame_id == src.frame_id) & gt.visible].set_index("beacon_id")
+        hide = int(rng.choice([i for i in truth.index if i != fs.layout.bow_id]))
+        img, glint = _hide_and_glint(frame.image, truth, hide, rng)
+        fd = detect_frame(Frame(img, frame.camera, frame.frame_id), detector, fs.layout)
+        assert fd.ok, (src.frame_id, fd.reason)
+        d = fd.detections
+        ids = {int(i) for i in d.beacon_ids if i >= 0}
+        assert ids == set(truth.index) - {hide}, (src.frame_id, hide, sorted(ids))
+        for (u, v), i in zip(d.points_px, d.beacon_ids):
+            if i >= 0:  # every id sits on its own beacon
+                assert np.hypot(u - truth.u_px[int(i)], v - truth.v_px[int(i)]) < 1.0
+        near_glint = np.linalg.norm(d.points_px - glint, axis=1) < 3.0
+        assert near_glint.sum() == 1  # the glint is detected (a beacon-like spot) ...
+        assert d.beacon_ids[near_glint][0] < 0  # ... and left unassigned
