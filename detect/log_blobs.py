@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import cv2
 import numpy as np
 from skimage.feature import blob_log
 
@@ -37,6 +38,18 @@ def log_boxes(
     bg, _ = robust_stats(small[::step, ::step])
     noise = max(difference_noise(small), noise_floor_dn(image))
     sig = np.clip((small - bg) / noise, 0.0, None).astype(np.float32)
+    bright = None
+    if search is not None:
+        # Bright-spot search: LoG only around the beacon-bright cores. Elsewhere (a lit,
+        # textured deck at dusk) it finds thousands of blobs, and blob_log's pruning of
+        # overlapping blobs is quadratic in their number (a minute per 8 MP frame).
+        small_max = peak_block_max(search.image, f)[: sig.shape[0], : sig.shape[1]]
+        bright = small_max > search.threshold_dn
+        n, _, stats, _ = cv2.connectedComponentsWithStats(bright.astype(np.uint8), connectivity=8)
+        r_max = math.sqrt(float(stats[1:, cv2.CC_STAT_AREA].max()) / math.pi) if n > 1 else 1.0
+        R = int(math.ceil(3.0 * r_max + 3.0))  # the LoG of a disc of radius r reaches ~2 r
+        disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * R + 1, 2 * R + 1))
+        sig[cv2.dilate(bright.astype(np.uint8), disc) == 0] = 0.0
     # The scale-normalised LoG of unit-variance white noise has a standard deviation
     # of 0.40 at sigma = 1 (0.20 at 2, 0.10 at 4): the threshold is threshold_sigma
     # times that at the smallest scale searched.
@@ -48,9 +61,8 @@ def log_boxes(
         threshold=0.40 * options.threshold_sigma,
         overlap=0.5,
     )
-    if search is not None:
+    if bright is not None:
         # Bright-spot search: keep the LoG blobs that hold a beacon-bright core.
-        bright = peak_block_max(search.image, f) > search.threshold_dn
         hb, wb = bright.shape
         found = np.array(
             [
