@@ -153,7 +153,9 @@ def summarise(
                 "p95_px": float(np.percentile(np.hypot(du, dv), 95)) if len(m) else math.nan,
                 "crb_px": crb_rms,
                 "rms_over_crb": rms / crb_rms if crb_rms > 0 else math.nan,
-                "saturated": float(np.mean(sat)) if len(g) and np.all(np.isfinite(sat)) else math.nan,
+                "saturated": float(np.mean(sat))
+                if len(g) and np.all(np.isfinite(sat))
+                else math.nan,
                 "recall": len(m) / len(g) if len(g) else math.nan,
                 "precision": len(m) / n_det if n_det else math.nan,
                 "id_accuracy": float((m["det_beacon_id"] == m["beacon_id"]).mean())

@@ -137,7 +137,9 @@ class SpotSearch:
         return peak_channel(self.image[v0:v1, u0:u1])
 
 
-def bright_level(image: np.ndarray, small: np.ndarray, factor: int, rank: int = BRIGHT_RANK) -> float:
+def bright_level(
+    image: np.ndarray, small: np.ndarray, factor: int, rank: int = BRIGHT_RANK
+) -> float:
     """Value of the ``rank``-th brightest peak-channel pixel of ``image``, exactly.
 
     ``small`` holds the peak-channel maxima of ``factor x factor`` blocks; its own
@@ -160,7 +162,10 @@ def bright_level(image: np.ndarray, small: np.ndarray, factor: int, rank: int = 
         vals = pk[pk >= t]
     else:
         vals = np.concatenate(
-            [peak_channel(image[y * b : (y + 1) * b, x * b : (x + 1) * b]).ravel() for y, x in zip(ys, xs)]
+            [
+                peak_channel(image[y * b : (y + 1) * b, x * b : (x + 1) * b]).ravel()
+                for y, x in zip(ys, xs)
+            ]
         )
         vals = vals[vals >= t]
     k = min(rank, vals.size)
@@ -245,8 +250,8 @@ def bright_components(mask: np.ndarray, tile_px: int = 16_384) -> np.ndarray:
     """Bounding boxes ``(x, y, w, h)`` of the 8-connected components of a sparse mask, (n, 4).
 
     The same boxes as ``cv2.connectedComponentsWithStats`` on the whole mask
-    (sorted by top row, then left column), but found in two levels: components of a ``g x g`` block-max
-    copy with about ``tile_px`` pixels first, then components inside each of
+    (sorted by top row, then left column), but found in two levels: components of a
+    ``g x g`` block-max copy with about ``tile_px`` pixels first, then components inside each of
     those. Every component of ``mask`` lies within one component of the coarse
     copy (8-adjacent pixels have equal or 8-adjacent blocks), so labelling the
     pixels of each coarse component apart gives exactly the full labelling; only

@@ -146,7 +146,8 @@ def beacon_splats(layout: DeckLayout, poses: tuple[ShipPose, ...], camera_pose: 
         spread = centres - centres.mean(axis=0)
         S = sum(cv for _, cv, _ in comps) / k + spread.T @ spread / k
         sigma = float(np.linalg.det(S)) ** 0.25
-        out.append(Splat(row0, col0, patch, np.asarray(rgb, np.float32), i, sigma, float(core_flux)))
+        out.append(Splat(row0, col0, patch, np.asarray(rgb, np.float32), i, sigma,
+                         float(core_flux)))
     return out
 
 

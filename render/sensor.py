@@ -208,7 +208,10 @@ def spot_record(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splat
             if disc.any():
                 mean_raster = raster[r0:r1, c0:c1][disc].reshape(-1, 3).mean(axis=0)
         # expose(): mono frames are the grey raster (luma) times the luma-weighted scale
-        bg = np.array([float(mean_raster @ _LUMA) * float(scale @ _LUMA)]) if mono else mean_raster * scale
+        if mono:
+            bg = np.array([float(mean_raster @ _LUMA) * float(scale @ _LUMA)])
+        else:
+            bg = mean_raster * scale
         i = sp.beacon_id
         out["sigma_px"][i] = sp.sigma_px
         out["flux_e"][i] = sp.core_flux * e_per_rad * float(weights.sum())

@@ -21,7 +21,8 @@ def _spotty_image(rng: np.random.Generator, rgb: bool, dtype: type) -> np.ndarra
     img = rng.integers(0, 50, (H, W, 3) if rgb else (H, W)).astype(dtype)
     for _ in range(int(rng.integers(0, 30))):
         y, x = int(rng.integers(0, H)), int(rng.integers(0, W))
-        img[y : y + int(rng.integers(1, 8)), x : x + int(rng.integers(1, 8))] = rng.integers(50, 255)
+        h, w = int(rng.integers(1, 8)), int(rng.integers(1, 8))
+        img[y : y + h, x : x + w] = rng.integers(50, 255)
     return img
 
 

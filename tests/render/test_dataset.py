@@ -28,8 +28,9 @@ FRAME_COLS = ["frame_id", "image", "camera", "stamp_ns", "t_s", "camera_height_m
               "yaw_rad", "heave_m", "surge_m", "sway_m", "thesis_roll_deg", "thesis_pitch_deg",
               "thesis_yaw_deg", "lighting", "seed", "n_visible", *[f"r{i}{j}" for i in range(3) for j in range(3)],
               "cam_x_m", "cam_y_m", "cam_z_m"]
-BEACON_COLS = ["frame_id", "beacon_id", "u_px", "v_px", "visible", "in_image", "facing", "apparent_radius_px",
-               "spot_sigma_px", "spot_flux_e", "spot_background_e", "spot_peak_e"]
+BEACON_COLS = ["frame_id", "beacon_id", "u_px", "v_px", "visible", "in_image", "facing",
+               "apparent_radius_px", "spot_sigma_px", "spot_flux_e", "spot_background_e",
+               "spot_peak_e"]
 
 
 def _images(ds: Path) -> dict[str, bytes]:
