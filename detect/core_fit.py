@@ -7,11 +7,11 @@ clipped plateau. This fit uses exactly those pixels:
   ``b + F * |P|**0.5 / (2 pi) * exp(-d^T P d / 2)`` with ``d = (u - u_c, v - v_c)``
   and precision matrix ``P = L L^T``, ``L = [[p, 0], [q, r]]`` (positive
   definite for any ``p, q, r``), sampled at pixel centres: seven parameters;
-* the data are the pixels within the measuring window whose signal is at least
-  ``CORE_FRACTION`` of the core's top (the clip level, or the brightest pixel of
-  an unclipped core) above the floor it rises from (20th percentile of the
-  window), so the faint halo, a dark housing or a marking around the core do
-  not enter;
+* the data are the pixels within the measuring window, connected to the blob,
+  whose signal above the floor the core rises from (20th percentile of the
+  window) is at least ``CORE_FRACTION`` of the clip level (a clipped core) or
+  ``UNCLIPPED_CORE_FRACTION`` of the brightest pixel (an unclipped one), so the
+  faint halo, a dark housing or a marking around the core do not enter;
 * saturated pixels are *censored*: they only say that the true value is at or
   above the clip level, so their residual is ``min(model - data, 0)`` (no cost
   while the model reaches the clip level) and their rows of the Jacobian vanish
@@ -37,11 +37,15 @@ from scipy.optimize import least_squares
 from deckpose.detect.candidates import Candidate
 from deckpose.detect.centroid import Row
 
-#: Pixels whose signal reaches this fraction of the core's top enter the fit. Lower
-#: values reach into the halo and the housing edge of rendered beacons (0.05-0.1 doubled
-#: the error at 50-80 m by day), higher ones leave small cores too few pixels (0.7
+#: Pixels of a clipped core whose signal reaches this fraction of the clip level enter the
+#: fit. Lower values reach into the halo and the housing edge of rendered beacons (0.05-0.1
+#: doubled the error at 50-80 m by day), higher ones leave small cores too few pixels (0.7
 #: failed most 80 m beacons); measured on rendered detector-benchmark frames.
 CORE_FRACTION = 0.35
+#: The same for an unclipped core, as a fraction of its brightest pixel (2.8 sigma out):
+#: the wings hold much of the position information (0.35 lost ~70 % of it; measured on
+#: configs/detector_crb.yaml renders, 0.02 and 0.05 alike).
+UNCLIPPED_CORE_FRACTION = 0.02
 
 
 def elliptical_gaussian(
@@ -106,7 +110,8 @@ def core_fit(cand: Candidate, start: Row, window_sigma: float = 3.0) -> Row | No
     top = float(signal[sat_all].min()) if sat_all.any() else float(signal[near].max())
     if not top > 0:
         return None
-    sel = near & ((signal >= CORE_FRACTION * top) | sat_all)
+    frac = CORE_FRACTION if sat_all.any() else UNCLIPPED_CORE_FRACTION
+    sel = near & ((signal >= frac * top) | sat_all)
     # only the core's own pixels: the part of the selection connected to the blob
     n_lab, labels = cv2.connectedComponents(sel.astype(np.uint8), connectivity=8)
     own = np.unique(labels[cand.mask & sel])
@@ -120,6 +125,13 @@ def core_fit(cand: Candidate, start: Row, window_sigma: float = 3.0) -> Row | No
     # start: the cog centre, a round spot of the cog width, and a flux that reaches the top
     flux0 = max(F0, 2.0 * math.pi * s0 * s0 * top)
     p = np.array([u0, v0, inv_s, 0.0, inv_s, flux0, 0.0])  # background relative to floor
+    # bounds keep the model finite: centre within the window, widths 0.2-50 px, flux >= 0
+    reach = window_sigma * s0 + 2.0
+    bounds = (
+        [u0 - reach, v0 - reach, 0.02, -5.0, 0.02, 0.0, -np.inf],
+        [u0 + reach, v0 + reach, 5.0, 5.0, 5.0, np.inf, np.inf],
+    )
+    p[2] = p[4] = min(max(inv_s, 0.03), 4.9)
     for _ in range(2):  # weights from the current model, then once more from the fit
         m, _ = elliptical_gaussian(p, U, V)
         wts = 1.0 / np.sqrt(cand.noise_dn**2 + cand.gain_dn_per_e * np.maximum(m - p[6], 0.0))
@@ -136,7 +148,9 @@ def core_fit(cand: Candidate, start: Row, window_sigma: float = 3.0) -> Row | No
             return J
 
         try:
-            res = least_squares(fun, p, jac=jac, method="trf", x_scale="jac", max_nfev=100)
+            res = least_squares(
+                fun, p, jac=jac, bounds=bounds, method="trf", x_scale="jac", max_nfev=100
+            )
         except (ValueError, np.linalg.LinAlgError):
             return None
         p = res.x

@@ -74,6 +74,20 @@ class FrameSet:
     manifest: dict[str, Any] = field(default_factory=dict)
 
 
+def declared_gain(manifest: dict[str, Any]) -> float | None:
+    """The sensor gain (DN per electron) a dataset's manifest declares, or ``None``.
+
+    Rendered and synthetic datasets write it in their ``sensor`` block; detectors use it
+    for fit weights and covariances instead of estimating it from the frame's blobs
+    (rendered beacons are no Gaussians, which inflates that estimate).
+    """
+    doc = manifest.get("sensor")
+    gain = doc.get("gain_dn_per_e") if isinstance(doc, dict) else None
+    if isinstance(gain, (int, float)) and gain > 0 and doc.get("noise", True) is not False:
+        return float(gain)
+    return None
+
+
 def is_dataset(path: str | os.PathLike[str]) -> bool:
     """Whether ``path`` is a dataset folder (has a manifest.json)."""
     return (Path(path) / "manifest.json").is_file()

@@ -37,15 +37,17 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.detect import registry
     from deckpose.detect.bench_report import run_benchmark, write_report
     from deckpose.detect.registry import DetectorOptions
-    from deckpose.detect.sources import open_dataset
+    from deckpose.detect.sources import declared_gain, open_dataset
 
     for mod in args.plugin:
         registry.load_plugin(mod)
     names = args.detectors.split(",") if args.detectors else registry.names()
     for n in names:
         registry.get(n)
+    manifest = open_dataset(args.dataset).manifest
     options = DetectorOptions(
         threshold_sigma=args.threshold_sigma,
+        gain_dn_per_e=args.gain if args.gain is not None else declared_gain(manifest),
         background_kernel_px=args.background_kernel_px,
         spot_level=args.spot_level,
     )
@@ -58,7 +60,7 @@ def run(args: argparse.Namespace) -> int:
         summary,
         matches,
         dataset=str(args.dataset),
-        manifest=open_dataset(args.dataset).manifest,
+        manifest=manifest,
         options=options,
         note=args.note,
     )

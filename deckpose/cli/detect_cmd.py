@@ -36,12 +36,6 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         default=6.0,
         help="threshold in background-noise sigmas above the background (default 6)",
     )
-    p.add_argument(
-        "--gain",
-        type=float,
-        default=None,
-        help="sensor gain in DN per electron (default: estimated per frame)",
-    )
     add_detector_arguments(p)
     p.add_argument("--list", action="store_true", help="list the detectors and exit")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -50,6 +44,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
 
 def add_detector_arguments(p: argparse.ArgumentParser) -> None:
     """Options shared by ``detect`` and ``bench-detectors``: candidate search and plugins."""
+    p.add_argument(
+        "--gain",
+        type=float,
+        default=None,
+        help="sensor gain in DN per electron for covariances and fit weights (default: the "
+        "gain a dataset's manifest declares, else estimated per frame)",
+    )
     p.add_argument(
         "--background-kernel-px",
         type=int,
@@ -80,7 +81,12 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.detect.identify import IdentifyOptions
     from deckpose.detect.registry import DetectorOptions
     from deckpose.detect.run import detect_frames, write_run
-    from deckpose.detect.sources import is_dataset, open_dataset, open_image_folder
+    from deckpose.detect.sources import (
+        declared_gain,
+        is_dataset,
+        open_dataset,
+        open_image_folder,
+    )
     from deckpose.errors import ConfigError
 
     for mod in args.plugin:
@@ -102,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
         frameset = open_image_folder(args.dataset, args.camera_info, args.layout)
     options = DetectorOptions(
         threshold_sigma=args.threshold_sigma,
-        gain_dn_per_e=args.gain,
+        gain_dn_per_e=args.gain if args.gain is not None else declared_gain(frameset.manifest),
         background_kernel_px=args.background_kernel_px,
         spot_level=args.spot_level,
     )
