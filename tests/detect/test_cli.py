@@ -151,3 +151,12 @@ def test_bench_detectors_on_a_dataset_without_spot_model(tiny_dataset, tmp_path,
     md = (out / "bench_detectors.md").read_text()
     assert "CRB left empty: beacons.parquet lacks spot_sigma_px, spot_flux_e" in md
     assert "cpu_ms_per_frame" in table.columns and (table.cpu_ms_per_frame > 0).all()
+
+
+def test_declared_gain_comes_from_the_manifest_sensor_block():
+    from deckpose.detect.sources import declared_gain
+
+    assert declared_gain({"sensor": {"gain_dn_per_e": 0.273, "read_noise_e": 4}}) == 0.273
+    assert declared_gain({"sensor": {"gain_dn_per_e": 0.273, "noise": False}}) is None
+    assert declared_gain({"sensor": {"read_noise_e": 4}}) is None
+    assert declared_gain({}) is None  # an image folder or an old dataset: estimated per frame
