@@ -147,6 +147,45 @@ def thesis_comparison(table: pd.DataFrame) -> list[str]:
     return lines
 
 
+def provenance_lines(run: rl.RunPaths) -> list[str]:
+    """A "How this was made" section from the dataset manifest and ``pipeline.json`` (when present).
+
+    Parameters
+    ----------
+    run : RunPaths
+        The run folder.
+
+    Returns
+    -------
+    list of str
+        Markdown lines; empty when the run has neither record.
+    """
+    import json
+
+    lines: list[str] = []
+    if run.manifest.exists():
+        m = json.loads(run.manifest.read_text())
+        versions = m.get("versions", {})
+        lines.append(f"- Dataset: config `{m.get('name')}`, {m.get('n_frames')} frames, seed {m.get('seed')}, "
+                     f"rendered with deckpose {versions.get('deckpose', '?')} (numpy {versions.get('numpy', '?')}, "
+                     f"OpenCV {versions.get('opencv-contrib-python-headless', versions.get('opencv-python', '?'))}).")
+    record_path = run.root / "pipeline.json"
+    if record_path.exists():
+        r = json.loads(record_path.read_text())
+        mach = r.get("machine", {})
+        stages = ", ".join(f"{k} {v:.0f} s" for k, v in r.get("stage_seconds", {}).items())
+        if r.get("command"):
+            lines.append(f"- Command: `{' '.join(r['command'])}`")
+        lines.append(f"- Machine: {mach.get('platform', '?')}, {mach.get('cpu_count', '?')} CPUs, Python "
+                     f"{mach.get('python', '?')}; render workers {r.get('workers')}"
+                     + (f", Dask scheduler {r['scheduler']}" if r.get("scheduler") else "") + ".")
+        if stages:
+            lines.append(f"- Stage times on that machine (last pipeline run; the render stage resumes, so it "
+                         f"counts only the frames rendered in that run): {stages}.")
+        lines.append(f"- Finished {r.get('finished_utc', '?')}.")
+    return ["## How this was made", "", *lines, ""] if lines else []
+
+
 def write_report(run: rl.RunPaths) -> Path:
     """Write ``report/report.md`` and its figures for an evaluated run; return the Markdown path."""
     if not run.errors.exists():
@@ -173,6 +212,7 @@ def write_report(run: rl.RunPaths) -> Path:
              f"heights {', '.join(f'{h:g}' for h in sorted(frames.camera_height_m.unique()))} m; "
              f"detectors {', '.join(dets) or 'none'}; estimators {', '.join(sorted(errors.method.unique()))}.", "",
              "Share of frames with an estimate flagged ok: " + ", ".join(f"{d}+{m} {v:.1%}" for (d, m), v in ok.items()) + ".", "",
+             *provenance_lines(run),
              "## Error vs height", "", "![error vs height](figures/error_vs_height.png)", "",
              "## Error distributions", "", "![error distributions](figures/error_distributions.png)", "",
              "## Centroid error vs apparent beacon size", "", "![centroid vs size](figures/centroid_vs_size.png)", "",
