@@ -186,6 +186,17 @@ def provenance_lines(run: rl.RunPaths) -> list[str]:
     return ["## How this was made", "", *lines, ""] if lines else []
 
 
+def _run_title(run: rl.RunPaths) -> str:
+    """The dataset's config name from its manifest (the folder name when there is none)."""
+    import json
+
+    if run.manifest.exists():
+        name = json.loads(run.manifest.read_text()).get("name")
+        if name:
+            return str(name)
+    return run.root.name
+
+
 def write_report(run: rl.RunPaths) -> Path:
     """Write ``report/report.md`` and its figures for an evaluated run; return the Markdown path."""
     if not run.errors.exists():
@@ -207,7 +218,7 @@ def write_report(run: rl.RunPaths) -> Path:
         example_frame(run, row, beacons, dets, fig_dir / name)
         examples.append((cam, name))
     ok = errors.groupby(["detector", "method"])["ok"].mean()
-    lines = [f"# deckpose report: {run.root.name}", "",
+    lines = [f"# deckpose report: {_run_title(run)}", "",
              f"{len(frames)} rendered frames; cameras {', '.join(sorted(frames.camera.unique()))}; "
              f"heights {', '.join(f'{h:g}' for h in sorted(frames.camera_height_m.unique()))} m; "
              f"detectors {', '.join(dets) or 'none'}; estimators {', '.join(sorted(errors.method.unique()))}.", "",

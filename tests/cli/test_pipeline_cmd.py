@@ -41,6 +41,7 @@ def test_pipeline_runs_every_stage_publishes_and_resumes(tmp_path: Path, capsys:
     assert record["methods"] == ["conic", "pnp"] and record["detectors"] == ["cog"]
     assert set(record["stage_seconds"]) >= {"render", "detect", "estimate", "evaluate"}
     report = (pub / "report.md").read_text()
+    assert report.startswith("# deckpose report: tiny\n")  # titled by the config, not the folder
     assert "## How this was made" in report and "config `tiny`" in report and "seed 3" in report
     assert str(pub / "report.md") in capsys.readouterr().out
     # a second run keeps the rendered frames (resume) and rewrites the later stages
