@@ -16,7 +16,6 @@ import json
 import os
 import platform
 import shutil
-import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -26,6 +25,8 @@ from deckpose.atomic_io import atomic_open
 from deckpose.errors import ConfigError, DeckposeError
 
 DEFAULT_METHODS: tuple[str, ...] = ("thesis", "conic", "pnp")
+#: The stages, in order; ``--from-stage`` skips those before it (their outputs must exist).
+STAGES: tuple[str, ...] = ("render", "detect", "estimate", "evaluate", "report")
 PIPELINE_RECORD = "pipeline.json"
 
 
@@ -51,6 +52,8 @@ class PipelineOptions:
         Show progress bars.
     publish_dir : Path or None
         Copy the report, figures and resolution tables here at the end.
+    from_stage : str
+        First stage to run (one of :data:`STAGES`); earlier stages' outputs are reused.
     command : tuple of str
         The command line, recorded in ``pipeline.json``.
     """
@@ -63,6 +66,7 @@ class PipelineOptions:
     mcap: bool = True
     progress: bool = True
     publish_dir: Path | None = None
+    from_stage: str = "render"
     command: tuple[str, ...] = field(default_factory=tuple)
 
     def __post_init__(self) -> None:
@@ -70,6 +74,8 @@ class PipelineOptions:
             raise ConfigError("no detector given; pass --detector NAME (see 'deckpose detect --list')")
         if not self.methods:
             raise ConfigError("no estimator given; pass --method NAME (e.g. thesis, conic, pnp)")
+        if self.from_stage not in STAGES:
+            raise ConfigError(f"unknown stage {self.from_stage!r}; choose from {', '.join(STAGES)}")
         if self.workers < 0:
             raise ConfigError(f"--workers must be >= 0, got {self.workers}")
 
@@ -99,6 +105,9 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
     p.add_argument("--no-mcap", action="store_true", help="skip the MCAP log")
     p.add_argument("--publish", type=Path, default=None, metavar="DIR",
                    help="copy report.md, figures and resolution tables into DIR at the end")
+    p.add_argument("--from-stage", choices=STAGES, default="render",
+                   help="start at this stage, reusing the earlier stages' outputs in RUN (e.g. 'report' "
+                        "after changing only the report)")
     p.add_argument("--no-progress", action="store_true", help="no progress bars")
     p.set_defaults(func=run)
 
@@ -110,12 +119,27 @@ def run(args: argparse.Namespace) -> int:
     options = PipelineOptions(
         run_dir=args.run, detectors=tuple(args.detector), methods=tuple(args.method), workers=args.workers,
         scheduler=args.scheduler, mcap=not args.no_mcap, progress=not args.no_progress,
-        publish_dir=args.publish, command=("deckpose", *sys.argv[1:]) if sys.argv else (),
+        publish_dir=args.publish, from_stage=args.from_stage, command=_canonical_command(args),
     )
     paths = run_pipeline(config, options, config_label=str(args.config))
     for key, path in paths.items():
         print(f"  {key}: {path}")
     return 0
+
+
+def _canonical_command(args: argparse.Namespace) -> tuple[str, ...]:
+    """The command line that reproduces ``args`` (recorded in ``pipeline.json``)."""
+    cmd = ["deckpose", "pipeline", str(args.config), str(args.run), "--detector", ",".join(args.detector),
+           "--method", ",".join(args.method), "--workers", str(args.workers)]
+    if args.scheduler:
+        cmd += ["--scheduler", args.scheduler]
+    if args.no_mcap:
+        cmd.append("--no-mcap")
+    if args.publish is not None:
+        cmd += ["--publish", str(args.publish)]
+    if args.from_stage != STAGES[0]:
+        cmd += ["--from-stage", args.from_stage]
+    return tuple(cmd)
 
 
 def check_names(options: PipelineOptions) -> None:
@@ -128,6 +152,14 @@ def check_names(options: PipelineOptions) -> None:
         unknown = [n for n in given if n not in known]
         if unknown:
             raise ConfigError(f"unknown {kind} {', '.join(unknown)}; choose from {', '.join(known)}")
+
+
+def _read_record(run_dir: Path) -> dict:
+    path = Path(run_dir) / PIPELINE_RECORD
+    try:
+        return dict(json.loads(path.read_text()))
+    except (OSError, ValueError):
+        return {}
 
 
 def _machine() -> dict[str, object]:
@@ -172,35 +204,55 @@ def run_pipeline(config: object, options: PipelineOptions, config_label: str = "
         if code != 0:
             raise DeckposeError(f"step 'deckpose {' '.join(argv)}' failed (exit {code}); see the message above")
 
+    first = STAGES.index(options.from_stage)
+
+    def runs(stage: str) -> bool:
+        return STAGES.index(stage) >= first
+
+    paths = run_paths(run_dir)
+    if first > 0 and not paths.manifest.exists():
+        raise DeckposeError(f"--from-stage {options.from_stage} needs a rendered dataset in {run_dir}; "
+                            f"run the pipeline from the render stage first")
     t_all = time.perf_counter()
     t = time.perf_counter()
-    say(1, total, f"render {config_label or getattr(config, 'name', 'config')} -> {run_dir} (resumes frames on disk)")
-    render_dataset(config, run_dir, workers=options.workers, resume=True, scheduler=options.scheduler,
-                   progress=options.progress)
-    seconds["render"] = time.perf_counter() - t
+    if runs("render"):
+        say(1, total, f"render {config_label or getattr(config, 'name', 'config')} -> {run_dir} "
+                      "(resumes frames on disk)")
+        render_dataset(config, run_dir, workers=options.workers, resume=True, scheduler=options.scheduler,
+                       progress=options.progress)
+        seconds["render"] = time.perf_counter() - t
     t = time.perf_counter()
-    say(2, total, f"detect beacons ({', '.join(options.detectors)})")
-    for det in options.detectors:
-        sub(["detect", str(run_dir), "--detector", det, *no_progress])
-    seconds["detect"] = time.perf_counter() - t
+    if runs("detect"):
+        say(2, total, f"detect beacons ({', '.join(options.detectors)})")
+        for det in options.detectors:
+            sub(["detect", str(run_dir), "--detector", det, *no_progress])
+        seconds["detect"] = time.perf_counter() - t
     t = time.perf_counter()
-    say(3, total, f"estimate the pose ({', '.join(options.methods)})")
-    for det in options.detectors:
-        for method in options.methods:
-            sub(["estimate", "--run", str(run_dir), "--detector", det, "--method", method])
-    seconds["estimate"] = time.perf_counter() - t
+    if runs("estimate"):
+        say(3, total, f"estimate the pose ({', '.join(options.methods)})")
+        for det in options.detectors:
+            for method in options.methods:
+                sub(["estimate", "--run", str(run_dir), "--detector", det, "--method", method])
+        seconds["estimate"] = time.perf_counter() - t
     t = time.perf_counter()
-    say(4, total, "evaluate against the ground truth" + (", write the MCAP log" if options.mcap else ""))
-    sub(["evaluate", str(run_dir), *([] if options.mcap else ["--no-mcap"])])
-    seconds["evaluate"] = time.perf_counter() - t
-    paths = run_paths(run_dir)
+    if runs("evaluate"):
+        say(4, total, "evaluate against the ground truth" + (", write the MCAP log" if options.mcap else ""))
+        sub(["evaluate", str(run_dir), *([] if options.mcap else ["--no-mcap"])])
+        seconds["evaluate"] = time.perf_counter() - t
+    previous = _read_record(run_dir)
+    stage_seconds = {k: v for k, v in previous.get("stage_seconds", {}).items()
+                     if k in STAGES and not runs(k)}
+    stage_seconds.update({k: round(v, 1) for k, v in seconds.items()})
     record = {
         "command": list(options.command), "config": config_label, "config_name": getattr(config, "name", None),
         "detectors": list(options.detectors), "methods": list(options.methods), "workers": options.workers,
         "scheduler": options.scheduler, "deckpose_version": __version__, "machine": _machine(),
+        "from_stage": options.from_stage,
         "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
-        "stage_seconds": {k: round(v, 1) for k, v in seconds.items()},
+        "stage_seconds": {k: stage_seconds[k] for k in STAGES if k in stage_seconds},
     }
+    if first > 0 and previous.get("command"):
+        record["earlier_stages_command"] = previous.get("earlier_stages_command", previous["command"])
     with atomic_open(run_dir / PIPELINE_RECORD, "w") as fh:
         json.dump(record, fh, indent=2)
     t = time.perf_counter()
@@ -213,9 +265,8 @@ def run_pipeline(config: object, options: PipelineOptions, config_label: str = "
     if options.publish_dir is not None:
         say(6, total, f"publish the report and tables -> {options.publish_dir}")
         out["published"] = publish_report(run_dir, Path(options.publish_dir))
-    seconds["report"] = time.perf_counter() - t
-    seconds["total"] = time.perf_counter() - t_all
-    print(f"pipeline done in {seconds['total']:.0f} s", flush=True)
+    print(f"pipeline done in {time.perf_counter() - t_all:.0f} s (report {time.perf_counter() - t:.0f} s)",
+          flush=True)
     return out
 
 

@@ -39,6 +39,7 @@ def test_pipeline_runs_every_stage_publishes_and_resumes(tmp_path: Path, capsys:
     assert not (pub / "log.mcap").exists() and not (pub / "images").exists()
     record = json.loads((pub / "pipeline.json").read_text())
     assert record["methods"] == ["conic", "pnp"] and record["detectors"] == ["cog"]
+    assert record["command"][:4] == ["deckpose", "pipeline", str(cfg), str(run)]
     assert set(record["stage_seconds"]) >= {"render", "detect", "estimate", "evaluate"}
     report = (pub / "report.md").read_text()
     assert report.startswith("# deckpose report: tiny\n")  # titled by the config, not the folder
@@ -65,3 +66,26 @@ def test_publish_needs_a_report(tmp_path: Path) -> None:
     with pytest.raises(DeckposeError, match="deckpose report"):
         publish_report(tmp_path / "run", tmp_path / "pub")
     assert not (tmp_path / "pub").exists()
+
+
+def test_from_stage_reuses_earlier_outputs_and_keeps_their_record(tmp_path: Path) -> None:
+    cfg, run = _tiny_config(tmp_path), tmp_path / "run"
+    assert main(["pipeline", str(cfg), str(run), "--method", "pnp", "--workers", "1", "--no-progress",
+                 "--no-mcap"]) == 0
+    detections = run / "detections" / "cog.parquet"
+    before = detections.stat().st_mtime_ns
+    first = json.loads((run / "pipeline.json").read_text())
+    assert main(["pipeline", str(cfg), str(run), "--method", "pnp", "--no-progress", "--no-mcap",
+                 "--from-stage", "report"]) == 0
+    assert detections.stat().st_mtime_ns == before  # detection was not run again
+    second = json.loads((run / "pipeline.json").read_text())
+    assert second["from_stage"] == "report"
+    assert second["stage_seconds"]["detect"] == first["stage_seconds"]["detect"]
+    assert second["earlier_stages_command"] == first["command"]
+    assert "came from an earlier run of" in (run / "report" / "report.md").read_text()
+
+
+def test_from_stage_needs_a_dataset(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cfg = _tiny_config(tmp_path)
+    assert main(["pipeline", str(cfg), str(tmp_path / "none"), "--from-stage", "detect", "--no-progress"]) == 2
+    assert "needs a rendered dataset" in capsys.readouterr().err
