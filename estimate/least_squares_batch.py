@@ -44,9 +44,10 @@ class FrameObservations:
         Layout position of each observation's beacon, deck frame, metres.
     xy : (F, M, 2) array of float
         Undistorted normalised image coordinates.
-    sqrt_info : (F, M, 2, 2) array of float
-        ``L`` with ``L.T @ L`` the inverse covariance of ``xy``.
-    px_from_norm : (F, M, 2, 2) array of float
+    sqrt_info : (F, M, 2, 2) or (F, 1, 2, 2) array of float
+        ``L`` with ``L.T @ L`` the inverse covariance of ``xy`` (one per frame
+        when it is the same for all points).
+    px_from_norm : (F, M, 2, 2) or (F, 1, 2, 2) array of float
         Local Jacobian d(pixel)/d(normalised).
     R_world_from_cam : (F, 3, 3) array of float
         Camera attitude of each frame.

@@ -154,11 +154,9 @@ def group_observations(
         with np.errstate(invalid="ignore"):
             first_iso = ((c0[:, 0, 1] == 0.0) & (c0[:, 1, 0] == 0.0) & (c0[:, 0, 0] == c0[:, 1, 1])
                          & (c0[:, 0, 0] > 0) & np.isfinite(c0[:, 0, 0]))
-        c0_all = np.empty_like(cov)
         c0_full = np.zeros((F, 2, 2))
         c0_full[has] = c0
-        c0_all[:] = c0_full[frame_of]
-        same = _per_frame_all(np.all(cov == c0_all, axis=(1, 2)), frame_of, F)
+        same = _per_frame_all(np.all(cov == c0_full[frame_of], axis=(1, 2)), frame_of, F)
         iso[has] = first_iso & same[has]
         sigma_iso[iso] = np.sqrt(c0_full[iso, 0, 0])
     with np.errstate(invalid="ignore"):
@@ -196,6 +194,7 @@ def group_observations(
             sel = np.ones(n, dtype=bool)
             sel[drop] = False
             index, fidx, xy, D, L = index[sel], fidx[sel], xy[sel], np.asarray(D)[sel], L[sel]
+            general = general[sel]
             n = index.size
     used = np.bincount(fidx, minlength=F)
     ids = ids_all[index]
@@ -212,7 +211,11 @@ def group_observations(
         g_ids = np.frombuffer(key, dtype=np.int64).copy()
         M = g_ids.size
         rows = first[fr, None] + np.arange(M)[None, :]
-        obs = FrameObservations(
-            g_ids, pos[g_ids], xy[rows], L[rows], D[rows], R_world_from_cam[fr])
+        if M and not np.any(general[rows]):
+            # Linear camera, one isotropic sigma per frame: one whitening matrix per frame.
+            Lg, Dg = L[rows[:, :1]], D[rows[:, :1]]
+        else:
+            Lg, Dg = L[rows], D[rows]
+        obs = FrameObservations(g_ids, pos[g_ids], xy[rows], Lg, Dg, R_world_from_cam[fr])
         out.append(ObservationGroup(fr, obs, stacked.counts[fr] - used[fr]))
     return out
