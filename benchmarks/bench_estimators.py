@@ -194,6 +194,23 @@ def speed_table(variants: list[tuple[str, str, dict]], frames: int, repeats: int
         print(f"{label:>13} {1e6 * t_s / frames:>16.1f} {1e6 * t_b / frames:>15.1f} {t_s / t_b:>6.1f}", flush=True)
 
 
+def markdown_tables(df: pd.DataFrame, targets: dict[str, float]) -> str:
+    """Per-cell Markdown tables (ratio RMS / CRB, bold above the estimator's target) of a results CSV."""
+    out = []
+    for label, g in df.groupby("estimator", sort=False):
+        limit = targets.get(label, math.inf)
+        out += [f"### `{label}`", "",
+                "| σ px | H m | camera | roll | pitch | yaw | height | not ok | µs/frame single | µs/frame batch |",
+                "|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|"]
+        for _, r in g.iterrows():
+            cells = [f"**{r[f'ratio_{q}']:.3f}**" if r[f"ratio_{q}"] > limit else f"{r[f'ratio_{q}']:.3f}"
+                     for q in ("roll", "pitch", "yaw", "height")]
+            out.append(f"| {r.sigma_px:g} | {r.height_m:g} | {r.camera} | " + " | ".join(cells)
+                       + f" | {int(r.not_ok)} | {r.us_per_frame:.0f} | {r.us_per_frame_batch:.0f} |")
+        out.append("")
+    return "\n".join(out)
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--trials", type=int, default=2000, help="Monte Carlo trials per cell")
@@ -209,7 +226,13 @@ def main(argv: list[str] | None = None) -> int:
                     help="time only the batch (skip the single-frame calls and the agreement check)")
     ap.add_argument("--speed", type=int, default=0, metavar="FRAMES",
                     help="only the speed table: FRAMES frames at 8mp, 30 m, sigma 0.5 px, best of 3")
+    ap.add_argument("--tables-from", type=Path, default=None, metavar="CSV",
+                    help="only print the per-cell Markdown tables of a CSV this script wrote")
     args = ap.parse_args(argv)
+    if args.tables_from is not None:
+        print(markdown_tables(pd.read_csv(args.tables_from),
+                              {"pnp": 1.05, "conic+refine": 1.05, "conic": 3.0}))
+        return 0
     known = set(registry.names())
     variants = [v for v in VARIANTS if v[0] in args.estimators and v[1] in known]
     skipped = [v[0] for v in VARIANTS if v[0] in args.estimators and v[1] not in known]
