@@ -1,7 +1,7 @@
 """The ``conic`` estimator for many frames at once (see :mod:`estimate.conic`).
 
 :func:`conic_candidates_batch` is :func:`estimate.conic.conic_candidates` on stacked
-frames: one batched ellipse fit, both candidate planes, the in-plane alignment,
+frames: one batched ellipse fit, the imaged-centre plane and the eigen planes, the in-plane alignment,
 then the Gauss–Newton polish (or, with ``refine``, Levenberg–Marquardt) of the
 competing starts. A frame whose unrefined candidates look ambiguous is left to
 the single-frame path, which settles it at the converged optima.
@@ -14,7 +14,9 @@ from deckpose.estimate.conic import ALT_MARGIN_CHI2, MIN_RING_BEACONS
 from deckpose.estimate.conic_geometry_batch import (
     circle_planes_batch,
     fit_ellipses,
+    imaged_centres,
     in_plane_alignment_batch,
+    planes_from_centres,
 )
 from deckpose.estimate.least_squares_batch import (
     FitBatch,
@@ -80,6 +82,20 @@ def conic_candidates_batch(obs: FrameObservations, layout: DeckLayout,
     C, fit_ok = fit_ellipses(obs.xy[:, ring])
     normals, centres, plane_ok = circle_planes_batch(C, layout.radius_m)
     plane_ok &= fit_ok[:, None]
+    # With the imaged centre, its polar is the first plane and the eigen plane farthest from it
+    # the competitor (estimate.conic.conic_candidates).
+    centre_xy, centre_ok, unsure = imaged_centres(obs.xy, obs.points_deck_m, ring, obs.ids == layout.centre_id)
+    n_c, X_c, c_ok = planes_from_centres(C, centre_xy, obs.xy[:, ring], layout.radius_m)
+    c_ok &= centre_ok & fit_ok
+    if np.any(c_ok):
+        with np.errstate(invalid="ignore"):
+            dist = np.sqrt(np.sum((normals - n_c[:, None, :]) ** 2, axis=2))
+        far = np.where(plane_ok[:, 1] & (~plane_ok[:, 0] | (dist[:, 1] > dist[:, 0])), 1, 0)
+        ar = np.arange(F)
+        rows = np.flatnonzero(c_ok)
+        far_n, far_X, far_ok = normals[ar, far], centres[ar, far], plane_ok.any(axis=1)
+        normals[rows, 1], centres[rows, 1], plane_ok[rows, 1] = far_n[rows], far_X[rows], far_ok[rows]
+        normals[rows, 0], centres[rows, 0], plane_ok[rows, 0] = n_c[rows], X_c[rows], True
     p0 = np.full((F, 2, 6), np.nan)
     start_ok = np.zeros((F, 2), dtype=bool)
     chi0 = np.full((F, 2), np.inf)
@@ -112,7 +128,7 @@ def conic_candidates_batch(obs: FrameObservations, layout: DeckLayout,
         fits.append(scatter_fit(F, rows, f))
     centre_used = float(layout.centre_id in obs.ids) if layout.centre_id is not None else 0.0
     cands = BatchCandidates(
-        tuple(fits), np.stack([has_first, has_second], axis=1), ~has_first,
+        tuple(fits), np.stack([has_first, has_second], axis=1), ~has_first | unsure,
         (Extra("centre_beacon_used", np.full(F, centre_used)),))
     if options.refine:
         return cands

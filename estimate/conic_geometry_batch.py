@@ -1,7 +1,8 @@
 """The conic method's geometry for many frames at once.
 
 Stacked twins of :func:`estimate.ellipse_fit.fit_ellipse_direct`,
-:func:`estimate.circle_pose.circle_planes` and
+:func:`estimate.circle_pose.circle_planes`, :func:`estimate.circle_pose.imaged_centre`,
+:func:`estimate.circle_pose.plane_from_centre` and
 :func:`estimate.circle_pose.in_plane_alignment`, step by step the same
 arithmetic, with a validity mask where the single-frame function returns
 ``None`` or fewer planes.
@@ -10,6 +11,7 @@ arithmetic, with a validity mask where the single-frame function returns
 from __future__ import annotations
 
 import numpy as np
+from deckpose.estimate.circle_pose import diameter_pairs
 from deckpose.estimate.ellipse_fit import _C1_INV
 from deckpose.estimate.least_squares_batch import solve_batch
 from numpy.typing import NDArray
@@ -205,3 +207,102 @@ def in_plane_alignment_batch(
         R = np.stack([x_deck, y_deck, n_up], axis=2)
         t = centre_m + shift[:, 0, None] * e1 + shift[:, 1, None] * e2
     return R, t, ok
+
+
+def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, centre: BoolArray
+                   ) -> tuple[FloatArray, BoolArray, BoolArray]:
+    """Least-squares image of the deck centre per frame (the batched :func:`circle_pose.imaged_centre`).
+
+    Parameters
+    ----------
+    xy : (F, N, 2) array of float
+        Normalised image points.
+    points_deck_m : (N, 3) array of float
+    ring, centre : (N,) array of bool
+        Which rows are ring beacons, and which is the centre beacon.
+
+    Returns
+    -------
+    centre_xy : (F, 2) array of float
+    ok : (F,) array of bool
+        Where the single-frame function returns a centre (not None).
+    unsure : (F,) array of bool
+        Frames where a diameter's two image points coincide: the single-frame
+        function drops that line, which this batch does not model.
+    """
+    F = xy.shape[0]
+    unsure = np.zeros(F, dtype=bool)
+    rows, rhs, weights = [], [], []
+    for i, j in diameter_pairs(points_deck_m, ring):
+        xi, yi, xj, yj = xy[:, i, 0], xy[:, i, 1], xy[:, j, 0], xy[:, j, 1]
+        L0, L1, L2 = yi - yj, xj - xi, xi * yj - yi * xj
+        norm = np.hypot(L0, L1)
+        unsure |= ~(norm > 0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rows.append(np.stack([L0 / norm, L1 / norm], axis=1))
+            rhs.append(-(L2 / norm))
+        weights.append(2.0)
+    n_lines = len(rows)
+    for k in np.flatnonzero(centre):
+        rows += [np.broadcast_to([1.0, 0.0], (F, 2)), np.broadcast_to([0.0, 1.0], (F, 2))]
+        rhs += [xy[:, k, 0], xy[:, k, 1]]
+        weights += [1.0, 1.0]
+    if n_lines < 2 and not np.any(centre):
+        return np.full((F, 2), np.nan), np.zeros(F, dtype=bool), unsure
+    w = np.sqrt(np.asarray(weights))
+    A = np.stack(rows, axis=1) * w[None, :, None]  # (F, R, 2)
+    b = np.stack(rhs, axis=1) * w[None, :]
+    finite = np.all(np.isfinite(A), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
+    unsure |= ~finite
+    A[~finite] = np.eye(A.shape[1], 2)
+    b[~finite] = 0.0
+    # Minimum-norm least squares through the SVD, with numpy.linalg.lstsq's rank cut-off.
+    U, s, Vt = np.linalg.svd(A, full_matrices=False)
+    cut = np.finfo(float).eps * max(A.shape[1], 2) * s[:, :1]
+    big = s > cut
+    rank = big.sum(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        coef = np.where(big, np.einsum("frk,fr->fk", U, b) / s, 0.0)
+    sol = np.einsum("fkj,fk->fj", Vt, coef)
+    ok = finite & (rank >= 2) & np.all(np.isfinite(sol), axis=1)
+    sol[~ok] = np.nan
+    return sol, ok, unsure
+
+
+def planes_from_centres(C: FloatArray, centre_xy: FloatArray, ring_xy: FloatArray, radius_m: float
+                        ) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """The circle's plane from its conic and its imaged centre, per frame (:func:`circle_pose.plane_from_centre`).
+
+    Parameters
+    ----------
+    C : (F, 3, 3) array of float
+    centre_xy : (F, 2) array of float
+    ring_xy : (F, M, 2) array of float
+    radius_m : float
+
+    Returns
+    -------
+    normal_up, centre_m : (F, 3) array of float
+    ok : (F,) array of bool
+        Where the single-frame function returns a plane.
+    """
+    F = C.shape[0]
+    c = np.concatenate([centre_xy, np.ones((F, 1))], axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        line = ((0.5 * (C + np.swapaxes(C, 1, 2))) @ c[:, :, None])[:, :, 0]
+        norm = np.sqrt(np.sum(line * line, axis=1))
+        ok = np.isfinite(norm) & (norm > 0)
+        n_up = line / norm[:, None]
+        n_up = np.where((np.sum(n_up * c, axis=1) > 0)[:, None], -n_up, n_up)
+        u = np.concatenate([ring_xy, np.ones(ring_xy.shape[:2] + (1,))], axis=2)
+        den_ring = -(u @ n_up[:, :, None])[:, :, 0]
+        den_c = -np.sum(n_up * c, axis=1)
+        ok &= (den_c > 1e-12) & np.all(den_ring > 1e-12, axis=1)
+        diff = u / den_ring[:, :, None] - (c / den_c[:, None])[:, None, :]
+        spread = np.mean(np.sqrt(np.sum(diff * diff, axis=2)), axis=1)
+        ok &= spread > 0
+        d = radius_m / spread
+        centre_m = d[:, None] * c / den_c[:, None]
+    n_up[~ok] = np.nan
+    centre_m[~ok] = np.nan
+    return n_up, centre_m, ok

@@ -60,6 +60,8 @@ def _mixed_frames(rng: np.random.Generator, camera) -> list[Detections]:
         _with(d, np.column_stack([np.linspace(500.0, 1500.0, len(d)),            # collinear
                                   np.linspace(400.0, 900.0, len(d))])),
         _with(d, d.points_px + rng.normal(0.0, 40.0, d.points_px.shape)),       # noise far above sigma
+        _with(d, np.where((d.beacon_ids == 6)[:, None], d.points_px[d.beacon_ids == 0], d.points_px)),
+        # ... and beacon 6 seen where beacon 0 is: a diameter of zero length
     ]
     # Anisotropic detector covariances on otherwise clean frames.
     for f in _random_frames(rng, 4, camera, 0.5):
