@@ -176,12 +176,9 @@ def diameter_pairs(points_deck_m: FloatArray, ring: NDArray[np.bool_]) -> list[t
     idx = np.flatnonzero(ring)
     p = points_deck_m[idx, :2]
     scale = float(np.max(np.linalg.norm(p, axis=1))) if len(idx) else 0.0
-    pairs = []
-    for a in range(len(idx)):
-        for b in range(a + 1, len(idx)):
-            if np.linalg.norm(p[a] + p[b]) <= _OPPOSITE_TOL * max(scale, 1.0):
-                pairs.append((int(idx[a]), int(idx[b])))
-    return pairs
+    sums = np.linalg.norm(p[:, None, :] + p[None, :, :], axis=2)
+    a, b = np.nonzero(np.triu(sums <= _OPPOSITE_TOL * max(scale, 1.0), k=1))
+    return [(int(idx[i]), int(idx[j])) for i, j in zip(a, b)]
 
 
 def imaged_centre(xy: FloatArray, points_deck_m: FloatArray, ring: NDArray[np.bool_],
@@ -209,26 +206,20 @@ def imaged_centre(xy: FloatArray, points_deck_m: FloatArray, ring: NDArray[np.bo
         The imaged centre, normalised coordinates; None unless there are at least
         two diameters, or the centre beacon, to fix it.
     """
-    rows, rhs, weights = [], [], []
-    for i, j in diameter_pairs(points_deck_m, ring):
-        L = np.cross(np.append(xy[i], 1.0), np.append(xy[j], 1.0))
-        norm = np.hypot(L[0], L[1])
-        if not norm > 0:
-            continue
-        L = L / norm
-        rows.append(L[:2])
-        rhs.append(-L[2])
-        weights.append(2.0)
-    n_lines = len(rows)
-    for k in np.flatnonzero(centre):
-        rows += [np.array([1.0, 0.0]), np.array([0.0, 1.0])]
-        rhs += [float(xy[k, 0]), float(xy[k, 1])]
-        weights += [1.0, 1.0]
-    if n_lines < 2 and not np.any(centre):
+    pairs = np.asarray(diameter_pairs(points_deck_m, ring), dtype=np.int64).reshape(-1, 2)
+    p, q = xy[pairs[:, 0]], xy[pairs[:, 1]]
+    # line through p and q: (a, b) . x + c = 0 with (a, b) the unit normal
+    ab = np.column_stack([p[:, 1] - q[:, 1], q[:, 0] - p[:, 0]])
+    norm = np.hypot(ab[:, 0], ab[:, 1])
+    good = norm > 0
+    ab = ab[good] / norm[good, None]
+    c = -np.sum(ab * p[good], axis=1)
+    k = np.flatnonzero(centre)
+    if len(ab) < 2 and len(k) == 0:
         return None
-    w = np.sqrt(np.asarray(weights))
-    A = np.asarray(rows) * w[:, None]
-    b = np.asarray(rhs) * w
+    # weight 2 on a line, 1 on each coordinate of the centre beacon (rows scaled by sqrt(weight))
+    A = np.vstack([np.sqrt(2.0) * ab, np.tile(np.eye(2), (len(k), 1))])
+    b = np.concatenate([-np.sqrt(2.0) * c, xy[k].ravel()])
     sol, _, rank, _ = np.linalg.lstsq(A, b, rcond=None)
     if rank < 2 or not np.all(np.isfinite(sol)):
         return None
