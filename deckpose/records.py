@@ -198,7 +198,7 @@ class PoseEstimate:
             cov = _freeze(self.covariance, float)
             check_shape("covariance", cov, (6, 6))
             object.__setattr__(self, "covariance", cov)
-        object.__setattr__(self, "inliers", tuple(int(i) for i in self.inliers))
+        object.__setattr__(self, "inliers", tuple(map(int, self.inliers)))
         object.__setattr__(self, "extras", MappingProxyType(dict(self.extras)))
 
     def __bool__(self) -> bool:

@@ -4,19 +4,38 @@ This is the entry point the CLI and the benchmarks use: estimators that refine
 by themselves (``conic``, ``pnp``) mark their result ``extras["refined"] = 1``;
 for any other (the thesis's) :func:`run_estimator` appends the generic
 maximum-likelihood refinement when ``options.refine`` is set.
+
+:func:`estimate_batch` estimates many frames at once: ``conic``, ``pnp`` and
+``thesis`` (and the refinement) run as stacked array operations over all frames
+that share a beacon set, which costs a small fraction of one call per frame.
+Frames the batched path cannot settle (an outlier to remove, an unresolved
+ambiguity, any failure) are re-estimated by the single-frame path, so every
+result is the one :func:`run_estimator` gives, to rounding.
 """
 
 from __future__ import annotations
 
-from collections.abc import Iterable
+import dataclasses
+from collections.abc import Iterable, Sequence
 
+import numpy as np
 from deckpose.estimate import registry
-from deckpose.estimate.refine import refine_estimate
+from deckpose.estimate.conic_batch import conic_candidates_batch
+from deckpose.estimate.observations_batch import group_observations, stack_detections
+from deckpose.estimate.pnp_batch import pnp_candidates_batch
+from deckpose.estimate.refine import refine_estimate, refine_estimates_batch
 from deckpose.estimate.registry import EstimateOptions
+from deckpose.estimate.solution_batch import finish_batch
+from deckpose.estimate.thesis import estimate_thesis_frames
+from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
+from deckpose.errors import ConfigError, ShapeError
 from deckpose.layout import DeckLayout
 from deckpose.records import Detections, PoseEstimate
+
+#: Frames estimated together in one stacked call (bounds memory, keeps arrays in cache).
+CHUNK_FRAMES = 2048
 
 
 def run_estimator(
@@ -30,6 +49,109 @@ def run_estimator(
     return est
 
 
+def _check_rotations(R: np.ndarray) -> None:
+    """The per-frame form of :class:`EstimateOptions`' check of ``R_world_from_cam``."""
+    with np.errstate(invalid="ignore"):
+        bad = ~np.all(np.isfinite(R), axis=(1, 2))
+        bad |= ~np.all(np.isclose(np.swapaxes(R, 1, 2) @ R, np.eye(3), atol=1e-6), axis=(1, 2))
+        bad |= np.linalg.det(np.where(np.isfinite(R), R, 0.0)) < 0
+    if np.any(bad):
+        i = int(np.flatnonzero(bad)[0])
+        raise ConfigError(f"R_world_from_cam of frame {i} (position in the batch) is not a proper rotation "
+                          "matrix (finite, orthonormal, det +1); fix the camera attitudes")
+
+
+def _frame_options(options: EstimateOptions, R: np.ndarray) -> EstimateOptions:
+    if np.array_equal(R, options.R_world_from_cam):
+        return options
+    return dataclasses.replace(options, R_world_from_cam=R)
+
+
+def _least_squares_batch(
+    name: str, dets: Sequence[Detections], camera: CameraModel, layout: DeckLayout,
+    options: EstimateOptions, R_wc: np.ndarray,
+) -> list[PoseEstimate | None]:
+    """``conic`` or ``pnp`` on stacked frames; None where the single-frame path must decide."""
+    out: list[PoseEstimate | None] = [None] * len(dets)
+    groups = group_observations(stack_detections(dets), camera, layout, R_wc, sigma_px=options.sigma_px,
+                                use_detection_covariance=options.use_detection_covariance)
+    for g in groups:
+        with np.errstate(all="ignore"):
+            if name == "conic":
+                cands = conic_candidates_batch(g.observations, layout, options)
+            else:
+                cands = pnp_candidates_batch(g.observations)
+            if not len(cands.fits):
+                continue
+            ests = finish_batch(name, cands, g.observations, g.n_ignored,
+                                ambiguity_chi2=options.ambiguity_chi2, outlier_chi2=options.outlier_chi2,
+                                max_reprojection_rms_px=options.max_reprojection_rms_px,
+                                refined=options.refine if name == "conic" else True)
+        for f, e in zip(g.frames.tolist(), ests):
+            out[f] = e
+    return out
+
+
+def estimate_batch(
+    name: str,
+    detections: Iterable[Detections],
+    camera: CameraModel,
+    layout: DeckLayout,
+    options: EstimateOptions,
+    *,
+    R_world_from_cam: NDArray[np.float64] | None = None,
+) -> list[PoseEstimate]:
+    """Estimate many frames of one camera with estimator ``name``, batched where possible.
+
+    Parameters
+    ----------
+    name : str
+        A registered estimator. ``conic``, ``pnp`` and ``thesis`` (and
+        ``options.refine`` for any estimator) are batched; others run frame by frame.
+    detections : iterable of Detections
+    camera : CameraModel
+    layout : DeckLayout
+    options : EstimateOptions
+    R_world_from_cam : (F, 3, 3) array of float, optional, keyword-only
+        Each frame's camera attitude, instead of ``options.R_world_from_cam``.
+
+    Returns
+    -------
+    list of PoseEstimate
+        One per frame, in order: the same records as :func:`run_estimator` frame by
+        frame, to rounding (the iterations stop on the same tolerances).
+    """
+    fn = registry.get(name)
+    dets = list(detections)
+    F = len(dets)
+    if R_world_from_cam is None:
+        R_wc = np.broadcast_to(np.asarray(options.R_world_from_cam, dtype=float), (F, 3, 3))
+    else:
+        R_wc = np.asarray(R_world_from_cam, dtype=float)
+        if R_wc.shape != (F, 3, 3):
+            raise ShapeError(f"R_world_from_cam: expected ({F}, 3, 3) for {F} frames, got {R_wc.shape}; "
+                             "give one camera attitude per frame")
+        _check_rotations(R_wc)
+    out: list[PoseEstimate] = []
+    for lo in range(0, F, CHUNK_FRAMES):
+        chunk, R_chunk = dets[lo:lo + CHUNK_FRAMES], np.ascontiguousarray(R_wc[lo:lo + CHUNK_FRAMES])
+        if name in ("conic", "pnp"):
+            got = _least_squares_batch(name, chunk, camera, layout, options, R_chunk)
+        elif name == "thesis":
+            got = list(estimate_thesis_frames(chunk, camera, layout, R_chunk))
+        else:
+            got = [fn(d, camera, layout, _frame_options(options, R)) for d, R in zip(chunk, R_chunk)]
+        todo = [i for i, e in enumerate(got) if e is None]
+        for i in todo:  # the single-frame path for what the batch left open
+            got[i] = run_estimator(name, chunk[i], camera, layout, _frame_options(options, R_chunk[i]))
+        ests: list[PoseEstimate] = got  # type: ignore[assignment]
+        if options.refine and name not in ("conic", "pnp"):
+            ests = refine_estimates_batch(ests, chunk, camera, layout, options, R_chunk,
+                                          skip=set(todo))
+        out.extend(ests)
+    return out
+
+
 def estimate_many(
     name: str,
     detections: Iterable[Detections],
@@ -37,7 +159,7 @@ def estimate_many(
     layout: DeckLayout,
     options: EstimateOptions,
 ) -> list[PoseEstimate]:
-    """Estimate every frame of ``detections`` with estimator ``name``.
+    """Estimate every frame of ``detections`` with estimator ``name`` (batched: :func:`estimate_batch`).
 
     Parameters
     ----------
@@ -53,4 +175,4 @@ def estimate_many(
     list of PoseEstimate
         One per frame, in order; failures are falsy estimates with a reason.
     """
-    return [run_estimator(name, det, camera, layout, options) for det in detections]
+    return estimate_batch(name, detections, camera, layout, options)

@@ -9,6 +9,19 @@ so on every plane ``a.X = k`` (or ``b.X = k``) the cone meets the sphere
 candidate supporting planes; the known radius fixes ``k``. The image of the
 circle's centre is the pole of the plane's vanishing line, ``C^-1 n``, which is
 what lets the imaged centre beacon tell the two candidates apart.
+
+Conversely, when the image of the centre is known, the plane follows without
+the eigen-decomposition and its two-fold ambiguity (:func:`plane_from_centre`):
+the centre is the pole of the line at infinity, and poles and polars survive
+projection, so the vanishing line of the deck is the polar ``l = C c`` of the
+imaged centre ``c``, and in normalised coordinates the deck normal is ``l``
+itself. The imaged centre is measured by :func:`imaged_centre`: the centre
+beacon, and the lines through diametrically opposite ring beacons, which all
+meet at the image of the centre (incidence is projective too). Using every
+labelled ring beacon this way makes the normal first-order in the tilt and keeps
+the closed-form pose near the Cramér–Rao bound, where the eigen route, whose
+tilt comes from the ellipse's eccentricity (second order in the tilt), is
+several times above it near nadir.
 """
 
 from __future__ import annotations
@@ -139,3 +152,120 @@ def in_plane_alignment(
     R = np.column_stack([x_deck, y_deck, n_up])
     t = plane.centre_m + shift[0] * e1 + shift[1] * e2
     return R, t
+
+
+#: Two ring beacons are diametrically opposite when their positions sum to less than this x radius.
+_OPPOSITE_TOL = 1e-9
+
+
+def diameter_pairs(points_deck_m: FloatArray, ring: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    """Pairs of rows whose deck positions are diametrically opposite ring beacons.
+
+    Parameters
+    ----------
+    points_deck_m : (N, 3) array of float
+        Deck positions of the observations, metres (centre at the origin).
+    ring : (N,) array of bool
+        Which rows are ring beacons.
+
+    Returns
+    -------
+    list of (int, int)
+        Row pairs ``(i, j)``, ``i < j``, with ``p_i = -p_j``.
+    """
+    idx = np.flatnonzero(ring)
+    p = points_deck_m[idx, :2]
+    scale = float(np.max(np.linalg.norm(p, axis=1))) if len(idx) else 0.0
+    sums = np.linalg.norm(p[:, None, :] + p[None, :, :], axis=2)
+    a, b = np.nonzero(np.triu(sums <= _OPPOSITE_TOL * max(scale, 1.0), k=1))
+    return [(int(idx[i]), int(idx[j])) for i, j in zip(a, b)]
+
+
+def imaged_centre(xy: FloatArray, points_deck_m: FloatArray, ring: NDArray[np.bool_],
+                  centre: NDArray[np.bool_]) -> FloatArray | None:
+    """Least-squares image of the deck centre from the centre beacon and the ring's diameters.
+
+    Every line through two diametrically opposite ring beacons passes through the
+    image of the centre; the centre beacon is an observation of it. The estimate
+    minimises the squared distances to those lines (weight 2: the error of a line
+    at its midpoint is the mean of its two end points' errors) and to the centre
+    beacon (weight 1).
+
+    Parameters
+    ----------
+    xy : (N, 2) array of float
+        Normalised image points.
+    points_deck_m : (N, 3) array of float
+        Their deck positions.
+    ring, centre : (N,) array of bool
+        Which rows are ring beacons, and which is the centre beacon.
+
+    Returns
+    -------
+    (2,) array of float or None
+        The imaged centre, normalised coordinates; None unless there are at least
+        two diameters, or the centre beacon, to fix it.
+    """
+    pairs = np.asarray(diameter_pairs(points_deck_m, ring), dtype=np.int64).reshape(-1, 2)
+    p, q = xy[pairs[:, 0]], xy[pairs[:, 1]]
+    # line through p and q: (a, b) . x + c = 0 with (a, b) the unit normal
+    ab = np.column_stack([p[:, 1] - q[:, 1], q[:, 0] - p[:, 0]])
+    norm = np.hypot(ab[:, 0], ab[:, 1])
+    good = norm > 0
+    ab = ab[good] / norm[good, None]
+    c = -np.sum(ab * p[good], axis=1)
+    k = np.flatnonzero(centre)
+    if len(ab) < 2 and len(k) == 0:
+        return None
+    # weight 2 on a line, 1 on each coordinate of the centre beacon (rows scaled by sqrt(weight))
+    A = np.vstack([np.sqrt(2.0) * ab, np.tile(np.eye(2), (len(k), 1))])
+    b = np.concatenate([-np.sqrt(2.0) * c, xy[k].ravel()])
+    sol, _, rank, _ = np.linalg.lstsq(A, b, rcond=None)
+    if rank < 2 or not np.all(np.isfinite(sol)):
+        return None
+    return np.asarray(sol, dtype=float)
+
+
+def plane_from_centre(C: FloatArray, centre_xy: FloatArray, ring_xy: FloatArray,
+                      radius_m: float) -> CirclePlane | None:
+    """The circle's plane from its image conic and the image of its centre (no ambiguity).
+
+    The deck normal is the polar of the imaged centre, ``n ∝ C c``; the distance
+    makes the ring's back-projected points lie, on average, ``radius_m`` from the
+    back-projected centre.
+
+    Parameters
+    ----------
+    C : (3, 3) array of float
+        Ring conic, normalised coordinates.
+    centre_xy : (2,) array of float
+        Imaged circle centre, normalised (:func:`imaged_centre`).
+    ring_xy : (M, 2) array of float
+        Normalised ring points, M >= 1.
+    radius_m : float
+        Ring radius.
+
+    Returns
+    -------
+    CirclePlane or None
+        None if the polar is degenerate or a ring ray misses the plane.
+    """
+    c = np.array([centre_xy[0], centre_xy[1], 1.0])
+    line = 0.5 * (C + C.T) @ c
+    norm = float(np.linalg.norm(line))
+    if not (np.isfinite(norm) and norm > 0):
+        return None
+    n_up = line / norm
+    if n_up @ c > 0:
+        n_up = -n_up  # the camera (origin) is on the +n_up side of the deck
+    u = np.column_stack([ring_xy, np.ones(len(ring_xy))])
+    den_ring = -(u @ n_up)
+    den_c = -float(n_up @ c)
+    if not (den_c > 1e-12 and np.all(den_ring > 1e-12)):
+        return None
+    # back-projections onto the plane -n_up . X = 1
+    spread = float(np.mean(np.linalg.norm(u / den_ring[:, None] - c / den_c, axis=1)))
+    if not spread > 0:
+        return None
+    d = radius_m / spread
+    return CirclePlane(n_up, d * c / den_c)

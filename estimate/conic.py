@@ -2,29 +2,41 @@
 
 1. Undistort the detections and remove ``K`` (any fx, fy, skew, principal point).
 2. Fit the ring beacons' ellipse in float64 (direct, normalised least squares).
-3. Recover the two candidate deck planes of a circle of the layout's radius from
-   the conic (:mod:`~deckpose.estimate.circle_pose`).
-4. For each, align the layout in the plane with every identified beacon (2-D
-   Procrustes: yaw about the normal from the bow beacon's id and all others,
-   and the centre offset).
-5. Keep the candidate that reprojects the identified beacons best; the centre
-   beacon's residual is the pole–polar test of the conic's centre. Without a
-   centre beacon the ring ids decide, or — if that fails and
+3. Recover the deck plane from the conic (:mod:`~deckpose.estimate.circle_pose`):
+   when the image of the deck centre is known — from the centre beacon and the
+   lines through diametrically opposite ring beacons, which all pass through it —
+   the plane's normal is the centre's polar (the vanishing line), a single
+   solution; otherwise the conic's eigen-decomposition gives two candidates.
+4. For each candidate, align the layout in the plane with every identified
+   beacon (2-D Procrustes: yaw about the normal from the bow beacon's id and all
+   others, and the centre offset).
+5. Keep the candidate that reprojects the identified beacons best. Without the
+   imaged centre the ring ids decide, or — if that fails and
    ``assume_level_deck`` is set — the more level deck (stated in the extras).
 
 Full pose (roll, pitch, yaw, height, surge, sway) in the world frame via the
-known camera attitude ``options.R_world_from_cam``. The closed-form solution
-uses the conic only for the deck plane, which leaves roll and pitch several
-times above the Cramér–Rao bound; by default one Gauss–Newton step on all
-identified beacons polishes it (``options.conic_polish_steps``, 0 = pure
-geometry). With ``options.refine`` each candidate is refined to the maximum-
-likelihood optimum before the choice.
+known camera attitude ``options.R_world_from_cam``. The imaged-centre route
+makes the closed-form tilt first-order in the image measurements, so the pure
+geometric solution stays within about 1.6x the Cramér–Rao bound
+(``benchmarks/bench_estimators.py``); the eigen route alone, whose tilt comes
+from the ellipse's eccentricity, is several times above it near nadir.
+By default one Gauss–Newton step on all identified beacons follows
+(``options.conic_polish_steps``; 0 = pure geometry): the reported covariance
+assumes an efficient estimate, and with few, noisy beacons far away the pure
+geometric solution can sit several of those sigmas off. With
+``options.refine`` each candidate is refined to the maximum-likelihood optimum
+before the choice.
 """
 
 from __future__ import annotations
 
 import numpy as np
-from deckpose.estimate.circle_pose import circle_planes, in_plane_alignment
+from deckpose.estimate.circle_pose import (
+    circle_planes,
+    imaged_centre,
+    in_plane_alignment,
+    plane_from_centre,
+)
 from deckpose.estimate.ellipse_fit import fit_ellipse_direct
 from deckpose.estimate.least_squares import Fit, chi2_at, evaluate_fit, levenberg_marquardt
 from deckpose.estimate.observations import Observations
@@ -70,6 +82,13 @@ def conic_candidates(obs: Observations, layout: DeckLayout, R_world_from_cam: np
     if C is None:
         return "the ring beacons do not fit an ellipse (collinear or degenerate points)"
     planes = circle_planes(C, layout.radius_m)
+    centre = imaged_centre(obs.xy, obs.points_deck_m, ring, obs.ids == layout.centre_id)
+    plane = None if centre is None else plane_from_centre(C, centre, obs.xy[ring], layout.radius_m)
+    if plane is not None:
+        # The imaged-centre plane is the better closed form; the eigen candidate farthest
+        # from it stays as the competitor, so a real two-fold ambiguity is still tested.
+        others = sorted(planes, key=lambda p: -float(np.linalg.norm(p.normal_up - plane.normal_up)))
+        planes = [plane, *others[:1]]
     if not planes:
         return "the fitted conic is not the image of a circle in front of the camera"
     starts = []

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Collection, Sequence
 
 import numpy as np
 from deckpose.estimate.least_squares import levenberg_marquardt
@@ -70,8 +71,86 @@ def refine_estimate(
                                 failure_prefix="refinement failed numerically")
     if not refined.ok and refined.reason.startswith("refinement failed numerically"):
         return refined
+    return _merge(estimate, refined)
+
+
+def _merge(estimate: PoseEstimate, refined: PoseEstimate) -> PoseEstimate:
+    """The refined record under the estimate's method, keeping the estimate's extras and values."""
     extras = {k: v for k, v in estimate.extras.items() if k not in refined.extras}
     for name in ("roll_rad", "pitch_rad", "yaw_rad", "height_m", "surge_m", "sway_m"):
         extras["unrefined_" + name] = float(getattr(estimate, name))
     extras.update(refined.extras)
-    return dataclasses.replace(refined, extras=extras)
+    return dataclasses.replace(refined, method=estimate.method, extras=extras)
+
+
+def refine_estimates_batch(
+    estimates: Sequence[PoseEstimate],
+    detections: Sequence[Detections],
+    camera: CameraModel,
+    layout: DeckLayout,
+    options: EstimateOptions,
+    R_world_from_cam: np.ndarray,
+    *,
+    skip: Collection[int] = (),
+) -> list[PoseEstimate]:
+    """:func:`refine_estimate` for many frames: one stacked Levenberg–Marquardt per beacon set.
+
+    Parameters
+    ----------
+    estimates : sequence of PoseEstimate
+        Any estimator's results, one per frame.
+    detections : sequence of Detections
+    camera, layout, options
+        As for :func:`refine_estimate`.
+    R_world_from_cam : (F, 3, 3) array of float
+        Each frame's camera attitude.
+    skip : collection of int, keyword-only
+        Frames returned unchanged (already refined).
+
+    Returns
+    -------
+    list of PoseEstimate
+        What :func:`refine_estimate` returns frame by frame, to rounding; frames
+        the batch cannot settle (outliers, failures) go through it.
+    """
+    from deckpose.estimate.least_squares_batch import levenberg_marquardt_batch
+    from deckpose.estimate.observations_batch import group_observations, stack_detections
+    from deckpose.estimate.solution_batch import BatchCandidates, finish_batch
+
+    out = list(estimates)
+    todo = [i for i, e in enumerate(estimates)
+            if i not in skip and e.ok and not e.extras.get("refined", 0.0)]
+    p0 = {i: initial_params(estimates[i]) for i in todo}
+    todo = [i for i in todo if p0[i] is not None]
+    if not todo:
+        return out
+    sub = [detections[i] for i in todo]
+    groups = group_observations(stack_detections(sub), camera, layout, R_world_from_cam[todo],
+                                sigma_px=options.sigma_px,
+                                use_detection_covariance=options.use_detection_covariance)
+    done: dict[int, PoseEstimate] = {}
+    for g in groups:
+        if g.observations.ids.size < MIN_BEACONS:
+            continue
+        frames = [todo[f] for f in g.frames.tolist()]
+        starts = np.array([p0[i] for i in frames])
+        with np.errstate(all="ignore"):
+            fit = levenberg_marquardt_batch(starts, g.observations)
+            F = len(frames)
+            cands = BatchCandidates((fit,), np.ones((F, 1), dtype=bool), np.zeros(F, dtype=bool))
+            ests = finish_batch("", cands, g.observations, g.n_ignored, ambiguity_chi2=options.ambiguity_chi2,
+                                outlier_chi2=options.outlier_chi2,
+                                max_reprojection_rms_px=options.max_reprojection_rms_px,
+                                refined=True, pick=False)
+        for i, e in zip(frames, ests):
+            if e is not None:
+                done[i] = _merge(estimates[i], e)
+    for i in todo:
+        if i in done:
+            out[i] = done[i]
+        else:
+            R = R_world_from_cam[i]
+            opts = options if np.array_equal(R, options.R_world_from_cam) else dataclasses.replace(
+                options, R_world_from_cam=R)
+            out[i] = refine_estimate(estimates[i], detections[i], camera, layout, opts)
+    return out

@@ -57,8 +57,11 @@ class EstimateOptions:
         closer to level (stated in the result's extras) instead of failing.
     conic_polish_steps : int
         Gauss-Newton steps on all identified beacons that polish the ``conic``
-        method's closed-form solution (0 = the pure geometric solution). ``refine``
-        iterates to convergence instead.
+        method's closed-form solution (0 = the pure geometric solution, within about
+        1.6x the Cramér–Rao bound with all beacons; the default single step brings it
+        to the bound and makes the reported covariance, which assumes an efficient
+        estimate, trustworthy with few beacons too). ``refine`` iterates to
+        convergence instead.
     """
 
     sigma_px: float = 1.0

@@ -147,6 +147,18 @@ def _too_few(obs: Observations, min_points: int) -> str:
     return f"too few identified beacons: {len(obs)} usable, this method needs at least {min_points}"
 
 
+#: An estimate whose angle sigmas exceed this (or whose height sigma exceeds its height) is not ok.
+MAX_ANGLE_SIGMA_RAD = 0.5
+
+
+def _constrained(params: np.ndarray, sigmas: np.ndarray) -> bool:
+    """Whether the covariance pins the pose down at all: sigma height below the height, and
+    every angle sigma below :data:`MAX_ANGLE_SIGMA_RAD` (near-coincident or collinear points
+    give a finite but meaningless covariance)."""
+    return bool(np.all(np.isfinite(sigmas)) and sigmas[5] < abs(params[5])
+                and np.all(sigmas[:3] < MAX_ANGLE_SIGMA_RAD))
+
+
 def make_estimate(
     method: str,
     result: Candidate | str,
@@ -179,6 +191,11 @@ def make_estimate(
         problems.append("non-finite pose or reprojection error")
     elif cov is None:
         problems.append("covariance undefined: the beacons do not constrain all six parameters")
+    elif not _constrained(p, np.sqrt(np.diag(cov))):
+        problems.append(
+            f"the beacons hardly constrain the pose: sigma height {np.sqrt(cov[5, 5]):.3g} m for a height of "
+            f"{p[5]:.3g} m, sigma roll/pitch/yaw up to {np.degrees(np.sqrt(np.max(np.diag(cov)[:3]))):.3g} deg "
+            f"(limits: sigma height < height, angle sigmas < {np.degrees(MAX_ANGLE_SIGMA_RAD):.0f} deg)")
     if math.isfinite(fit.rms_px) and fit.rms_px > max_reprojection_rms_px:
         problems.append(
             f"reprojection RMS {fit.rms_px:.2f} px exceeds max_reprojection_rms_px={max_reprojection_rms_px}")

@@ -15,6 +15,7 @@ same rotation in our ZYX convention. The method gives no surge or sway.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 
@@ -27,6 +28,7 @@ from deckpose.records import Detections, PoseEstimate
 from deckpose.rotation import zyx_from_thesis
 
 METHOD = "thesis"
+_NOT_NADIR = "the thesis method assumes a nadir camera with the image top to the bow"
 
 
 def thesis_inputs(
@@ -77,7 +79,7 @@ def estimate_thesis(
         Falsy with a reason where the published method breaks down.
     """
     if not np.allclose(options.R_world_from_cam, R_WORLD_FROM_NADIR_CAM, atol=1e-12):
-        return PoseEstimate.failed(METHOD, "the thesis method assumes a nadir camera with the image top to the bow")
+        return PoseEstimate.failed(METHOD, _NOT_NADIR)
     points, mask = thesis_inputs(detections, camera, layout)
     res = estimate_thesis_batch(points[None], mask[None], camera.fx, camera.fy, layout.radius_m)
     if not res.ok[0]:
@@ -101,3 +103,65 @@ def estimate_thesis(
             "yz2": float(res.yz2[0]),
         },
     )
+
+
+def estimate_thesis_frames(
+    detections: Sequence[Detections],
+    camera: CameraModel,
+    layout: DeckLayout,
+    R_world_from_cam: np.ndarray,
+) -> list[PoseEstimate | None]:
+    """:func:`estimate_thesis` for many frames in one :func:`estimate_thesis_batch` call.
+
+    Parameters
+    ----------
+    detections : sequence of Detections
+    camera : CameraModel
+    layout : DeckLayout
+    R_world_from_cam : (F, 3, 3) array of float
+        Each frame's camera attitude (the method needs nadir).
+
+    Returns
+    -------
+    list of PoseEstimate or None
+        The records :func:`estimate_thesis` gives; None for a frame that lists a
+        ring beacon twice (left to the single-frame function).
+    """
+    F = len(detections)
+    out: list[PoseEstimate | None] = [None] * F
+    if F == 0:
+        return out
+    nadir = np.all(np.isclose(R_world_from_cam, R_WORLD_FROM_NADIR_CAM, rtol=1e-5, atol=1e-12), axis=(1, 2))
+    counts = np.array([len(d) for d in detections], dtype=np.int64)
+    frame_of = np.repeat(np.arange(F), counts)
+    ids = np.concatenate([d.beacon_ids for d in detections]) if counts.sum() else np.zeros(0, np.int64)
+    pts = np.concatenate([d.points_px for d in detections]) if counts.sum() else np.zeros((0, 2))
+    keep = (ids >= 0) & (ids < layout.n_ring)
+    slot = frame_of[keep] * layout.n_ring + ids[keep]
+    twice = np.bincount(slot, minlength=F * layout.n_ring).reshape(F, layout.n_ring).max(axis=1) > 1
+    uv = camera.undistort(pts[keep])
+    points = np.full((F * layout.n_ring, 2), np.nan)
+    points[slot, 0] = uv[:, 0] - camera.cx
+    points[slot, 1] = camera.cy - uv[:, 1]
+    mask = np.zeros(F * layout.n_ring, dtype=bool)
+    mask[slot] = True
+    points, mask = points.reshape(F, layout.n_ring, 2), mask.reshape(F, layout.n_ring)
+    res = estimate_thesis_batch(points, mask, camera.fx, camera.fy, layout.radius_m)
+    roll, pitch, yaw = zyx_from_thesis(*np.radians([res.roll_deg, res.pitch_deg, res.yaw_deg]))
+    cols = [a.tolist() for a in (res.roll_deg, res.pitch_deg, res.yaw_deg, roll, pitch, yaw,
+                                 res.height, res.yz2)]
+    for i in range(F):
+        if twice[i]:
+            continue
+        if not nadir[i]:
+            out[i] = PoseEstimate.failed(METHOD, _NOT_NADIR)
+        elif not res.ok[i]:
+            out[i] = PoseEstimate.failed(METHOD, res.reason(i))
+        else:
+            t_roll, t_pitch, t_yaw, r, p, y, h, yz2 = (c[i] for c in cols)
+            out[i] = PoseEstimate(
+                method=METHOD, ok=True, roll_rad=r, pitch_rad=p, yaw_rad=y, height_m=h,
+                surge_m=math.nan, sway_m=math.nan, inliers=tuple(np.flatnonzero(mask[i]).tolist()),
+                extras={"thesis_roll_deg": t_roll, "thesis_pitch_deg": t_pitch,
+                        "thesis_yaw_deg": t_yaw, "yz2": yz2})
+    return out

@@ -12,17 +12,24 @@ Topics (Foxglove protobuf schemas, zstd-compressed chunks):
   and ``world -> deck_est/<detector>--<method>`` per estimate;
 * ``/errors/<detector>--<method>`` (JSON): the per-frame errors, for Foxglove's Plot panel.
 
-Timestamps come from the motion time base (``stamp_ns``). A run that replays one
-motion series for several cameras and heights would repeat stamps, so each
-(camera, height) group is shifted after the previous one; every message keeps
-the motion time in ``t_s`` (JSON) and the true stamp in the frame tables.
-Log and publish times are always given explicitly.
+Timestamps come from the motion time base (``stamp_ns``). A run replays one
+motion series for every camera, height and lighting, which would repeat stamps,
+so each replay is shifted after the previous one (:func:`log_stamps`); every
+message keeps the motion time in ``t_s`` (JSON) and the true stamp in the frame
+tables. Log and publish times are always given explicitly.
+
+The layout and the messages follow what the Foxglove app reads (checked with the
+app's reader libraries by ``tools/foxglove_check``): image annotation points use
+the top-left corner of the top-left pixel as origin (Foxglove's convention, half
+a pixel off OpenCV's pixel centres); JSON channels carry a JSON Schema with a
+typed ``properties`` entry per field (the app's parser requires them).
 """
 
 from __future__ import annotations
 
 import json
 import math
+import re
 from pathlib import Path
 
 import cv2
@@ -57,7 +64,7 @@ DETECTION_RGBA = (1.0, 0.3, 0.1, 1.0)
 class McapLog:
     """An open MCAP file that registers schemas and channels on first use."""
 
-    def __init__(self, fh) -> None:  # noqa: ANN001 - binary file object
+    def __init__(self, fh) -> None:  # fh: a binary file object
         self._w = Writer(fh, compression=CompressionType.ZSTD)
         self._w.start(profile="", library="deckpose")
         self._schemas: dict[str, int] = {}
@@ -70,15 +77,16 @@ class McapLog:
             self._channels[topic] = self._w.register_channel(topic, encoding, self._schemas[schema_name])
         return self._channels[topic]
 
-    def proto(self, topic: str, msg, stamp_ns: int) -> None:  # noqa: ANN001 - protobuf message
+    def proto(self, topic: str, msg, stamp_ns: int) -> None:  # msg: a protobuf message
         name = msg.DESCRIPTOR.full_name
         cid = self._channel(topic, name, "protobuf",
                             build_file_descriptor_set(type(msg)).SerializeToString(), "protobuf")
         self._w.add_message(cid, log_time=stamp_ns, publish_time=stamp_ns, data=msg.SerializeToString())
 
-    def json(self, topic: str, obj: dict, stamp_ns: int, schema_name: str = "deckpose.FrameErrors") -> None:
-        schema = json.dumps({"type": "object", "title": schema_name}).encode()
-        cid = self._channel(topic, schema_name, "json", schema, "jsonschema")
+    def json(self, topic: str, obj: dict, stamp_ns: int, schema: dict) -> None:
+        """Log ``obj`` as JSON on ``topic``; ``schema`` is its JSON Schema, named by its title."""
+        cid = self._channel(topic, schema["title"], "json", json.dumps(schema).encode(),
+                            "jsonschema")
         self._w.add_message(cid, log_time=stamp_ns, publish_time=stamp_ns,
                             data=json.dumps(obj, allow_nan=False).encode())
 
@@ -130,8 +138,23 @@ def calibration_msg(camera: CameraModel, scale: float, stamp_ns: int, width: int
 
 def annotations_msg(points_px: np.ndarray, ids: np.ndarray, sx: float, sy: float, stamp_ns: int,
                     rgba: tuple[float, float, float, float], label: str) -> ImageAnnotations:
-    """Points (with id labels) in preview pixels."""
-    pts = [Point2(x=float((u + 0.5) * sx - 0.5), y=float((v + 0.5) * sy - 0.5)) for u, v in points_px]
+    """Points (with id labels) in preview pixels, in Foxglove's image coordinates.
+
+    Parameters
+    ----------
+    points_px : (N, 2) array of float, pixels
+        Full-resolution points, OpenCV convention (pixel centres at integers).
+    ids : (N,) array of int
+        Beacon ids (-1: unidentified).
+    sx, sy : float
+        Preview pixels per full-resolution pixel along u and v.
+    stamp_ns : int
+        Annotation timestamp, integer nanoseconds (the image's).
+
+    Foxglove puts the origin at the top-left corner of the top-left pixel, so a
+    full-resolution pixel centre ``u`` lands at ``(u + 0.5) * sx`` in the preview.
+    """
+    pts = [Point2(x=float((u + 0.5) * sx), y=float((v + 0.5) * sy)) for u, v in points_px]
     ann = ImageAnnotations()
     ann.points.append(PointsAnnotation(timestamp=_ts(stamp_ns), type=PointsAnnotation.Type.POINTS, points=pts,
                                        outline_color=_color(rgba), fill_color=_color(rgba), thickness=6.0))
@@ -150,15 +173,53 @@ def _transform(parent: str, child: str, R: np.ndarray, t: np.ndarray, stamp_ns: 
 
 
 def log_stamps(frames: pd.DataFrame) -> pd.Series:
-    """Monotone log times: ``stamp_ns`` shifted per (camera, height) group so groups do not overlap."""
+    """Distinct, monotone log times, integer nanoseconds, one per frame.
+
+    A dataset replays its motion series for every camera, height and lighting
+    (the render plan nests motion samples innermost), so ``stamp_ns`` repeats.
+    Within each (camera, height) group, in frame-id order, a replay ends where
+    ``stamp_ns`` stops increasing; replays are laid end to end, one second apart,
+    each keeping its own stamp spacing.
+    """
+    order = frames.sort_values(["camera", "camera_height_m", "frame_id"], kind="stable")
+    s = order["stamp_ns"].to_numpy(np.int64)
+    cam = order["camera"].to_numpy()
+    height = order["camera_height_m"].to_numpy()
+    starts = np.ones(len(order), dtype=bool)
+    starts[1:] = (s[1:] <= s[:-1]) | (cam[1:] != cam[:-1]) | (height[1:] != height[:-1])
+    replay = np.cumsum(starts) - 1
     out = pd.Series(0, index=frames.index, dtype=np.int64)
     offset = 0
-    for _, g in frames.groupby(["camera", "camera_height_m"], sort=True):
-        s = g["stamp_ns"].astype(np.int64)
-        base = int(s.min())
-        out.loc[g.index] = s - base + offset
-        offset += int(s.max() - base) + 1_000_000_000  # one second between groups
+    for r in range(int(replay.max()) + 1 if len(order) else 0):
+        sel = replay == r
+        st = s[sel]
+        out.loc[order.index[sel]] = st - st[0] + offset
+        offset += int(st[-1] - st[0]) + 1_000_000_000  # one second between replays
     return out
+
+
+def errors_json_schema(errors: pd.DataFrame, title: str = "deckpose.FrameErrors") -> dict:
+    """JSON Schema of the per-frame error messages (the columns of ``errors`` plus ``t_s``).
+
+    Every field gets a ``properties`` entry with a JSON type the Foxglove app's
+    parser accepts (number, integer, boolean, string); NaN is written as null.
+    """
+    props: dict[str, dict] = {}
+    for name, dtype in errors.dtypes.items():
+        if pd.api.types.is_bool_dtype(dtype):
+            kind = "boolean"
+        elif pd.api.types.is_integer_dtype(dtype):
+            kind = "integer"
+        elif pd.api.types.is_float_dtype(dtype):
+            kind = "number"
+        else:
+            kind = "string"
+        props[str(name)] = {"type": kind}
+    props.update(frame_id={"type": "integer"},
+                 t_s={"type": "number", "description": "motion time, s"},
+                 detector={"type": "string"}, method={"type": "string"})
+    return {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": title,
+            "type": "object", "properties": props}
 
 
 def _finite(d: dict) -> dict:
@@ -178,7 +239,9 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
     pairs = run.estimate_pairs()
     ests = {p: rl.read_estimates(run, *p).set_index("frame_id") for p in pairs}
     err_by_pair = {}
+    err_schema: dict = {}
     if errors is not None and len(errors):
+        err_schema = errors_json_schema(errors)
         for (d, m), g in errors.groupby(["detector", "method"]):
             err_by_pair[(d, m)] = g.set_index("frame_id")
     stamps = log_stamps(frames)
@@ -195,7 +258,7 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
             img = preview_image(run.root / row["image"], scale)
             h, w = img.shape[:2]
             sx, sy = w / cam.width_px, h / cam.height_px
-            ok, png = cv2.imencode(".png", img)
+            _, png = cv2.imencode(".png", img)
             log.proto("/camera/image", CompressedImage(timestamp=_ts(ts), frame_id="camera",
                                                        data=png.tobytes(), format="png"), ts)
             log.proto("/camera/calibration", calibration_msg(cam, scale, ts, w, h), ts)
@@ -231,31 +294,51 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
                     rec = edf.loc[f]
                     obj = {k: (v.item() if hasattr(v, "item") else v) for k, v in rec.items()}
                     obj.update(frame_id=f, t_s=float(row["t_s"]), detector=d, method=m)
-                    log.json(f"/errors/{d}{rl.SEPARATOR}{m}", _finite(obj), ts)
+                    log.json(f"/errors/{d}{rl.SEPARATOR}{m}", _finite(obj), ts, err_schema)
         log.finish()
     return out
 
 
+def plot_path(topic: str, field: str) -> str:
+    """A Foxglove message path ``<topic>.<field>``; topics outside ``/[A-Za-z0-9_-]`` are quoted.
+
+    The app's message-path grammar reads an unquoted topic as slash-separated ids
+    of ``[A-Za-z0-9_-]``, so a topic with any other character (a dot, a space) must
+    be written as a double-quoted string, backslashes and double quotes escaped.
+    """
+    if re.fullmatch(r"(/[A-Za-z0-9_-]*)+", topic):
+        return f"{topic}.{field}"
+    quoted = topic.replace("\\", "\\\\").replace('"', '\\"')
+    return f'"{quoted}".{field}'
+
+
 def foxglove_layout(detectors: list[str], pairs: list[tuple[str, str]]) -> dict:
-    """A Foxglove layout: image with annotations, 3D view of the frames, error plots."""
+    """A Foxglove layout: image with annotations, 3D view of the frames, error plots.
+
+    Keys follow the app's panel configs: ``imageMode`` (image, calibration and a
+    ``{topic: {visible}}`` annotation map) for the Image panel; ``followTf`` and
+    ``scene.transforms`` (axis and label settings) for the 3D panel; ``paths`` of
+    message paths for the Plot panel; and ``playbackConfig``, which the app reads.
+    """
     annotations = {"/annotations/truth": {"visible": True}}
     annotations.update({f"/annotations/{d}": {"visible": True} for d in detectors})
     paths = []
     for d, m in pairs:
         for q in ("roll_err_deg", "pitch_err_deg", "yaw_err_deg", "height_err_m"):
-            paths.append({"value": f"/errors/{d}{rl.SEPARATOR}{m}.{q}", "enabled": True,
+            paths.append({"value": plot_path(f"/errors/{d}{rl.SEPARATOR}{m}", q), "enabled": True,
                           "timestampMethod": "receiveTime", "label": f"{d}+{m} {q}"})
     return {
         "configById": {
             "Image!deckpose": {"imageMode": {"imageTopic": "/camera/image",
                                              "calibrationTopic": "/camera/calibration",
                                              "annotations": annotations}},
-            "3D!deckpose": {"followTf": "world", "topics": {"/tf": {"visible": True}},
-                            "transforms": {"showLabel": True, "axisScale": 3}},
+            "3D!deckpose": {"followTf": "world",
+                            "scene": {"transforms": {"showLabel": True, "axisScale": 3}}},
             "Plot!errors": {"paths": paths, "showLegend": True, "xAxisVal": "timestamp"},
         },
         "globalVariables": {},
         "userNodes": {},
+        "playbackConfig": {"speed": 1.0},
         "layout": {"direction": "row", "first": "Image!deckpose",
                    "second": {"direction": "column", "first": "3D!deckpose", "second": "Plot!errors",
                               "splitPercentage": 50},

@@ -48,18 +48,33 @@ def resolution_of(camera_name: str) -> str | None:
 
 
 def plot_error_vs_height(table: pd.DataFrame, path: Path) -> None:
-    fig, axes = plt.subplots(1, 4, figsize=(16, 3.8))
-    for ax, (q, label) in zip(axes, (("roll", "roll"), ("pitch", "pitch"), ("yaw", "yaw"), ("height", "height"))):
-        for (det, method, cam), g in table.groupby(["detector", "method", "camera"]):
-            g = g.sort_values("table_height_m")
-            line, = ax.plot(g.table_height_m, g[f"sigma_{q}"], "o-", label=f"{cam} {det}+{method}")
-            if f"crb_{q}" in g:
-                ax.plot(g.table_height_m, g[f"crb_{q}"], "--", color=line.get_color(), alpha=0.7)
-        ax.set_xlabel("camera height [m]")
-        ax.set_ylabel(f"{label} error sigma [{'m' if q == 'height' else 'deg'}]")
-        ax.grid(alpha=0.3)
-    axes[0].legend(fontsize=7)
-    fig.suptitle("Error sigma vs height per resolution (dashed: Cramer-Rao bound)")
+    """Error sigma vs height: one column per camera, one row per quantity, one colour per
+    detector + estimator, the Cramér–Rao bound dashed in the same colour (log scale)."""
+    cams = sorted(table.camera.unique(), key=lambda c: (int(c.split("mp")[0]) if c.split("mp")[0].isdigit() else 0, c))
+    combos = sorted({(d, m) for d, m in zip(table.detector, table.method)})
+    colours = {c: plt.cm.tab10(i % 10) for i, c in enumerate(combos)}
+    quantities = (("roll", "roll [deg]"), ("pitch", "pitch [deg]"), ("yaw", "yaw [deg]"), ("height", "height [m]"))
+    fig, axes = plt.subplots(len(quantities), len(cams), figsize=(3.6 * len(cams) + 1, 2.6 * len(quantities)),
+                             sharex=True, sharey="row", squeeze=False)
+    for col, cam in enumerate(cams):
+        for row, (q, label) in enumerate(quantities):
+            ax = axes[row, col]
+            for (det, method), g in table[table.camera == cam].groupby(["detector", "method"]):
+                g = g.sort_values("table_height_m")
+                colour = colours[(det, method)]
+                ax.plot(g.table_height_m, g[f"sigma_{q}"], "o-", color=colour, ms=3, label=f"{det}+{method}")
+                if f"crb_{q}" in g:
+                    ax.plot(g.table_height_m, g[f"crb_{q}"], "--", color=colour, alpha=0.6)
+            ax.set_yscale("log")
+            ax.grid(alpha=0.3, which="both")
+            if row == 0:
+                ax.set_title(cam, fontsize=9)
+            if col == 0:
+                ax.set_ylabel(f"sigma {label}")
+            if row == len(quantities) - 1:
+                ax.set_xlabel("camera height [m]")
+    axes[0, 0].legend(fontsize=7)
+    fig.suptitle("Error sigma vs height per resolution (dashed: Cramér–Rao bound of each estimator's frames)")
     _save(fig, path)
 
 
@@ -147,6 +162,59 @@ def thesis_comparison(table: pd.DataFrame) -> list[str]:
     return lines
 
 
+def provenance_lines(run: rl.RunPaths) -> list[str]:
+    """A "How this was made" section from the dataset manifest and ``pipeline.json`` (when present).
+
+    Parameters
+    ----------
+    run : RunPaths
+        The run folder.
+
+    Returns
+    -------
+    list of str
+        Markdown lines; empty when the run has neither record.
+    """
+    import json
+
+    lines: list[str] = []
+    if run.manifest.exists():
+        m = json.loads(run.manifest.read_text())
+        versions = m.get("versions", {})
+        lines.append(f"- Dataset: config `{m.get('name')}`, {m.get('n_frames')} frames, seed {m.get('seed')}, "
+                     f"rendered with deckpose {versions.get('deckpose', '?')} (numpy {versions.get('numpy', '?')}, "
+                     f"OpenCV {versions.get('opencv-contrib-python-headless', versions.get('opencv-python', '?'))}).")
+    record_path = run.root / "pipeline.json"
+    if record_path.exists():
+        r = json.loads(record_path.read_text())
+        mach = r.get("machine", {})
+        stages = ", ".join(f"{k} {v:.0f} s" for k, v in r.get("stage_seconds", {}).items())
+        if r.get("command"):
+            lines.append(f"- Command: `{' '.join(r['command'])}`")
+        if r.get("earlier_stages_command"):
+            lines.append(f"- Stages before `{r.get('from_stage')}` came from an earlier run of: "
+                         f"`{' '.join(r['earlier_stages_command'])}`")
+        lines.append(f"- Machine: {mach.get('platform', '?')}, {mach.get('cpu_count', '?')} CPUs, Python "
+                     f"{mach.get('python', '?')}; render workers {r.get('workers')}"
+                     + (f", Dask scheduler {r['scheduler']}" if r.get("scheduler") else "") + ".")
+        if stages:
+            lines.append(f"- Stage times on that machine (the render stage resumes, so it counts only the "
+                         f"frames rendered by that command): {stages}.")
+        lines.append(f"- Finished {r.get('finished_utc', '?')}.")
+    return ["## How this was made", "", *lines, ""] if lines else []
+
+
+def _run_title(run: rl.RunPaths) -> str:
+    """The dataset's config name from its manifest (the folder name when there is none)."""
+    import json
+
+    if run.manifest.exists():
+        name = json.loads(run.manifest.read_text()).get("name")
+        if name:
+            return str(name)
+    return run.root.name
+
+
 def write_report(run: rl.RunPaths) -> Path:
     """Write ``report/report.md`` and its figures for an evaluated run; return the Markdown path."""
     if not run.errors.exists():
@@ -168,11 +236,12 @@ def write_report(run: rl.RunPaths) -> Path:
         example_frame(run, row, beacons, dets, fig_dir / name)
         examples.append((cam, name))
     ok = errors.groupby(["detector", "method"])["ok"].mean()
-    lines = [f"# deckpose report: {run.root.name}", "",
+    lines = [f"# deckpose report: {_run_title(run)}", "",
              f"{len(frames)} rendered frames; cameras {', '.join(sorted(frames.camera.unique()))}; "
              f"heights {', '.join(f'{h:g}' for h in sorted(frames.camera_height_m.unique()))} m; "
              f"detectors {', '.join(dets) or 'none'}; estimators {', '.join(sorted(errors.method.unique()))}.", "",
              "Share of frames with an estimate flagged ok: " + ", ".join(f"{d}+{m} {v:.1%}" for (d, m), v in ok.items()) + ".", "",
+             *provenance_lines(run),
              "## Error vs height", "", "![error vs height](figures/error_vs_height.png)", "",
              "## Error distributions", "", "![error distributions](figures/error_distributions.png)", "",
              "## Centroid error vs apparent beacon size", "", "![centroid vs size](figures/centroid_vs_size.png)", "",

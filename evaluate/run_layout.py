@@ -176,5 +176,10 @@ def R_world_from_cam(row: pd.Series) -> np.ndarray:
     return np.array([[row[f"r{i}{j}"] for j in range(3)] for i in range(3)], dtype=float)
 
 
+def R_world_from_cam_all(frames: pd.DataFrame) -> np.ndarray:
+    """The camera rotations of every frames-table row, (F, 3, 3) (columns r00..r22)."""
+    return frames[[f"r{i}{j}" for i in range(3) for j in range(3)]].to_numpy(float).reshape(-1, 3, 3)
+
+
 def run_paths(root: str | os.PathLike[str]) -> RunPaths:
     return RunPaths(Path(root))

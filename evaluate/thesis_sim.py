@@ -169,13 +169,13 @@ def thesis_batch_estimator(points_c: FloatArray, mask: NDArray[np.bool_], camera
 
 
 def registry_batch_estimator(method: str, options: "EstimateOptions | None" = None) -> BatchEstimator:
-    """Any registered per-frame estimator as a :data:`BatchEstimator` (a loop over frames).
+    """Any registered estimator as a :data:`BatchEstimator` (through :func:`estimate_batch`).
 
     Beacons keep their ring ids (row ``i`` of the points is beacon ``i``); the
     layout is the thesis's (no centre beacon).
     """
     from deckpose.estimate import registry
-    from deckpose.estimate.batch import run_estimator
+    from deckpose.estimate.batch import estimate_batch
 
     registry.get(method)  # fail early on an unknown name
     opts = options or registry.EstimateOptions()
@@ -186,10 +186,12 @@ def registry_batch_estimator(method: str, options: "EstimateOptions | None" = No
         out = np.full((F, 4), np.nan)
         ok = np.zeros(F, dtype=bool)
         failure = np.full(F, "", dtype=object)
+        dets = []
         for f in range(F):
             ids = np.flatnonzero(mask[f])
             uv = np.column_stack([points_c[f, ids, 0] + camera.cx, camera.cy - points_c[f, ids, 1]])
-            est = run_estimator(method, Detections(uv, ids), camera, layout, opts)
+            dets.append(Detections(uv, ids))
+        for f, est in enumerate(estimate_batch(method, dets, camera, layout, opts)):
             if not est.ok:
                 failure[f] = est.reason
                 continue

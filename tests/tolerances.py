@@ -14,3 +14,15 @@ THESIS_ROUNDTRIP_HEIGHT = 1e-7
 ESTIMATOR_ROUNDTRIP_RAD = 1e-7
 #: Noise-free round trip of the conic/pnp estimators, metres (heights 20-80 m).
 ESTIMATOR_ROUNDTRIP_M = 1e-5
+#: Batched vs single-frame estimates, pose difference in units of the estimate's own
+#: sigma. Both stop Levenberg-Marquardt once every step is below 1e-3 sigma
+#: (STEP_TOL_SIGMA), and rounding can end them one iteration apart: each is then
+#: within about one such step of the optimum, so they agree to 2e-3 sigma.
+BATCH_POSE_SIGMA = 2e-3
+#: Batched vs single-frame chi-square values (sum of squared whitened residuals):
+#: at 2e-3 sigma from the optimum a chi-square differs by (2e-3)^2 = 4e-6.
+BATCH_CHI2 = 1e-5
+#: Batched vs single-frame covariances and everything computed without iterating
+#: (closed forms, the thesis estimator, sigmas): relative, a few float64 round-offs
+#: amplified by 6x6 inversions and eigen-solves.
+BATCH_RELATIVE = 1e-6

@@ -16,6 +16,7 @@ from deckpose.errors import DeckposeError
 #: Modules that register a subcommand, in the order ``--help`` lists them.
 SUBCOMMAND_MODULES: tuple[str, ...] = (
     "deckpose.cli.demo_cmd",
+    "deckpose.cli.pipeline_cmd",
     "deckpose.cli.motion_cmd",
     "deckpose.cli.render_cmd",
     "deckpose.cli.detect_cmd",

@@ -43,41 +43,26 @@ def _step(n: int, total: int, text: str) -> None:
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
-    from deckpose.cli import main
-    from deckpose.errors import DeckposeError
+    from deckpose.cli.pipeline_cmd import PipelineOptions, run_pipeline
     from deckpose.evaluate.thesis_tables import ThesisTablesConfig, cell_specs, run_thesis_tables
     from deckpose.render.config import default_config
-    from deckpose.render.dataset import render_dataset
 
     t0 = time.perf_counter()
     out = Path(args.output)
     run_dir = out / "run"
     total = 6
-
-    def sub(argv: list[str]) -> None:
-        code = main(argv)
-        if code != 0:
-            raise DeckposeError(f"step 'deckpose {' '.join(argv)}' failed (exit {code}); see the message above")
-
-    _step(1, total, f"render the embedded default dataset -> {run_dir}")
-    render_dataset(default_config(), run_dir, workers=args.workers, resume=True, progress=not args.no_progress)
-    _step(2, total, f"detect beacons ({args.detector})")
-    sub(["detect", str(run_dir), "--detector", args.detector] + (["--no-progress"] if args.no_progress else []))
-    _step(3, total, f"estimate the pose ({', '.join(METHODS)})")
-    for m in METHODS:
-        sub(["estimate", "--run", str(run_dir), "--detector", args.detector, "--method", m])
-    _step(4, total, "evaluate against the ground truth, write the MCAP log")
-    sub(["evaluate", str(run_dir)])
-    _step(5, total, "write the report")
-    sub(["report", str(run_dir)])
+    options = PipelineOptions(run_dir=run_dir, detectors=(args.detector,), methods=METHODS, workers=args.workers,
+                              progress=not args.no_progress, command=("deckpose", "demo", "-o", str(out)))
+    paths = run_pipeline(default_config(), options, config_label="the embedded default (configs/smoke.yaml)",
+                         step=lambda n, _total, text: _step(n, total, text))
     _step(6, total, f"thesis tables 4.2-4.15, {args.repetitions} x 495 images per cell")
     config = ThesisTablesConfig(repetitions=args.repetitions, seed=args.seed)
     bar = tqdm(total=len(cell_specs()), desc="thesis tables", unit="cell", disable=True if args.no_progress else None)
     md = run_thesis_tables(config, out, lambda done, _total: bar.update(done - bar.n))
     bar.close()
     print(f"\ndone in {time.perf_counter() - t0:.0f} s.")
-    print(f"  report:          {run_dir / 'report' / 'report.md'}")
-    print(f"  resolution tables: {run_dir / 'evaluation' / 'resolution_tables.md'}")
-    print(f"  MCAP log:        {run_dir / 'log.mcap'}  (open in Foxglove with {run_dir / 'foxglove_layout.json'})")
+    print(f"  report:          {paths['report']}")
+    print(f"  resolution tables: {paths['tables']}")
+    print(f"  MCAP log:        {paths['mcap']}  (open in Foxglove with {run_dir / 'foxglove_layout.json'})")
     print(f"  thesis tables:   {md}")
     return 0

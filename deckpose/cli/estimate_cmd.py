@@ -4,8 +4,17 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
+
+    from deckpose.camera import CameraModel
+    from deckpose.estimate.registry import EstimateOptions
+    from deckpose.layout import DeckLayout
+    from deckpose.records import Detections, PoseEstimate
 
 
 def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None:
@@ -60,21 +69,35 @@ def run(args: argparse.Namespace) -> int:
         if not args.radius > 0:
             raise ConfigError(f"--radius must be positive, got {args.radius}")
         layout = dataclasses.replace(layout, radius_m=float(args.radius))
-    from deckpose.estimate.batch import run_estimator
-
     options = registry.EstimateOptions(sigma_px=args.sigma_px, refine=args.refine)
     camera = read_camera_info(args.camera)
     frames = read_detections(args.detections, layout)
-    ids, results = [], []
-    for frame_id, det in tqdm(frames.items(), desc=f"estimate ({args.method})", unit="frame",
-                              disable=None, leave=False):
-        ids.append(frame_id)
-        results.append(run_estimator(args.method, det, camera, layout, options))
+    ids = list(frames)
+    with tqdm(total=len(ids), desc=f"estimate ({args.method})", unit="frame", disable=None,
+              leave=False) as bar:
+        results = _estimate_in_chunks(args.method, [frames[i] for i in ids], camera, layout, options,
+                                      None, bar)
     df = estimates_frame(ids, results)
     write_table(df, args.output, "estimates")
     n_ok = int(df["ok"].sum()) if len(df) else 0
     print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {args.output}")
     return 0
+
+
+def _estimate_in_chunks(method: str, detections: list[Detections], camera: CameraModel,
+                        layout: DeckLayout, options: EstimateOptions,
+                        R_world_from_cam: np.ndarray | None, bar: tqdm, chunk: int = 4096,
+                        ) -> list[PoseEstimate]:
+    """:func:`~deckpose.estimate.batch.estimate_batch` over ``chunk`` frames at a time, advancing ``bar``."""
+    from deckpose.estimate.batch import estimate_batch
+
+    out: list[PoseEstimate] = []
+    for lo in range(0, len(detections), chunk):
+        R = None if R_world_from_cam is None else R_world_from_cam[lo:lo + chunk]
+        out.extend(estimate_batch(method, detections[lo:lo + chunk], camera, layout, options,
+                                  R_world_from_cam=R))
+        bar.update(len(detections[lo:lo + chunk]))
+    return out
 
 
 def _run_folder(args: argparse.Namespace) -> int:
@@ -105,19 +128,23 @@ def _run_folder(args: argparse.Namespace) -> int:
     rl.check_frames_match(frames.reset_index(), det_df, f"detections of {args.detector}",
                           f"deckpose detect {run.root} --detector {args.detector}")
     dets = detections_from_frame(det_df, layout, str(run.detections(args.detector)))
-    from deckpose.estimate.batch import run_estimator
-
-    base = registry.EstimateOptions(sigma_px=args.sigma_px, refine=args.refine)
-    ids, results = [], []
     from deckpose.records import Detections
 
-    for frame_id, row in tqdm(frames.iterrows(), total=len(frames), desc=f"estimate ({args.method})",
-                              unit="frame", disable=None, leave=False):
-        det = dets.get(int(frame_id), Detections(np.zeros((0, 2)), np.zeros(0, dtype=np.int64), frame_id=int(frame_id)))
-        opts = dataclasses.replace(base, R_world_from_cam=rl.R_world_from_cam(row))
-        ids.append(int(frame_id))
-        results.append(run_estimator(args.method, det, cameras[row["camera"]], layout, opts))
-    df = estimates_frame(ids, results)
+    options = registry.EstimateOptions(sigma_px=args.sigma_px, refine=args.refine)
+    ids = [int(f) for f in frames.index]
+    R_all = rl.R_world_from_cam_all(frames)
+    results: list[PoseEstimate | None] = [None] * len(ids)
+    with tqdm(total=len(ids), desc=f"estimate ({args.method})", unit="frame", disable=None,
+              leave=False) as bar:
+        # One batch per camera, each frame with its own camera attitude.
+        for cam_name, rows in frames.reset_index().groupby("camera", sort=True).indices.items():
+            dets_cam = [dets.get(ids[k], Detections(np.zeros((0, 2)), np.zeros(0, dtype=np.int64),
+                                                    frame_id=ids[k])) for k in rows]
+            got = _estimate_in_chunks(args.method, dets_cam, cameras[cam_name], layout, options,
+                                      R_all[rows], bar)
+            for k, e in zip(rows, got):
+                results[k] = e
+    df = estimates_frame(ids, results)  # type: ignore[arg-type]
     out = run.estimates(args.detector, args.method)
     write_table(df, out, "estimates")
     n_ok = int(df["ok"].sum()) if len(df) else 0

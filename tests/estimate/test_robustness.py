@@ -123,3 +123,27 @@ def _check(est):
 @given(det=st.one_of(garbage_detections(), perturbed_truth()), refine=st.booleans())
 def test_random_inputs_never_raise_nor_report_nan_as_ok(method, det, refine):
     _check(run_estimator(method, det, CAMERA, DeckLayout(), EstimateOptions(refine=refine, sigma_px=0.5)))
+
+
+@pytest.mark.parametrize("method", ["conic", "pnp"])
+def test_near_coincident_points_are_not_reported_ok(method):
+    """Thirteen beacons within a hundredth of a pixel of each other: a finite but meaningless pose."""
+    from deckpose.camera import preset
+    from deckpose.estimate import registry
+    from deckpose.estimate.batch import estimate_many
+    from deckpose.estimate.registry import EstimateOptions
+    from deckpose.layout import DeckLayout
+    from deckpose.records import Detections
+
+    layout, camera = DeckLayout(), preset("8mp")
+    rng = np.random.default_rng(2)
+    dets = []
+    for _ in range(6):
+        pts = np.array([1900.0, 1100.0]) + rng.normal(0, 0.01, (layout.n_beacons, 2))
+        dets.append(Detections(pts, np.arange(layout.n_beacons), np.broadcast_to(np.eye(2), (layout.n_beacons, 2, 2))))
+    opts = EstimateOptions()
+    single = [registry.get(method)(d, camera, layout, opts) for d in dets]
+    batched = estimate_many(method, dets, camera, layout, opts)
+    for s, b in zip(single, batched):
+        assert not s.ok and not b.ok
+        assert s.reason == b.reason

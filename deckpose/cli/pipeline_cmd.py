@@ -1,0 +1,305 @@
+"""``deckpose pipeline CONFIG RUN``: render -> detect -> estimate -> evaluate -> report in one command.
+
+Every stage is the same code as its own subcommand. The render stage resumes
+(frames already on disk are kept), so an interrupted pipeline picks up where it
+stopped when run again with the same arguments; the later stages are cheap and
+are rewritten. ``RUN/pipeline.json`` records the command, the machine and the
+seconds each stage took, and the report quotes it. ``--publish DIR`` copies the
+report, its figures and the resolution tables (not the dataset or the MCAP log)
+into ``DIR``, which is how the reference reports under ``reports/`` are made.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from deckpose.atomic_io import atomic_open
+from deckpose.errors import ConfigError, DeckposeError
+
+DEFAULT_METHODS: tuple[str, ...] = ("thesis", "conic", "pnp")
+#: The stages, in order; ``--from-stage`` skips those before it (their outputs must exist).
+STAGES: tuple[str, ...] = ("render", "detect", "estimate", "evaluate", "report")
+PIPELINE_RECORD = "pipeline.json"
+
+
+@dataclass(frozen=True)
+class PipelineOptions:
+    """What one pipeline run does (parsed once from the command line).
+
+    Attributes
+    ----------
+    run_dir : Path
+        Run folder (the rendered dataset; later stages add to it).
+    detectors : tuple of str
+        Detector names, each run over the whole dataset.
+    methods : tuple of str
+        Estimator names, each run on every detector's detections.
+    workers : int
+        Local render worker processes.
+    scheduler : str or None
+        Dask scheduler address for the render stage.
+    mcap : bool
+        Write the MCAP log in the evaluate stage.
+    progress : bool
+        Show progress bars.
+    publish_dir : Path or None
+        Copy the report, figures and resolution tables here at the end.
+    from_stage : str
+        First stage to run (one of :data:`STAGES`); earlier stages' outputs are reused.
+    command : tuple of str
+        The command line, recorded in ``pipeline.json``.
+    """
+
+    run_dir: Path
+    detectors: tuple[str, ...] = ("cog",)
+    methods: tuple[str, ...] = DEFAULT_METHODS
+    workers: int = 1
+    scheduler: str | None = None
+    mcap: bool = True
+    progress: bool = True
+    publish_dir: Path | None = None
+    from_stage: str = "render"
+    command: tuple[str, ...] = field(default_factory=tuple)
+
+    def __post_init__(self) -> None:
+        if not self.detectors:
+            raise ConfigError("no detector given; pass --detector NAME (see 'deckpose detect --list')")
+        if not self.methods:
+            raise ConfigError("no estimator given; pass --method NAME (e.g. thesis, conic, pnp)")
+        if self.from_stage not in STAGES:
+            raise ConfigError(f"unknown stage {self.from_stage!r}; choose from {', '.join(STAGES)}")
+        if self.workers < 0:
+            raise ConfigError(f"--workers must be >= 0, got {self.workers}")
+
+
+def _csv(text: str) -> tuple[str, ...]:
+    return tuple(s.strip() for s in text.split(",") if s.strip())
+
+
+def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None:
+    p = sub.add_parser(
+        "pipeline",
+        help="render -> detect -> estimate -> evaluate -> report for a render config, in one command",
+        description=(
+            "Run the whole pipeline on a render config: render the dataset into RUN (resuming frames "
+            "already there), detect with each --detector, estimate with each --method, evaluate (errors, "
+            "resolution tables, MCAP log) and write the report. Example: deckpose pipeline "
+            "configs/thesis_sweep_reference.yaml runs/thesis_sweep --workers 2 --publish reports/thesis_sweep"
+        ),
+        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+    )
+    p.add_argument("config", type=Path, help="render config YAML (see configs/)")
+    p.add_argument("run", type=Path, help="run folder (the dataset; later stages add to it)")
+    p.add_argument("--detector", type=_csv, default="cog", help="detector name(s), comma-separated")
+    p.add_argument("--method", type=_csv, default=",".join(DEFAULT_METHODS), help="estimator name(s), comma-separated")
+    p.add_argument("--workers", type=int, default=1, help="local render worker processes")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler for the render stage")
+    p.add_argument("--no-mcap", action="store_true", help="skip the MCAP log")
+    p.add_argument("--publish", type=Path, default=None, metavar="DIR",
+                   help="copy report.md, figures and resolution tables into DIR at the end")
+    p.add_argument("--from-stage", choices=STAGES, default="render",
+                   help="start at this stage, reusing the earlier stages' outputs in RUN (e.g. 'report' "
+                        "after changing only the report)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from deckpose.render.config import load_config
+
+    config = load_config(args.config)
+    options = PipelineOptions(
+        run_dir=args.run, detectors=tuple(args.detector), methods=tuple(args.method), workers=args.workers,
+        scheduler=args.scheduler, mcap=not args.no_mcap, progress=not args.no_progress,
+        publish_dir=args.publish, from_stage=args.from_stage, command=_canonical_command(args),
+    )
+    paths = run_pipeline(config, options, config_label=str(args.config))
+    for key, path in paths.items():
+        print(f"  {key}: {path}")
+    return 0
+
+
+def _canonical_command(args: argparse.Namespace) -> tuple[str, ...]:
+    """The command line that reproduces ``args`` (recorded in ``pipeline.json``)."""
+    cmd = ["deckpose", "pipeline", str(args.config), str(args.run), "--detector", ",".join(args.detector),
+           "--method", ",".join(args.method), "--workers", str(args.workers)]
+    if args.scheduler:
+        cmd += ["--scheduler", args.scheduler]
+    if args.no_mcap:
+        cmd.append("--no-mcap")
+    if args.publish is not None:
+        cmd += ["--publish", str(args.publish)]
+    if args.from_stage != STAGES[0]:
+        cmd += ["--from-stage", args.from_stage]
+    return tuple(cmd)
+
+
+def check_names(options: PipelineOptions) -> None:
+    """Fail before the (long) render stage if a detector or estimator name is unknown."""
+    from deckpose.detect import registry as detectors
+    from deckpose.estimate import registry as estimators
+
+    for kind, given, known in (("detector", options.detectors, detectors.names()),
+                               ("estimator", options.methods, estimators.names())):
+        unknown = [n for n in given if n not in known]
+        if unknown:
+            raise ConfigError(f"unknown {kind} {', '.join(unknown)}; choose from {', '.join(known)}")
+
+
+def _read_record(run_dir: Path) -> dict:
+    path = Path(run_dir) / PIPELINE_RECORD
+    try:
+        return dict(json.loads(path.read_text()))
+    except (OSError, ValueError):
+        return {}
+
+
+def _machine() -> dict[str, object]:
+    return {"platform": platform.platform(), "machine": platform.machine(), "python": platform.python_version(),
+            "cpu_count": os.cpu_count()}
+
+
+def run_pipeline(config: object, options: PipelineOptions, config_label: str = "",
+                 step: Callable[[int, int, str], None] | None = None) -> dict[str, Path]:
+    """Run render -> detect -> estimate -> evaluate -> report on one render config.
+
+    Parameters
+    ----------
+    config : deckpose.render.config.RenderConfig
+        The validated render config.
+    options : PipelineOptions
+        Stages' options.
+    config_label : str
+        How the config is named in ``pipeline.json`` and the report (e.g. its path).
+    step : callable, optional
+        ``step(n, total, text)`` is called as each stage starts (default: print it).
+
+    Returns
+    -------
+    dict of str to Path
+        ``report``, ``tables``, ``errors`` and (when written) ``mcap`` and ``published``.
+    """
+    from deckpose import __version__
+    from deckpose.cli import main
+    from deckpose.evaluate.run_layout import run_paths
+    from deckpose.render.dataset import render_dataset
+
+    check_names(options)
+    say = step or (lambda n, total, text: print(f"[{n}/{total}] {text}", flush=True))
+    run_dir = Path(options.run_dir)
+    no_progress = [] if options.progress else ["--no-progress"]
+    total = 5 + (options.publish_dir is not None)
+    seconds: dict[str, float] = {}
+
+    def sub(argv: Sequence[str]) -> None:
+        code = main(list(argv))
+        if code != 0:
+            raise DeckposeError(f"step 'deckpose {' '.join(argv)}' failed (exit {code}); see the message above")
+
+    first = STAGES.index(options.from_stage)
+
+    def runs(stage: str) -> bool:
+        return STAGES.index(stage) >= first
+
+    paths = run_paths(run_dir)
+    if first > 0 and not paths.manifest.exists():
+        raise DeckposeError(f"--from-stage {options.from_stage} needs a rendered dataset in {run_dir}; "
+                            f"run the pipeline from the render stage first")
+    t_all = time.perf_counter()
+    t = time.perf_counter()
+    if runs("render"):
+        say(1, total, f"render {config_label or getattr(config, 'name', 'config')} -> {run_dir} "
+                      "(resumes frames on disk)")
+        render_dataset(config, run_dir, workers=options.workers, resume=True, scheduler=options.scheduler,
+                       progress=options.progress)
+        seconds["render"] = time.perf_counter() - t
+    t = time.perf_counter()
+    if runs("detect"):
+        say(2, total, f"detect beacons ({', '.join(options.detectors)})")
+        for det in options.detectors:
+            sub(["detect", str(run_dir), "--detector", det, *no_progress])
+        seconds["detect"] = time.perf_counter() - t
+    t = time.perf_counter()
+    if runs("estimate"):
+        say(3, total, f"estimate the pose ({', '.join(options.methods)})")
+        for det in options.detectors:
+            for method in options.methods:
+                sub(["estimate", "--run", str(run_dir), "--detector", det, "--method", method])
+        seconds["estimate"] = time.perf_counter() - t
+    t = time.perf_counter()
+    if runs("evaluate"):
+        say(4, total, "evaluate against the ground truth" + (", write the MCAP log" if options.mcap else ""))
+        sub(["evaluate", str(run_dir), *([] if options.mcap else ["--no-mcap"])])
+        seconds["evaluate"] = time.perf_counter() - t
+    previous = _read_record(run_dir)
+    stage_seconds = {k: v for k, v in previous.get("stage_seconds", {}).items()
+                     if k in STAGES and not runs(k)}
+    stage_seconds.update({k: round(v, 1) for k, v in seconds.items()})
+    record = {
+        "command": list(options.command), "config": config_label, "config_name": getattr(config, "name", None),
+        "detectors": list(options.detectors), "methods": list(options.methods), "workers": options.workers,
+        "scheduler": options.scheduler, "deckpose_version": __version__, "machine": _machine(),
+        "from_stage": options.from_stage,
+        "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
+        "stage_seconds": {k: stage_seconds[k] for k in STAGES if k in stage_seconds},
+    }
+    if first > 0 and previous.get("command"):
+        record["earlier_stages_command"] = previous.get("earlier_stages_command", previous["command"])
+    with atomic_open(run_dir / PIPELINE_RECORD, "w") as fh:
+        json.dump(record, fh, indent=2)
+    t = time.perf_counter()
+    say(5, total, "write the report")
+    sub(["report", str(run_dir)])
+    out = {"report": paths.report_dir / "report.md", "tables": paths.evaluation_dir / "resolution_tables.md",
+           "errors": paths.errors}
+    if options.mcap:
+        out["mcap"] = paths.mcap
+    if options.publish_dir is not None:
+        say(6, total, f"publish the report and tables -> {options.publish_dir}")
+        out["published"] = publish_report(run_dir, Path(options.publish_dir))
+    print(f"pipeline done in {time.perf_counter() - t_all:.0f} s (report {time.perf_counter() - t:.0f} s)",
+          flush=True)
+    return out
+
+
+def publish_report(run_dir: Path, dest: Path) -> Path:
+    """Copy a run's report, figures, resolution tables and ``pipeline.json`` into ``dest``.
+
+    The copy is built beside ``dest`` and swapped in with a rename, so ``dest``
+    is either the old or the complete new report, never half of each.
+
+    Returns
+    -------
+    Path
+        ``dest / "report.md"``.
+    """
+    from deckpose.evaluate.run_layout import run_paths
+
+    paths = run_paths(run_dir)
+    report = paths.report_dir / "report.md"
+    if not report.exists():
+        raise DeckposeError(f"{report} is missing; make it with: deckpose report {run_dir}")
+    dest = Path(dest)
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    tmp = dest.parent / f".{dest.name}.tmp-{os.getpid()}"
+    old = dest.parent / f".{dest.name}.old-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    shutil.copytree(paths.report_dir, tmp)
+    for name in ("resolution_tables.md", "resolution_tables.csv"):
+        if (paths.evaluation_dir / name).exists():
+            shutil.copy2(paths.evaluation_dir / name, tmp / name)
+    if (run_dir / PIPELINE_RECORD).exists():
+        shutil.copy2(run_dir / PIPELINE_RECORD, tmp / PIPELINE_RECORD)
+    if dest.exists():
+        dest.rename(old)
+    tmp.rename(dest)
+    shutil.rmtree(old, ignore_errors=True)
+    return dest / "report.md"

@@ -1,0 +1,308 @@
+"""The conic method's geometry for many frames at once.
+
+Stacked twins of :func:`estimate.ellipse_fit.fit_ellipse_direct`,
+:func:`estimate.circle_pose.circle_planes`, :func:`estimate.circle_pose.imaged_centre`,
+:func:`estimate.circle_pose.plane_from_centre` and
+:func:`estimate.circle_pose.in_plane_alignment`, step by step the same
+arithmetic, with a validity mask where the single-frame function returns
+``None`` or fewer planes.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from deckpose.estimate.circle_pose import diameter_pairs
+from deckpose.estimate.ellipse_fit import _C1_INV
+from deckpose.estimate.least_squares_batch import solve_batch
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+
+def _eig_batch(M: FloatArray) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """Real parts of the eigenvalues (F, 3) and eigenvectors (F, 3, 3) of each matrix, and success."""
+    ok = np.ones(M.shape[0], dtype=bool)
+    try:
+        w, V = np.linalg.eig(M)
+    except np.linalg.LinAlgError:
+        w, V = np.zeros((M.shape[0], 3), dtype=complex), np.zeros(M.shape, dtype=complex)
+        for i in range(M.shape[0]):
+            try:
+                w[i], V[i] = np.linalg.eig(M[i])
+            except np.linalg.LinAlgError:
+                ok[i] = False
+    return np.real(w), np.real(V), ok
+
+
+def fit_ellipses(points: FloatArray) -> tuple[FloatArray, BoolArray]:
+    """Direct least-squares ellipse (Halíř–Flusser, normalised) of each frame's points.
+
+    Parameters
+    ----------
+    points : (F, N, 2) array of float
+        N >= 5 finite points per frame (normalised image coordinates).
+
+    Returns
+    -------
+    C : (F, 3, 3) array of float
+        Conic matrices scaled to unit Frobenius norm (NaN where not ok).
+    ok : (F,) array of bool
+        Where the single-frame fit does not return None.
+    """
+    F = points.shape[0]
+    mean = points.mean(axis=1)
+    q = points - mean[:, None, :]
+    s = np.sqrt(np.mean(np.sum(q * q, axis=2), axis=1))
+    ok = s > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q = q / s[:, None, None]
+    x, y = q[..., 0], q[..., 1]
+    D1 = np.stack([x * x, x * y, y * y], axis=2)
+    D2 = np.stack([x, y, np.ones_like(x)], axis=2)
+    D1t = np.swapaxes(D1, 1, 2)
+    S1 = D1t @ D1
+    S2 = D1t @ D2
+    S3 = np.swapaxes(D2, 1, 2) @ D2
+    S3[~ok] = np.eye(3)
+    T, solved = solve_batch(S3, np.swapaxes(S2, 1, 2))
+    T = -T
+    ok &= solved
+    M = _C1_INV @ (S1 + S2 @ T)
+    ok &= np.all(np.isfinite(M), axis=(1, 2))
+    M[~ok] = np.eye(3)
+    w, V, eig_ok = _eig_batch(M)
+    ok &= eig_ok
+    cond = 4.0 * V[:, 0, :] * V[:, 2, :] - V[:, 1, :] ** 2
+    good = cond > 0
+    ok &= np.any(good, axis=1)
+    k = np.argmin(np.where(good, np.abs(w), np.inf), axis=1)
+    a1 = np.take_along_axis(V, k[:, None, None], axis=2)[:, :, 0]
+    a2 = np.einsum("fij,fj->fi", T, a1)
+    A, B, Cc = a1[:, 0], a1[:, 1], a1[:, 2]
+    Dd, E, Ff = a2[:, 0], a2[:, 1], a2[:, 2]
+    Cn = np.empty((F, 3, 3))
+    Cn[:, 0, 0], Cn[:, 0, 1], Cn[:, 0, 2] = A, B / 2, Dd / 2
+    Cn[:, 1, 0], Cn[:, 1, 1], Cn[:, 1, 2] = B / 2, Cc, E / 2
+    Cn[:, 2, 0], Cn[:, 2, 1], Cn[:, 2, 2] = Dd / 2, E / 2, Ff
+    N = np.zeros((F, 3, 3))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        N[:, 0, 0] = 1.0 / s
+        N[:, 1, 1] = 1.0 / s
+        N[:, 0, 2] = -mean[:, 0] / s
+        N[:, 1, 2] = -mean[:, 1] / s
+    N[:, 2, 2] = 1.0
+    Cm = np.swapaxes(N, 1, 2) @ Cn @ N
+    norm = np.sqrt(np.sum(Cm * Cm, axis=(1, 2)))
+    ok &= np.isfinite(norm) & (norm != 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        C = Cm / norm[:, None, None]
+    C[~ok] = np.nan
+    return C, ok
+
+
+def circle_planes_batch(C: FloatArray, radius_m: float) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """Both candidate supporting planes of a circle imaged as conic ``C``, per frame.
+
+    Parameters
+    ----------
+    C : (F, 3, 3) array of float
+    radius_m : float
+
+    Returns
+    -------
+    normal_up : (F, 2, 3) array of float
+    centre_m : (F, 2, 3) array of float
+    valid : (F, 2) array of bool
+        Plane ``j`` exists; the single-frame list holds the valid ones in this order.
+    """
+    F = C.shape[0]
+    finite = np.all(np.isfinite(C), axis=(1, 2))
+    Cs = 0.5 * (C + np.swapaxes(C, 1, 2))
+    Cs[~finite] = np.diag([1.0, 1.0, -1.0])
+    w, V = np.linalg.eigh(Cs)
+    flip = w[:, 1] < 0
+    w = np.where(flip[:, None], -w[:, ::-1], w)
+    V = np.where(flip[:, None, None], V[:, :, ::-1], V)
+    l3, l2, l1 = w[:, 0], w[:, 1], w[:, 2]
+    ok = finite & (l1 >= l2) & (l2 > 0) & (0 > l3)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        s13 = np.sqrt(l1 - l2)[:, None]
+        s23 = np.sqrt(l2 - l3)[:, None]
+        a = s13 * V[:, :, 2] + s23 * V[:, :, 0]
+        b = s13 * V[:, :, 2] - s23 * V[:, :, 0]
+        normals = np.full((F, 2, 3), np.nan)
+        centres = np.full((F, 2, 3), np.nan)
+        valid = np.zeros((F, 2), dtype=bool)
+        for j, (u, v) in enumerate(((a, b), (b, a))):
+            uu = np.sum(u * u, axis=1)
+            S = -v / (2.0 * l2[:, None])
+            us = np.sum(u * S, axis=1)
+            Xc1 = S + ((1.0 - us) / uu)[:, None] * u
+            r1_sq = np.sum(S * S, axis=1) - (us - 1.0) ** 2 / uu
+            good = ok & (r1_sq > 0)
+            k = radius_m / np.sqrt(r1_sq)
+            Xc = k[:, None] * Xc1
+            Xc = np.where((Xc[:, 2] < 0)[:, None], -Xc, Xc)
+            n = u / np.sqrt(uu)[:, None]
+            n = np.where((np.sum(n * Xc, axis=1) > 0)[:, None], -n, n)
+            normals[:, j], centres[:, j], valid[:, j] = n, Xc, good
+    normals[~valid] = np.nan
+    centres[~valid] = np.nan
+    return normals, centres, valid
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
+
+
+def in_plane_alignment_batch(
+    xy: FloatArray, points_deck_m: FloatArray, normal_up: FloatArray, centre_m: FloatArray
+) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """Deck rotation about each frame's plane normal and centre offset (2-D Procrustes).
+
+    Parameters
+    ----------
+    xy : (F, N, 2) array of float
+        Normalised image points, N >= 2.
+    points_deck_m : (N, 3) array of float
+    normal_up, centre_m : (F, 3) array of float
+        One candidate plane per frame.
+
+    Returns
+    -------
+    R_cam_from_deck : (F, 3, 3) array of float
+    t_cam_from_deck : (F, 3) array of float
+    ok : (F,) array of bool
+        False where the single-frame function returns None (a ray parallel to or
+        away from the plane) or the plane is invalid.
+    """
+    n_up = normal_up
+    with np.errstate(invalid="ignore", divide="ignore"):
+        d = -np.sum(n_up * centre_m, axis=1)
+        den = -(xy @ n_up[:, :2, None])[..., 0] - n_up[:, 2, None]
+        ok = np.all(np.isfinite(n_up), axis=1) & ~np.any(den <= 1e-12, axis=1) & np.all(
+            np.isfinite(den), axis=1)
+        s_ray = d[:, None] / den
+        ex = np.array([1.0, 0.0, 0.0]) - n_up[:, 0, None] * n_up
+        alt = np.sum(ex * ex, axis=1) < 1e-12
+        if np.any(alt):
+            ex[alt] = np.array([0.0, 1.0, 0.0]) - n_up[alt, 1, None] * n_up[alt]
+        e1 = ex / np.sqrt(np.sum(ex * ex, axis=1))[:, None]
+        e2 = _cross(n_up, e1)
+        E = np.stack([e1, e2], axis=1)  # (F, 2, 3)
+        q = ((xy @ np.swapaxes(E[:, :, :2], 1, 2)) + E[:, None, :, 2]) * s_ray[:, :, None] - (
+            E @ centre_m[:, :, None])[:, None, :, 0]
+        p = points_deck_m[:, :2]
+        qm, pm = q.mean(axis=1), p.mean(axis=0)
+        qc, pc = q - qm[:, None, :], p - pm
+        sin_sum = np.sum(pc[:, 0] * qc[:, :, 1] - pc[:, 1] * qc[:, :, 0], axis=1)
+        cos_sum = np.sum(pc[:, 0] * qc[:, :, 0] + pc[:, 1] * qc[:, :, 1], axis=1)
+        psi = np.arctan2(sin_sum, cos_sum)
+        c, s = np.cos(psi), np.sin(psi)
+        shift = qm - np.stack([c * pm[0] - s * pm[1], s * pm[0] + c * pm[1]], axis=1)
+        x_deck = c[:, None] * e1 + s[:, None] * e2
+        y_deck = _cross(n_up, x_deck)
+        R = np.stack([x_deck, y_deck, n_up], axis=2)
+        t = centre_m + shift[:, 0, None] * e1 + shift[:, 1, None] * e2
+    return R, t, ok
+
+
+def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, centre: BoolArray
+                   ) -> tuple[FloatArray, BoolArray, BoolArray]:
+    """Least-squares image of the deck centre per frame (the batched :func:`circle_pose.imaged_centre`).
+
+    Parameters
+    ----------
+    xy : (F, N, 2) array of float
+        Normalised image points.
+    points_deck_m : (N, 3) array of float
+    ring, centre : (N,) array of bool
+        Which rows are ring beacons, and which is the centre beacon.
+
+    Returns
+    -------
+    centre_xy : (F, 2) array of float
+    ok : (F,) array of bool
+        Where the single-frame function returns a centre (not None).
+    unsure : (F,) array of bool
+        Frames where a diameter's two image points coincide: the single-frame
+        function drops that line, which this batch does not model.
+    """
+    F = xy.shape[0]
+    unsure = np.zeros(F, dtype=bool)
+    rows, rhs, weights = [], [], []
+    for i, j in diameter_pairs(points_deck_m, ring):
+        xi, yi, xj, yj = xy[:, i, 0], xy[:, i, 1], xy[:, j, 0], xy[:, j, 1]
+        L0, L1, L2 = yi - yj, xj - xi, xi * yj - yi * xj
+        norm = np.hypot(L0, L1)
+        unsure |= ~(norm > 0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            rows.append(np.stack([L0 / norm, L1 / norm], axis=1))
+            rhs.append(-(L2 / norm))
+        weights.append(2.0)
+    n_lines = len(rows)
+    for k in np.flatnonzero(centre):
+        rows += [np.broadcast_to([1.0, 0.0], (F, 2)), np.broadcast_to([0.0, 1.0], (F, 2))]
+        rhs += [xy[:, k, 0], xy[:, k, 1]]
+        weights += [1.0, 1.0]
+    if n_lines < 2 and not np.any(centre):
+        return np.full((F, 2), np.nan), np.zeros(F, dtype=bool), unsure
+    w = np.sqrt(np.asarray(weights))
+    A = np.stack(rows, axis=1) * w[None, :, None]  # (F, R, 2)
+    b = np.stack(rhs, axis=1) * w[None, :]
+    finite = np.all(np.isfinite(A), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
+    unsure |= ~finite
+    A[~finite] = np.eye(A.shape[1], 2)
+    b[~finite] = 0.0
+    # Minimum-norm least squares through the SVD, with numpy.linalg.lstsq's rank cut-off.
+    U, s, Vt = np.linalg.svd(A, full_matrices=False)
+    cut = np.finfo(float).eps * max(A.shape[1], 2) * s[:, :1]
+    big = s > cut
+    rank = big.sum(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        coef = np.where(big, np.einsum("frk,fr->fk", U, b) / s, 0.0)
+    sol = np.einsum("fkj,fk->fj", Vt, coef)
+    ok = finite & (rank >= 2) & np.all(np.isfinite(sol), axis=1)
+    sol[~ok] = np.nan
+    return sol, ok, unsure
+
+
+def planes_from_centres(C: FloatArray, centre_xy: FloatArray, ring_xy: FloatArray, radius_m: float
+                        ) -> tuple[FloatArray, FloatArray, BoolArray]:
+    """The circle's plane from its conic and its imaged centre, per frame (:func:`circle_pose.plane_from_centre`).
+
+    Parameters
+    ----------
+    C : (F, 3, 3) array of float
+    centre_xy : (F, 2) array of float
+    ring_xy : (F, M, 2) array of float
+    radius_m : float
+
+    Returns
+    -------
+    normal_up, centre_m : (F, 3) array of float
+    ok : (F,) array of bool
+        Where the single-frame function returns a plane.
+    """
+    F = C.shape[0]
+    c = np.concatenate([centre_xy, np.ones((F, 1))], axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        line = ((0.5 * (C + np.swapaxes(C, 1, 2))) @ c[:, :, None])[:, :, 0]
+        norm = np.sqrt(np.sum(line * line, axis=1))
+        ok = np.isfinite(norm) & (norm > 0)
+        n_up = line / norm[:, None]
+        n_up = np.where((np.sum(n_up * c, axis=1) > 0)[:, None], -n_up, n_up)
+        u = np.concatenate([ring_xy, np.ones(ring_xy.shape[:2] + (1,))], axis=2)
+        den_ring = -(u @ n_up[:, :, None])[:, :, 0]
+        den_c = -np.sum(n_up * c, axis=1)
+        ok &= (den_c > 1e-12) & np.all(den_ring > 1e-12, axis=1)
+        diff = u / den_ring[:, :, None] - (c / den_c[:, None])[:, None, :]
+        spread = np.mean(np.sqrt(np.sum(diff * diff, axis=2)), axis=1)
+        ok &= spread > 0
+        d = radius_m / spread
+        centre_m = d[:, None] * c / den_c[:, None]
+    n_up[~ok] = np.nan
+    centre_m[~ok] = np.nan
+    return n_up, centre_m, ok

@@ -1,0 +1,221 @@
+"""Many frames' detections turned into stacked observations, grouped by beacon set.
+
+The batched twin of :func:`estimate.observations.build_observations`: the same
+selection of usable detections, covariance choice, undistortion (one OpenCV call
+for every point of every frame) and whitening, done on all frames' points at
+once. Frames whose usable detections carry the same beacon ids in the same
+order form a group (:class:`~estimate.least_squares_batch.FrameObservations`)
+that the batched solvers handle together; with every beacon identified, a run
+is one group.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+
+import numpy as np
+from deckpose.estimate.least_squares_batch import FrameObservations
+from deckpose.estimate.observations import _DIFF_STEP, _positions
+from numpy.typing import NDArray
+
+from deckpose.camera import CameraModel
+from deckpose.layout import DeckLayout
+from deckpose.records import Detections
+
+FloatArray = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class ObservationGroup:
+    """Frames with one beacon set, and where they sit in the input.
+
+    Attributes
+    ----------
+    frames : (F,) array of int
+        Position of each frame in the input sequence.
+    observations : FrameObservations
+    n_ignored : (F,) array of int
+        Detections of each frame not used (unassigned, unknown id, non-finite).
+    """
+
+    frames: NDArray[np.int64]
+    observations: FrameObservations
+    n_ignored: NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class StackedDetections:
+    """All frames' detections concatenated (internal).
+
+    Attributes
+    ----------
+    counts : (F,) array of int
+        Detections per frame.
+    starts : (F,) array of int
+        Row of each frame's first detection.
+    points_px : (T, 2) array of float
+    beacon_ids : (T,) array of int
+    covariance_px2 : (T, 2, 2) array of float
+        As given (identity = unknown).
+    """
+
+    counts: NDArray[np.int64]
+    starts: NDArray[np.int64]
+    points_px: FloatArray
+    beacon_ids: NDArray[np.int64]
+    covariance_px2: FloatArray
+
+    @property
+    def frame_of(self) -> NDArray[np.int64]:
+        """Frame of each detection, (T,)."""
+        return np.repeat(np.arange(self.counts.size), self.counts)
+
+
+def stack_detections(detections: Sequence[Detections]) -> StackedDetections:
+    """Concatenate the frames' detections (no copies of the records' own arrays are kept)."""
+    counts = np.fromiter((len(d) for d in detections), dtype=np.int64, count=len(detections))
+    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64) if counts.size else counts
+    if counts.size == 0 or counts.sum() == 0:
+        return StackedDetections(counts, starts, np.zeros((0, 2)), np.zeros(0, dtype=np.int64),
+                                 np.zeros((0, 2, 2)))
+    pts = np.concatenate([d.points_px for d in detections])
+    ids = np.concatenate([d.beacon_ids for d in detections])
+    cov = np.concatenate([d.covariance_px2 for d in detections])
+    return StackedDetections(counts, starts, pts, ids, cov)
+
+
+def _per_frame_all(flags: NDArray[np.bool_], frame_of: NDArray[np.int64], n_frames: int) -> NDArray[np.bool_]:
+    """Per frame: every flag of the frame's detections is True (True for a frame without any)."""
+    bad = np.bincount(frame_of, weights=~flags, minlength=n_frames)
+    return bad == 0
+
+
+def _distortion_jacobian(camera: CameraModel, xy: FloatArray) -> FloatArray:
+    """d(pixel)/d(normalised) at normalised points, (N, 2, 2): the per-frame formula, all points at once."""
+    n = xy.shape[0]
+    h = _DIFF_STEP
+    offs = np.array([[h, 0.0], [-h, 0.0], [0.0, h], [0.0, -h]])
+    pts = (xy[None, :, :] + offs[:, None, :]).reshape(-1, 2)
+    px = camera.project(np.column_stack([pts, np.ones(len(pts))])).reshape(4, n, 2)
+    D = np.empty((n, 2, 2))
+    D[:, :, 0] = (px[0] - px[1]) / (2 * h)
+    D[:, :, 1] = (px[2] - px[3]) / (2 * h)
+    return D
+
+
+def group_observations(
+    stacked: StackedDetections,
+    camera: CameraModel,
+    layout: DeckLayout,
+    R_world_from_cam: FloatArray,
+    *,
+    sigma_px: float,
+    use_detection_covariance: bool,
+) -> list[ObservationGroup]:
+    """Usable detections of every frame, whitened, grouped by beacon set.
+
+    Follows :func:`estimate.observations.build_observations` frame by frame:
+    a frame's detector covariances are used when ``use_detection_covariance``
+    and not all of them are the identity, else ``sigma_px**2 * I``; detections
+    with an unknown id, a non-finite point or (for non-isotropic frames) an
+    invalid covariance are ignored.
+
+    Parameters
+    ----------
+    stacked : StackedDetections
+    camera : CameraModel
+    layout : DeckLayout
+    R_world_from_cam : (F, 3, 3) array of float
+    sigma_px : float, keyword-only
+    use_detection_covariance : bool, keyword-only
+
+    Returns
+    -------
+    list of ObservationGroup
+        Every frame in exactly one group (a frame without usable detections is
+        in a group with ``M = 0``).
+    """
+    F = stacked.counts.size
+    frame_of = stacked.frame_of
+    ids_all = stacked.beacon_ids
+    pts_all = stacked.points_px
+    raw = stacked.covariance_px2
+    eye = np.eye(2)
+    own = use_detection_covariance & ~_per_frame_all(np.all(raw == eye, axis=(1, 2)), frame_of, F)
+    own &= stacked.counts > 0
+    cov = np.where(own[frame_of, None, None], raw, eye * sigma_px**2)
+    # One isotropic sigma for the whole frame (the single-frame fast path).
+    iso = np.zeros(F, dtype=bool)
+    sigma_iso = np.full(F, np.nan)
+    has = np.flatnonzero(stacked.counts > 0)
+    if has.size:
+        c0 = cov[stacked.starts[has]]
+        with np.errstate(invalid="ignore"):
+            first_iso = ((c0[:, 0, 1] == 0.0) & (c0[:, 1, 0] == 0.0) & (c0[:, 0, 0] == c0[:, 1, 1])
+                         & (c0[:, 0, 0] > 0) & np.isfinite(c0[:, 0, 0]))
+        c0_full = np.zeros((F, 2, 2))
+        c0_full[has] = c0
+        same = _per_frame_all(np.all(cov == c0_full[frame_of], axis=(1, 2)), frame_of, F)
+        iso[has] = first_iso & same[has]
+        sigma_iso[iso] = np.sqrt(c0_full[iso, 0, 0])
+    with np.errstate(invalid="ignore"):
+        keep = (ids_all >= 0) & (ids_all < layout.n_beacons) & np.isfinite(pts_all).all(axis=1)
+        a, b, c = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
+        cov_ok = np.isfinite(cov).all(axis=(1, 2)) & (a > 0) & (a * c - b * b > 0) & (
+            np.abs(cov[:, 1, 0] - b) <= 1e-9 * (np.abs(b) + a + c))
+    keep &= iso[frame_of] | cov_ok
+    index = np.flatnonzero(keep)
+    fidx = frame_of[index]
+    K = camera.K
+    Kinv = np.linalg.inv(K)
+    und = camera.undistort(pts_all[index]) if camera.has_distortion else pts_all[index]
+    xy = und @ Kinv[:2, :2].T + Kinv[:2, 2]
+    n = index.size
+    K22 = K[:2, :2]
+    if camera.has_distortion and n:
+        D = _distortion_jacobian(camera, xy)
+    else:
+        D = np.broadcast_to(K22, (n, 2, 2))
+    general = ~iso[fidx] | camera.has_distortion
+    L = np.empty((n, 2, 2))
+    fast = ~general
+    L[fast] = K22[None] / sigma_iso[fidx[fast], None, None]
+    if np.any(general):
+        gi = np.flatnonzero(general)
+        A = np.linalg.inv(D[gi])
+        cov_n = A @ cov[index[gi]] @ np.swapaxes(A, 1, 2)
+        ok = np.isfinite(cov_n).all(axis=(1, 2)) & np.isfinite(xy[gi]).all(axis=1)
+        drop = gi[~ok]
+        gi, cov_n = gi[ok], cov_n[ok]
+        if gi.size:
+            L[gi] = np.linalg.inv(np.linalg.cholesky(cov_n))
+        if drop.size:
+            sel = np.ones(n, dtype=bool)
+            sel[drop] = False
+            index, fidx, xy, D, L = index[sel], fidx[sel], xy[sel], np.asarray(D)[sel], L[sel]
+            general = general[sel]
+            n = index.size
+    used = np.bincount(fidx, minlength=F)
+    ids = ids_all[index]
+    pos = _positions(layout)
+    first = np.concatenate([[0], np.cumsum(used)[:-1]]).astype(np.int64) if F else used
+    groups: dict[bytes, list[int]] = {}
+    for f in range(F):
+        key = ids[first[f]:first[f] + used[f]].tobytes()
+        groups.setdefault(key, []).append(f)
+    out = []
+    D = np.ascontiguousarray(D)
+    for key, members in groups.items():
+        fr = np.array(members, dtype=np.int64)
+        g_ids = np.frombuffer(key, dtype=np.int64).copy()
+        M = g_ids.size
+        rows = first[fr, None] + np.arange(M)[None, :]
+        if M and not np.any(general[rows]):
+            # Linear camera, one isotropic sigma per frame: one whitening matrix per frame.
+            Lg, Dg = L[rows[:, :1]], D[rows[:, :1]]
+        else:
+            Lg, Dg = L[rows], D[rows]
+        obs = FrameObservations(g_ids, pos[g_ids], xy[rows], Lg, Dg, R_world_from_cam[fr])
+        out.append(ObservationGroup(fr, obs, stacked.counts[fr] - used[fr]))
+    return out

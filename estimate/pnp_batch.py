@@ -1,0 +1,142 @@
+"""The ``pnp`` estimator for many frames at once (see :mod:`estimate.pnp`).
+
+OpenCV's IPPE and SQPnP run frame by frame (about 20 and 40 µs); everything
+after them — the starts' poses, their chi-square, the Levenberg–Marquardt
+refinements and the tests that decide which starts compete — is batched, in
+the order :func:`estimate.pnp.pnp_candidates` uses.
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+from deckpose.estimate.least_squares_batch import (
+    FrameObservations,
+    evaluate_fit_batch,
+    levenberg_marquardt_batch,
+    params_from_relative_batch,
+)
+from deckpose.estimate.pnp import _EYE, ALT_MARGIN_CHI2, MIN_BEACONS
+from deckpose.estimate.solution_batch import BatchCandidates, Extra, scatter_fit
+from numpy.typing import NDArray
+
+from deckpose.rotation import wrap_angle_rad
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+
+def rotation_matrices(rvec: FloatArray) -> FloatArray:
+    """Rotation matrices (F, 3, 3) of Rodrigues vectors (F, 3), the formula of ``cv2.Rodrigues``."""
+    theta = np.sqrt(np.sum(rvec * rvec, axis=1))
+    tiny = theta < np.finfo(float).eps
+    with np.errstate(invalid="ignore", divide="ignore"):
+        k = rvec / np.where(tiny, 1.0, theta)[:, None]
+    c, s = np.cos(theta), np.sin(theta)
+    c1 = 1.0 - c
+    R = c1[:, None, None] * k[:, :, None] * k[:, None, :]
+    R[:, 0, 0] += c
+    R[:, 1, 1] += c
+    R[:, 2, 2] += c
+    R[:, 0, 1] -= s * k[:, 2]
+    R[:, 0, 2] += s * k[:, 1]
+    R[:, 1, 0] += s * k[:, 2]
+    R[:, 1, 2] -= s * k[:, 0]
+    R[:, 2, 0] -= s * k[:, 1]
+    R[:, 2, 1] += s * k[:, 0]
+    R[tiny] = np.eye(3)
+    return R
+
+
+def _close(a: FloatArray, b: FloatArray, tol: float) -> BoolArray:
+    """Per frame: :func:`estimate.pnp._same` (tol 1e-6) or ``_near`` (tol 1e-2) of params (F, 6)."""
+    d = a - b
+    d[:, :3] = wrap_angle_rad(d[:, :3])
+    with np.errstate(invalid="ignore"):
+        return np.all(np.abs(d[:, :3]) < tol, axis=1) & np.all(
+            np.abs(d[:, 3:]) < tol * (1 + np.abs(a[:, 5:6])), axis=1)
+
+
+def _opencv_starts(obs: FrameObservations) -> tuple[FloatArray, BoolArray, FloatArray, BoolArray]:
+    """IPPE's two and SQPnP's solution per frame: rvecs/tvecs (F, 3 slots, 6), present, IPPE errors."""
+    F = len(obs)
+    obj = np.ascontiguousarray(obs.points_deck_m, dtype=np.float64)
+    rt = np.full((F, 3, 6), np.nan)  # slots: SQPnP, IPPE 1, IPPE 2
+    present = np.zeros((F, 3), dtype=bool)
+    errs = np.full((F, 2), np.nan)
+    failed = np.zeros(F, dtype=bool)
+    xy = np.ascontiguousarray(obs.xy)
+    for i in range(F):
+        img = xy[i]
+        try:
+            n, rvecs, tvecs, e = cv2.solvePnPGeneric(obj, img, _EYE, None, flags=cv2.SOLVEPNP_IPPE)
+            ok, rv, tv = cv2.solvePnP(obj, img, _EYE, None, flags=cv2.SOLVEPNP_SQPNP)
+        except cv2.error:
+            failed[i] = True
+            continue
+        for j in range(min(int(n), 2)):
+            rt[i, 1 + j, :3] = rvecs[j].ravel()
+            rt[i, 1 + j, 3:] = tvecs[j].ravel()
+            present[i, 1 + j] = True
+        if n >= 2:
+            errs[i] = np.asarray(e, dtype=float).ravel()[:2]
+        if ok:
+            rt[i, 0, :3] = rv.ravel()
+            rt[i, 0, 3:] = tv.ravel()
+            present[i, 0] = True
+    return rt, present, errs, failed
+
+
+def pnp_candidates_batch(obs: FrameObservations) -> BatchCandidates:
+    """SQPnP and both IPPE solutions, refined, in the single-frame method's order."""
+    F = len(obs)
+    if len(obs.ids) < MIN_BEACONS or F == 0:
+        return BatchCandidates((), np.zeros((F, 0), dtype=bool), np.ones(F, dtype=bool))
+    rt, present, errs, failed = _opencv_starts(obs)
+    R = rotation_matrices(rt[:, :, :3].reshape(-1, 3)).reshape(F, 3, 3, 3)
+    Rwc3 = np.repeat(obs.R_world_from_cam, 3, axis=0)
+    with np.errstate(invalid="ignore"):
+        starts = params_from_relative_batch(R.reshape(-1, 3, 3), rt[:, :, 3:].reshape(-1, 3),
+                                            Rwc3).reshape(F, 3, 6)
+    starts[~present] = np.nan
+    n_ippe2 = present[:, 2]
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = np.where(errs[:, 0] > 0, errs[:, 1] / errs[:, 0], np.inf)
+    extras = (Extra("ippe_error_ratio", ratio, n_ippe2),
+              Extra("ippe_alt_roll_rad", starts[:, 2, 0], n_ippe2),
+              Extra("ippe_alt_pitch_rad", starts[:, 2, 1], n_ippe2),
+              Extra("ippe_alt_yaw_rad", starts[:, 2, 2], n_ippe2),
+              Extra("ippe_alt_height_m", starts[:, 2, 5], n_ippe2))
+    # SQPnP joins (in front) unless it repeats an IPPE solution; then non-finite starts drop out.
+    dup = np.zeros(F, dtype=bool)
+    for j in (1, 2):
+        dup |= present[:, j] & _close(starts[:, 0], starts[:, j], 1e-6)
+    valid = present.copy()
+    valid[:, 0] &= ~dup
+    valid &= np.all(np.isfinite(starts), axis=2)
+    # Evaluate every valid start, order them by chi2 (stable), refine the best.
+    rows_s, slot_s = np.nonzero(valid)
+    raw = evaluate_fit_batch(starts[rows_s, slot_s], obs.take(rows_s))
+    chi_raw = np.full((F, 3), np.inf)
+    chi_raw[rows_s, slot_s] = raw.chi2
+    order = np.argsort(np.where(valid, chi_raw, np.inf), axis=1, kind="stable")
+    n_valid = valid.sum(axis=1)
+    ar = np.arange(F)
+    rows0 = np.flatnonzero(n_valid >= 1)
+    fit0 = scatter_fit(F, rows0, levenberg_marquardt_batch(starts[rows0, order[rows0, 0]], obs.take(rows0)))
+    fits = [fit0]
+    kept = [n_valid >= 1]
+    for pos in (1, 2):
+        slot = order[:, pos]
+        p_raw = starts[ar, slot]
+        with np.errstate(invalid="ignore"):
+            compete = (n_valid > pos) & ~_close(p_raw, fit0.params, 1e-2) & (
+                chi_raw[ar, slot] < fit0.chi2 + ALT_MARGIN_CHI2)
+        rows = np.flatnonzero(compete)
+        f = scatter_fit(F, rows, levenberg_marquardt_batch(p_raw[rows], obs.take(rows)))
+        new = compete.copy()
+        for g, k in zip(fits, kept):
+            new &= ~(k & _close(f.params, g.params, 1e-6))
+        fits.append(f)
+        kept.append(new)
+    return BatchCandidates(tuple(fits), np.stack(kept, axis=1), failed | (n_valid == 0), extras)

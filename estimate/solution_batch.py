@@ -1,0 +1,248 @@
+"""From many frames' candidate fits to :class:`~deckpose.records.PoseEstimate` records.
+
+The batched twin of :mod:`estimate.solution` for the common case: the planar
+ambiguity is resolved, no point is an outlier, and the estimate is ok. For those
+frames :func:`finish_batch` builds exactly the record that
+:func:`estimate.solution.estimate_robustly` builds; every other frame is marked
+for the single-frame path (which then removes outliers, reports an unresolved
+ambiguity, or says why it failed).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from deckpose.estimate.least_squares_batch import (
+    FitBatch,
+    FrameObservations,
+    covariance_from_information,
+    relative_from_params_batch,
+    rotation_vectors,
+    solve_batch,
+)
+from deckpose.estimate.solution import MAX_ANGLE_SIGMA_RAD
+from numpy.typing import NDArray
+
+from deckpose.records import POSE_PARAMS, PoseEstimate
+from deckpose.rotation import wrap_angle_rad
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+
+@dataclass(frozen=True)
+class Extra:
+    """One method-specific extra for every frame of a batch.
+
+    Attributes
+    ----------
+    name : str
+    values : (F,) array of float
+    present : (F,) array of bool or None
+        Frames whose record carries this extra (None = all).
+    """
+
+    name: str
+    values: FloatArray
+    present: BoolArray | None = None
+
+
+@dataclass(frozen=True)
+class BatchCandidates:
+    """The (up to K) solutions of one estimator for ``F`` frames.
+
+    Attributes
+    ----------
+    fits : tuple of FitBatch
+        Slot ``k`` of every frame, in the order the single-frame method lists its fits.
+    valid : (F, K) array of bool
+        Which slots the single-frame method would list.
+    fallback : (F,) array of bool
+        Frames the batched method could not settle (they go to the single-frame path).
+    extras : tuple of Extra
+        Method extras that precede ``n_solutions`` in the record, in order.
+    """
+
+    fits: tuple[FitBatch, ...]
+    valid: BoolArray
+    fallback: BoolArray
+    extras: tuple[Extra, ...] = ()
+
+
+def scatter_fit(n_frames: int, rows: NDArray[np.int64], fit: FitBatch) -> FitBatch:
+    """A fit for ``n_frames`` frames holding ``fit`` at ``rows`` and an invalid fit elsewhere."""
+    def put(a: np.ndarray, fill: float) -> np.ndarray:
+        out = np.full((n_frames,) + a.shape[1:], fill, dtype=a.dtype)
+        out[rows] = a
+        return out
+
+    return FitBatch(put(fit.params, np.nan), put(fit.chi2, np.inf), put(fit.information, np.nan),
+                    put(fit.whitened, np.nan), put(fit.residuals_px, np.nan), put(fit.gradient, np.nan),
+                    put(fit.iterations, 0), put(fit.converged, False))
+
+
+def _take(a: np.ndarray, k: NDArray[np.int64]) -> np.ndarray:
+    return a[np.arange(a.shape[0]), k]
+
+
+def _select(fits: tuple[FitBatch, ...], attr: str, k: NDArray[np.int64]) -> np.ndarray:
+    """``getattr(fits[k[f]], attr)[f]`` for every frame ``f``."""
+    out = np.array(getattr(fits[0], attr))
+    for j in range(1, len(fits)):
+        rows = k == j
+        if np.any(rows):
+            out[rows] = getattr(fits[j], attr)[rows]
+    return out
+
+
+@dataclass(frozen=True)
+class PickBatch:
+    """Each frame's choice between its solutions (the batched :func:`estimate.solution.pick_candidate`).
+
+    Attributes
+    ----------
+    best : (F,) array of int
+        Slot of the lowest-chi2 valid solution.
+    n_good : (F,) array of int
+        Valid solutions (finite chi2 and parameters).
+    params : (F, 6) array of float
+        The best solution.
+    covariance : (F, 6, 6) array of float
+    covariance_ok : (F,) array of bool
+    alt_params : (F, 6) array of float
+        The runner-up (NaN without one).
+    delta_chi2, mahalanobis : (F,) array of float
+        Runner-up minus best chi2; their distance in the best's covariance.
+    unresolved : (F,) array of bool
+        A runner-up fits almost as well (delta chi2 below the threshold) but differs
+        by more than 3 sigma, or the distance could not be computed.
+    """
+
+    best: NDArray[np.int64]
+    n_good: NDArray[np.int64]
+    params: FloatArray
+    covariance: FloatArray
+    covariance_ok: BoolArray
+    alt_params: FloatArray
+    delta_chi2: FloatArray
+    mahalanobis: FloatArray
+    unresolved: BoolArray
+
+
+def pick_batch(cands: BatchCandidates, *, ambiguity_chi2: float) -> PickBatch:
+    """Choose between each frame's solutions: the lowest chi2, and whether the ambiguity is resolved."""
+    F, K = cands.valid.shape
+    params = np.stack([f.params for f in cands.fits], axis=1)  # (F, K, 6)
+    chi2 = np.stack([f.chi2 for f in cands.fits], axis=1)
+    good = cands.valid & np.isfinite(chi2) & np.all(np.isfinite(params), axis=2)
+    n_good = good.sum(axis=1)
+    order = np.argsort(np.where(good, chi2, np.inf), axis=1, kind="stable")
+    kb = order[:, 0]
+    best_p = _take(params, kb)
+    cov, cov_ok = covariance_from_information(_select(cands.fits, "information", kb))
+    unresolved = np.zeros(F, dtype=bool)
+    alt_p, dchi2, maha = np.full((F, 6), np.nan), np.full(F, np.nan), np.full(F, np.nan)
+    if K >= 2:
+        has_alt = n_good >= 2
+        ka = order[:, 1]
+        alt_p = _take(params, ka)
+        dchi2 = _take(chi2, ka) - _take(chi2, kb)
+        delta = alt_p - best_p
+        delta[:, :3] = wrap_angle_rad(delta[:, :3])
+        rows = np.flatnonzero(has_alt & cov_ok)
+        maha = np.full(F, np.inf)
+        if rows.size:
+            x, solved = solve_batch(cov[rows], delta[rows])
+            maha[rows] = np.sqrt(np.sum(delta[rows] * x, axis=1))
+            unresolved[rows[~solved]] = True
+        with np.errstate(invalid="ignore"):
+            resolved = (dchi2 >= ambiguity_chi2) | (maha <= 3.0)
+        unresolved |= has_alt & ~resolved
+    return PickBatch(kb, n_good, best_p, cov, cov_ok, alt_p, dchi2, maha, unresolved)
+
+
+def finish_batch(
+    method: str,
+    cands: BatchCandidates,
+    obs: FrameObservations,
+    n_ignored: NDArray[np.int64],
+    *,
+    ambiguity_chi2: float,
+    outlier_chi2: float,
+    max_reprojection_rms_px: float,
+    refined: bool,
+    pick: bool = True,
+) -> list[PoseEstimate | None]:
+    """Choose each frame's solution and build its record; None where the single-frame path must decide.
+
+    Frame by frame this is :func:`estimate.solution.pick_candidate`, the first test of
+    :func:`estimate.solution.solve_robust` and :func:`estimate.solution.make_estimate`
+    for the case where they produce an ok estimate without removing a point.
+    ``pick=False`` is for a single solution taken as it is (the refinement): no
+    ``n_solutions`` extra.
+    """
+    F = len(obs)
+    choice = pick_batch(cands, ambiguity_chi2=ambiguity_chi2)
+    kb, n_good, best_p, cov = choice.best, choice.n_good, choice.params, choice.covariance
+    alt_p, dchi2, maha = choice.alt_params, choice.delta_chi2, choice.mahalanobis
+    has_alt = n_good >= 2
+    best_chi2 = _select(cands.fits, "chi2", kb)
+    fallback = cands.fallback | (n_good == 0) | ~choice.covariance_ok | choice.unresolved
+    whitened = _select(cands.fits, "whitened", kb)
+    res_px = _select(cands.fits, "residuals_px", kb)
+    with np.errstate(invalid="ignore"):
+        max_pc = np.max(np.sum(whitened**2, axis=2), axis=1)
+        rms = np.sqrt(np.sum(res_px**2, axis=(1, 2)) / res_px.shape[1])
+        fallback |= ~(max_pc <= outlier_chi2)
+        fallback |= ~np.isfinite(rms) | (rms > max_reprojection_rms_px)
+    R_cd, t_cd = relative_from_params_batch(np.nan_to_num(best_p), obs.R_world_from_cam)
+    rvec = rotation_vectors(R_cd)
+    sig = np.sqrt(np.diagonal(cov, axis1=1, axis2=2))
+    with np.errstate(invalid="ignore"):
+        # the single-frame path flags poses the covariance does not pin down (solution._constrained)
+        fallback |= ~((sig[:, 5] < np.abs(best_p[:, 5])) & np.all(sig[:, :3] < MAX_ANGLE_SIGMA_RAD, axis=1))
+    M = obs.xy.shape[1]
+    n_points = float(M)
+    ids = tuple(int(i) for i in obs.ids)
+    base_refined = float(refined)
+    dof = float(2 * M - 6)
+    pre = [(e.name, e.values.tolist(), None if e.present is None else e.present.tolist())
+           for e in cands.extras]
+    ambiguity = ("ambiguity_delta_chi2", "ambiguity_mahalanobis", "alt_roll_rad", "alt_pitch_rad",
+                 "alt_yaw_rad", "alt_height_m")
+    amb_cols = [dchi2.tolist(), maha.tolist(), alt_p[:, 0].tolist(), alt_p[:, 1].tolist(),
+                alt_p[:, 2].tolist(), alt_p[:, 5].tolist()]
+    tail_names = ["reprojection_rms_px", "chi2", "dof"] + ["sigma_" + n for n in POSE_PARAMS]
+    for ax in "xyz":
+        tail_names += [f"rvec_cam_from_deck_{ax}", f"t_cam_from_deck_{ax}_m"]
+    tail_cols = [rms.tolist(), best_chi2.tolist(), [dof] * F] + [sig[:, j].tolist() for j in range(6)]
+    for j in range(3):
+        tail_cols += [rvec[:, j].tolist(), t_cd[:, j].tolist()]
+    p_list = best_p.tolist()
+    n_ign = n_ignored.tolist()
+    n_sol = n_good.astype(float).tolist()
+    alt_list = has_alt.tolist()
+    fb = fallback.tolist()
+    out: list[PoseEstimate | None] = []
+    for i in range(F):
+        if fb[i]:
+            out.append(None)
+            continue
+        ex = {"n_points": n_points, "n_ignored": float(n_ign[i]), "n_outliers_removed": 0.0,
+              "refined": base_refined}
+        for name, vals, present in pre:
+            if present is None or present[i]:
+                ex[name] = vals[i]
+        if pick:
+            ex["n_solutions"] = n_sol[i]
+        if alt_list[i]:
+            for name, col in zip(ambiguity, amb_cols):
+                ex[name] = col[i]
+        for name, col in zip(tail_names, tail_cols):
+            ex[name] = col[i]
+        p = p_list[i]
+        out.append(PoseEstimate(
+            method=method, ok=True, roll_rad=p[0], pitch_rad=p[1], yaw_rad=p[2], height_m=p[5],
+            surge_m=p[3], sway_m=p[4], covariance=cov[i], inliers=ids, extras=ex))
+    return out

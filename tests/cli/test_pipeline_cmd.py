@@ -1,0 +1,91 @@
+"""``deckpose pipeline``: one command from a render config to a published report."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pandas as pd
+import pytest
+import yaml
+
+from deckpose.cli import main
+from deckpose.cli.pipeline_cmd import publish_report
+from deckpose.errors import DeckposeError
+
+
+def _tiny_config(tmp_path: Path) -> Path:
+    doc = {"name": "tiny", "seed": 3, "cameras": [{"preset": "4mp", "size": [640, 480]}], "heights_m": [30],
+           "lighting": ["night"], "motion": {"source": "fixed", "attitudes_deg": [[0, 0, 0], [3, -2, 10]]},
+           "sensor": {"bit_depth": 8, "read_noise_e": 5}, "scene": {"texture_px": 128},
+           "layout": {"n_ring": 12, "radius_m": 10.0, "has_centre": True}}
+    cfg = tmp_path / "tiny.yaml"
+    cfg.write_text(yaml.safe_dump(doc))
+    return cfg
+
+
+def test_pipeline_runs_every_stage_publishes_and_resumes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cfg, run, pub = _tiny_config(tmp_path), tmp_path / "run", tmp_path / "reports" / "tiny"
+    argv = ["pipeline", str(cfg), str(run), "--method", "conic,pnp", "--workers", "1", "--no-progress",
+            "--publish", str(pub)]
+    assert main(argv) == 0
+    errors = pd.read_parquet(run / "evaluation" / "errors.parquet")
+    assert set(errors.method) == {"conic", "pnp"} and len(errors) == 4  # 2 frames x 2 methods
+    assert errors.ok.all()
+    # published: the report with its figures and tables, the record, not the dataset or the log
+    for name in ("report.md", "resolution_tables.md", "resolution_tables.csv", "pipeline.json",
+                 "figures/error_vs_height.png"):
+        assert (pub / name).exists(), name
+    assert not (pub / "log.mcap").exists() and not (pub / "images").exists()
+    record = json.loads((pub / "pipeline.json").read_text())
+    assert record["methods"] == ["conic", "pnp"] and record["detectors"] == ["cog"]
+    assert record["command"][:4] == ["deckpose", "pipeline", str(cfg), str(run)]
+    assert set(record["stage_seconds"]) >= {"render", "detect", "estimate", "evaluate"}
+    report = (pub / "report.md").read_text()
+    assert report.startswith("# deckpose report: tiny\n")  # titled by the config, not the folder
+    assert "## How this was made" in report and "config `tiny`" in report and "seed 3" in report
+    assert str(pub / "report.md") in capsys.readouterr().out
+    # a second run keeps the rendered frames (resume) and rewrites the later stages
+    image = sorted((run / "images").rglob("*.png"))[0]
+    before = image.stat().st_mtime_ns
+    assert main(argv) == 0
+    assert image.stat().st_mtime_ns == before
+    assert not list(pub.parent.glob(".tiny.*"))  # no half-written copy left beside the published report
+
+
+def test_unknown_names_fail_before_rendering(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cfg, run = _tiny_config(tmp_path), tmp_path / "run"
+    assert main(["pipeline", str(cfg), str(run), "--method", "thesis,nosuch", "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown estimator nosuch" in err and "pnp" in err
+    assert not run.exists()
+
+
+def test_publish_needs_a_report(tmp_path: Path) -> None:
+    (tmp_path / "run").mkdir()
+    with pytest.raises(DeckposeError, match="deckpose report"):
+        publish_report(tmp_path / "run", tmp_path / "pub")
+    assert not (tmp_path / "pub").exists()
+
+
+def test_from_stage_reuses_earlier_outputs_and_keeps_their_record(tmp_path: Path) -> None:
+    cfg, run = _tiny_config(tmp_path), tmp_path / "run"
+    assert main(["pipeline", str(cfg), str(run), "--method", "pnp", "--workers", "1", "--no-progress",
+                 "--no-mcap"]) == 0
+    detections = run / "detections" / "cog.parquet"
+    before = detections.stat().st_mtime_ns
+    first = json.loads((run / "pipeline.json").read_text())
+    assert main(["pipeline", str(cfg), str(run), "--method", "pnp", "--no-progress", "--no-mcap",
+                 "--from-stage", "report"]) == 0
+    assert detections.stat().st_mtime_ns == before  # detection was not run again
+    second = json.loads((run / "pipeline.json").read_text())
+    assert second["from_stage"] == "report"
+    assert second["stage_seconds"]["detect"] == first["stage_seconds"]["detect"]
+    assert second["earlier_stages_command"] == first["command"]
+    assert "came from an earlier run of" in (run / "report" / "report.md").read_text()
+
+
+def test_from_stage_needs_a_dataset(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cfg = _tiny_config(tmp_path)
+    assert main(["pipeline", str(cfg), str(tmp_path / "none"), "--from-stage", "detect", "--no-progress"]) == 2
+    assert "needs a rendered dataset" in capsys.readouterr().err

@@ -1,0 +1,221 @@
+"""Batched estimation (``estimate_batch``) gives the single-frame records, on clean and mixed batches."""
+
+import math
+
+import numpy as np
+import pytest
+from deckpose.estimate.batch import estimate_batch, estimate_many, run_estimator
+from deckpose.estimate.registry import EstimateOptions
+
+from deckpose.camera import preset
+from deckpose.errors import ShapeError
+from deckpose.layout import DeckLayout
+from deckpose.pose import CameraPose, ShipPose
+from deckpose.records import POSE_PARAMS, Detections, PoseEstimate
+from deckpose.rotation import rot_x, rot_y
+from tests.estimate.synthetic import detections_for
+from tests.estimate.test_roundtrip import ODD_CAMERA
+from tests.tolerances import BATCH_CHI2, BATCH_POSE_SIGMA, BATCH_RELATIVE
+
+METHODS = ["conic", "pnp", "thesis"]
+LAYOUT = DeckLayout()
+
+
+def _random_frames(rng: np.random.Generator, n: int, camera, sigma_px: float,
+                   heights=(20.0, 80.0)) -> list[Detections]:
+    out = []
+    for _ in range(n):
+        ship = ShipPose(rng.normal(0, 0.05), rng.normal(0, 0.05), rng.uniform(-3, 3),
+                        rng.normal(0, 1.0), rng.normal(0, 1.0), rng.normal(0, 0.5))
+        out.append(detections_for(LAYOUT, ship, CameraPose.nadir(rng.uniform(*heights)), camera,
+                                  sigma_px=sigma_px, rng=rng))
+    return out
+
+
+def _with(det: Detections, pts=None, ids=None, cov=None) -> Detections:
+    pts = det.points_px if pts is None else pts
+    ids = det.beacon_ids if ids is None else ids
+    cov = np.broadcast_to(det.covariance_px2[:1], (len(ids), 2, 2)) if cov is None else cov
+    return Detections(pts, ids, cov)
+
+
+def _mixed_frames(rng: np.random.Generator, camera) -> list[Detections]:
+    """Clean frames interleaved with every kind the batch hands to the single-frame path."""
+    frames = _random_frames(rng, 40, camera, 0.5)
+    d = frames[0]
+    ring = d.beacon_ids < LAYOUT.n_ring
+    odd = [
+        _with(d, d.points_px[3:], d.beacon_ids[3:]),                             # 3 ring beacons missing
+        _with(d, d.points_px[ring], d.beacon_ids[ring]),                         # no centre beacon
+        _with(d, np.vstack([d.points_px, d.points_px[2] + [60.0, -45.0]]),       # spurious point, id 2
+              np.append(d.beacon_ids, 2)),
+        _with(d, ids=d.beacon_ids[[0, 1, 2, 7, 4, 5, 6, 3] + list(range(8, len(d)))]),  # swapped ids
+        _with(d, d.points_px[:3], d.beacon_ids[:3]),                             # too few beacons
+        Detections(np.zeros((0, 2)), np.zeros(0, dtype=np.int64)),               # nothing detected
+        _with(d, np.vstack([d.points_px, [[np.nan, 4.0], [100.0, 100.0]]]),      # NaN, unknown id, unassigned
+              np.append(d.beacon_ids, [5, 99])),
+        _with(d, np.vstack([d.points_px, [[100.0, 120.0]]]), np.append(d.beacon_ids, -1)),
+        _with(d, np.vstack([d.points_px, d.points_px[4:5] + 0.3]),               # a ring id listed twice
+              np.append(d.beacon_ids, 4)),
+        _with(d, np.column_stack([np.linspace(500.0, 1500.0, len(d)),            # collinear
+                                  np.linspace(400.0, 900.0, len(d))])),
+        _with(d, d.points_px + rng.normal(0.0, 40.0, d.points_px.shape)),       # noise far above sigma
+        _with(d, np.where((d.beacon_ids == 6)[:, None], d.points_px[d.beacon_ids == 0], d.points_px)),
+        # ... and beacon 6 seen where beacon 0 is: a diameter of zero length
+    ]
+    # Anisotropic detector covariances on otherwise clean frames.
+    for f in _random_frames(rng, 4, camera, 0.5):
+        a = rng.uniform(0.1, 0.4, len(f))
+        cov = np.stack([np.diag([s, 1.5 * s]) for s in a])
+        cov[:, 0, 1] = cov[:, 1, 0] = 0.3 * a
+        odd.append(_with(f, cov=cov))
+    mixed = []
+    for k, f in enumerate(frames):
+        mixed.append(f)
+        if k < len(odd):
+            mixed.append(odd[k])
+    return mixed
+
+
+def _tol_for(name: str, single: PoseEstimate) -> tuple[float, float]:
+    """(absolute, relative) tolerance for one value of a batched record."""
+    if single.covariance is None:  # thesis-only or failed: closed forms, no iteration
+        return 0.0, BATCH_RELATIVE
+    sig = np.sqrt(np.diag(single.covariance))
+    if name.startswith("sigma_"):
+        return 0.0, BATCH_RELATIVE
+    if name in ("chi2", "ambiguity_delta_chi2"):
+        return BATCH_CHI2, BATCH_RELATIVE
+    if name == "ambiguity_mahalanobis":  # distance between two solutions, each within tolerance
+        return 2 * BATCH_POSE_SIGMA, BATCH_RELATIVE
+    if name == "reprojection_rms_px":
+        return 0.0, math.sqrt(BATCH_CHI2)
+    if name.endswith("_rad") or name.startswith("rvec_"):
+        return BATCH_POSE_SIGMA * float(sig[:3].max()), 0.0
+    if name.endswith("_m"):
+        return BATCH_POSE_SIGMA * float(sig[3:].max()), 0.0
+    return 0.0, BATCH_RELATIVE
+
+
+def assert_same_estimate(batched: PoseEstimate, single: PoseEstimate) -> None:
+    assert (batched.method, batched.ok, batched.reason) == (single.method, single.ok, single.reason)
+    assert batched.inliers == single.inliers
+    assert list(batched.extras) == list(single.extras)
+    assert (batched.covariance is None) == (single.covariance is None)
+    for k, name in enumerate(POSE_PARAMS):
+        b, s = getattr(batched, name), getattr(single, name)
+        if math.isnan(s):
+            assert math.isnan(b), name
+            continue
+        if single.covariance is not None:
+            sigma = math.sqrt(single.covariance[k, k])
+            assert abs(b - s) <= BATCH_POSE_SIGMA * sigma, (name, b, s, sigma)
+        else:
+            assert b == pytest.approx(s, rel=BATCH_RELATIVE, abs=1e-12), name
+    if single.covariance is not None:
+        s = np.sqrt(np.diag(single.covariance))
+        np.testing.assert_allclose(batched.covariance / np.outer(s, s), single.covariance / np.outer(s, s),
+                                   rtol=0, atol=BATCH_RELATIVE)
+    for name, s in single.extras.items():
+        b = batched.extras[name]
+        if math.isnan(s) or math.isinf(s):
+            assert b == s or (math.isnan(b) and math.isnan(s)), name
+            continue
+        atol, rtol = _tol_for(name, single)
+        assert abs(b - s) <= atol + rtol * abs(s), (name, b, s)
+
+
+def _compare(name, frames, camera, options, **kw):
+    batched = estimate_batch(name, frames, camera, LAYOUT, options, **kw)
+    assert len(batched) == len(frames)
+    Rs = kw.get("R_world_from_cam")
+    for i, (f, b) in enumerate(zip(frames, batched)):
+        opts = options if Rs is None else EstimateOptions(**{**options.__dict__, "R_world_from_cam": Rs[i]})
+        assert_same_estimate(b, run_estimator(name, f, camera, LAYOUT, opts))
+    return batched
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("refine", [False, True])
+@pytest.mark.parametrize("sigma_px", [0.1, 2.0])
+def test_batch_matches_single_frames_on_noisy_frames(method, refine, sigma_px):
+    rng = np.random.default_rng(11 + int(10 * sigma_px))
+    frames = _random_frames(rng, 60, preset("4mp"), sigma_px)
+    got = _compare(method, frames, preset("4mp"), EstimateOptions(sigma_px=sigma_px, refine=refine))
+    assert sum(e.ok for e in got) >= 55
+
+
+@pytest.mark.parametrize("method", METHODS)
+@pytest.mark.parametrize("refine", [False, True])
+def test_batch_matches_single_frames_on_mixed_batches(method, refine):
+    frames = _mixed_frames(np.random.default_rng(3), preset("8mp"))
+    got = _compare(method, frames, preset("8mp"), EstimateOptions(sigma_px=0.5, refine=refine))
+    reasons = {e.reason.split(":")[0] for e in got if not e.ok}
+    assert len(reasons) >= 3  # the batch really held failing frames of several kinds
+    assert any(e.ok and e.extras.get("n_outliers_removed", 0) for e in got) or method == "thesis"
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_batch_matches_single_frames_with_distortion_and_tilted_cameras(method):
+    rng = np.random.default_rng(8)
+    frames = _random_frames(rng, 20, ODD_CAMERA, 0.5, heights=(30.0, 50.0))
+    _compare(method, frames, ODD_CAMERA, EstimateOptions(sigma_px=0.5))
+    # Each frame its own camera attitude.
+    camera = preset("16mp")
+    frames, Rs = [], []
+    for _ in range(20):
+        pose = CameraPose.nadir(rng.uniform(20, 40), x_m=rng.normal(0, 1),
+                                R_nadir_from_cam=rot_x(rng.normal(0, 0.1)) @ rot_y(rng.normal(0, 0.1)))
+        ship = ShipPose(rng.normal(0, 0.05), rng.normal(0, 0.05), rng.uniform(-3, 3))
+        frames.append(detections_for(LAYOUT, ship, pose, camera, sigma_px=0.3, rng=rng))
+        Rs.append(pose.R_world_from_cam)
+    got = _compare(method, frames, camera, EstimateOptions(sigma_px=0.3), R_world_from_cam=np.array(Rs))
+    if method == "thesis":  # the thesis method knows only a nadir camera, and says so
+        assert not any(e.ok for e in got) and "nadir" in got[0].reason
+    else:
+        assert all(e.ok for e in got)
+
+
+def test_unresolved_ambiguity_is_reported_in_a_batch_as_alone():
+    """The set-up of test_ambiguity (far tilted deck, few ring beacons, 2 px): the two planar
+    solutions can tie; a batch must flag those frames as the single-frame path does."""
+    from tests.estimate.test_ambiguity import CAM_POSE, CAMERA, FOUR_RING, SEVEN_RING, SHIP
+
+    layout = DeckLayout(has_centre=False)
+    for method, drop, extra in (("pnp", FOUR_RING, {}), ("conic", SEVEN_RING, {}),
+                                ("pnp", FOUR_RING, {"assume_level_deck": True})):
+        frames = [detections_for(layout, SHIP, CAM_POSE, CAMERA, sigma_px=2.0,
+                                 rng=np.random.default_rng(seed), drop_ids=drop) for seed in range(40)]
+        opts = EstimateOptions(sigma_px=2.0, **extra)
+        got = estimate_batch(method, frames, CAMERA, layout, opts)
+        for f, b in zip(frames, got):
+            assert_same_estimate(b, run_estimator(method, f, CAMERA, layout, opts))
+        if extra:
+            assert any(e.extras.get("assumed_level_deck") for e in got)
+        else:
+            assert any("ambiguity unresolved" in e.reason for e in got)
+
+
+def test_estimate_many_is_the_batch_and_checks_attitudes():
+    frames = _random_frames(np.random.default_rng(5), 5, preset("8mp"), 0.5)
+    opts = EstimateOptions(sigma_px=0.5)
+    a = estimate_many("pnp", frames, preset("8mp"), LAYOUT, opts)
+    for x, f in zip(a, frames):
+        assert_same_estimate(x, run_estimator("pnp", f, preset("8mp"), LAYOUT, opts))
+    assert estimate_batch("conic", [], preset("8mp"), LAYOUT, opts) == []
+    with pytest.raises(ShapeError, match="one camera attitude per frame"):
+        estimate_batch("pnp", frames, preset("8mp"), LAYOUT, opts, R_world_from_cam=np.eye(3)[None])
+
+
+@pytest.mark.parametrize("method", ["conic", "pnp"])
+@pytest.mark.parametrize("refine", [False, True])
+def test_clean_frames_stay_in_the_batch(method, refine):
+    """The single-frame path is only the fallback: clean frames, even at 2 px and 80 m, are batched."""
+    from deckpose.estimate.batch import _least_squares_batch
+
+    camera = preset("4mp")
+    frames = _random_frames(np.random.default_rng(9), 200, camera, 2.0, heights=(70.0, 80.0))
+    opts = EstimateOptions(sigma_px=2.0, refine=refine)
+    R = np.broadcast_to(opts.R_world_from_cam, (len(frames), 3, 3))
+    got = _least_squares_batch(method, frames, camera, LAYOUT, opts, np.ascontiguousarray(R))
+    assert sum(e is None for e in got) <= 4
