@@ -53,6 +53,47 @@ class Candidate:
 
 SolveFn = Callable[[Observations], "Candidate | str"]
 
+#: Median of a chi-square variable with 2 degrees of freedom (a point's squared Mahalanobis residual).
+_MEDIAN_CHI2_2 = 2.0 * math.log(2.0)
+#: Fewest points for which the residuals say anything about the detections' covariance scale.
+MIN_POINTS_FOR_SCALE = 7
+#: The detections' covariances are taken as underestimated when the robust scale exceeds this.
+SCALE_TRIGGER = 2.0
+#: A fit accepted under the widened outlier threshold must have a reprojection RMS of at most
+#: this: a larger residual is no centroid error a covariance understates but wrong points.
+SCALED_MAX_RMS_PX = 1.0
+
+
+def covariance_scale(point_chi2: np.ndarray) -> np.ndarray:
+    """Robust factor by which the detections' covariances understate the residuals.
+
+    ``median(point chi2) / (ln 4 (N - 3) / N)``: the median of the squared Mahalanobis
+    residuals over its expectation for a six-parameter fit to ``N`` points with correct
+    covariances. The median is untouched by a few spurious points or wrong ids, so a
+    detector that understates every point's covariance alike (a clipped spot's centroid
+    is worse than its photon noise says) is told apart from an outlier. Factors up to
+    :data:`SCALE_TRIGGER` (chance with correct covariances) and fits to fewer than
+    :data:`MIN_POINTS_FOR_SCALE` points give 1.
+
+    Parameters
+    ----------
+    point_chi2 : ndarray, shape (..., N)
+        Each point's squared Mahalanobis reprojection residual (NaN for a missing point
+        is not allowed; pass the points used).
+
+    Returns
+    -------
+    ndarray, shape (...)
+        The factor (>= 1) to multiply the covariances and the outlier threshold by.
+    """
+    pc = np.asarray(point_chi2, dtype=float)
+    n = pc.shape[-1]
+    if n < MIN_POINTS_FOR_SCALE:
+        return np.ones(pc.shape[:-1])
+    with np.errstate(invalid="ignore"):
+        s2 = np.median(pc, axis=-1) / (_MEDIAN_CHI2_2 * (n - 3) / n)
+        return np.where(s2 > SCALE_TRIGGER, s2, 1.0)
+
 
 def _param_delta(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
@@ -110,22 +151,52 @@ def solve_robust(
 ) -> tuple[Candidate | str, Observations, list[int]]:
     """Solve, and while a point's residual is an outlier remove the point whose removal fits best.
 
+    A point is an outlier when its squared Mahalanobis residual exceeds ``outlier_chi2``.
+    When that leaves residuals too large after ``max_outliers`` removals, and the first
+    fit's :func:`covariance_scale` says the detections' covariances understate every
+    residual alike (a clipped spot's centroid, say) while its reprojection RMS is at most
+    :data:`SCALED_MAX_RMS_PX`, the search is repeated with the threshold times that scale. The plain search runs first because a least-squares fit
+    smears a wrong id's residual over every point and would hide it in the scale.
+
     Returns
     -------
     (Candidate or failure reason, observations used, ids removed)
     """
+    first = solve(obs) if len(obs) >= min_points else _too_few(obs, min_points)
+    result, used, removed, residual_failure = _remove_outliers(
+        obs, solve, first, min_points=min_points, threshold=outlier_chi2, max_outliers=max_outliers)
+    if not (residual_failure and isinstance(result, Candidate)):
+        return result, used, removed
+    # The scale from the fit without the worst points, where a wrong point no longer smears.
+    pc = result.fit.point_chi2()
+    scale = float(covariance_scale(pc)) if np.all(np.isfinite(pc)) else 1.0
+    if scale <= 1.0:
+        return result, used, removed
+    scaled = _remove_outliers(obs, solve, first, min_points=min_points,
+                              threshold=outlier_chi2 * scale, max_outliers=max_outliers)
+    c = scaled[0]
+    if scaled[3] or not isinstance(c, Candidate) or not c.fit.rms_px <= SCALED_MAX_RMS_PX:
+        return result, used, removed
+    return scaled[:3]
+
+
+def _remove_outliers(
+    obs: Observations, solve: SolveFn, result: Candidate | str, *, min_points: int, threshold: float,
+    max_outliers: int,
+) -> tuple[Candidate | str, Observations, list[int], bool]:
+    """The leave-one-out search of :func:`solve_robust` at one threshold; the flag says
+    whether it gave up with a residual above the threshold."""
     removed: list[int] = []
-    result = solve(obs) if len(obs) >= min_points else _too_few(obs, min_points)
     while isinstance(result, Candidate):
         pc = result.fit.point_chi2()
-        if pc.size == 0 or float(np.max(pc)) <= outlier_chi2:
-            return result, obs, removed
+        if pc.size == 0 or float(np.max(pc)) <= threshold:
+            return result, obs, removed, False
         if len(removed) >= max_outliers or len(obs) - 1 < min_points:
             worst = int(obs.ids[int(np.argmax(pc))])
             return Candidate(result.fit, result.extras, (
                 f"reprojection residual of beacon {worst} is {math.sqrt(float(np.max(pc))):.1f} sigma "
                 f"after removing {len(removed)} outlier(s): spurious point, wrong id, or sigma_px too small"
-            )), obs, removed
+            )), obs, removed, True
         best: tuple[float, int, Candidate | None] = (math.inf, -1, None)
         for i in range(len(obs)):
             keep = np.ones(len(obs), dtype=bool)
@@ -134,13 +205,13 @@ def solve_robust(
             if isinstance(r, Candidate) and r.fit.chi2 < best[0]:
                 best = (r.fit.chi2, i, r)
         if best[2] is None:
-            return result, obs, removed
+            return result, obs, removed, False
         keep = np.ones(len(obs), dtype=bool)
         keep[best[1]] = False
         removed.append(int(obs.ids[best[1]]))
         obs = obs.subset(keep)
         result = best[2]
-    return result, obs, removed
+    return result, obs, removed, False
 
 
 def _too_few(obs: Observations, min_points: int) -> str:
@@ -187,6 +258,11 @@ def make_estimate(
     if result.problem:
         problems.append(result.problem)
     cov = fit.covariance if np.all(np.isfinite(p)) else None
+    pc = fit.point_chi2()
+    scale = float(covariance_scale(pc)) if pc.size and np.all(np.isfinite(pc)) else 1.0
+    if cov is not None and scale > 1.0:
+        # the residuals say the detections' covariances are too small: widen the pose's alike
+        cov = cov * scale
     if not np.all(np.isfinite(p)) or not math.isfinite(fit.chi2):
         problems.append("non-finite pose or reprojection error")
     elif cov is None:
@@ -210,6 +286,8 @@ def make_estimate(
         for k, ax in enumerate("xyz"):
             extras[f"rvec_cam_from_deck_{ax}"] = float(rvec[k])
             extras[f"t_cam_from_deck_{ax}_m"] = float(t_cd[k])
+    if cov is not None and scale > 1.0:
+        extras["covariance_scale"] = scale
     if problems:
         for name, v in zip(POSE_PARAMS, p):
             extras["untrusted_" + name] = float(v)

@@ -21,7 +21,7 @@ from deckpose.estimate.least_squares_batch import (
     rotation_vectors,
     solve_batch,
 )
-from deckpose.estimate.solution import MAX_ANGLE_SIGMA_RAD
+from deckpose.estimate.solution import MAX_ANGLE_SIGMA_RAD, covariance_scale
 from numpy.typing import NDArray
 
 from deckpose.records import POSE_PARAMS, PoseEstimate
@@ -192,10 +192,14 @@ def finish_batch(
     whitened = _select(cands.fits, "whitened", kb)
     res_px = _select(cands.fits, "residuals_px", kb)
     with np.errstate(invalid="ignore"):
-        max_pc = np.max(np.sum(whitened**2, axis=2), axis=1)
+        pc = np.sum(whitened**2, axis=2)
+        max_pc = np.max(pc, axis=1)
+        # solution.make_estimate widens the covariance when the residuals exceed it alike
+        scale = covariance_scale(pc)
         rms = np.sqrt(np.sum(res_px**2, axis=(1, 2)) / res_px.shape[1])
         fallback |= ~(max_pc <= outlier_chi2)
         fallback |= ~np.isfinite(rms) | (rms > max_reprojection_rms_px)
+    cov = cov * scale[:, None, None]
     R_cd, t_cd = relative_from_params_batch(np.nan_to_num(best_p), obs.R_world_from_cam)
     rvec = rotation_vectors(R_cd)
     sig = np.sqrt(np.diagonal(cov, axis1=1, axis2=2))
@@ -224,6 +228,7 @@ def finish_batch(
     n_sol = n_good.astype(float).tolist()
     alt_list = has_alt.tolist()
     fb = fallback.tolist()
+    scale_list = scale.tolist()
     out: list[PoseEstimate | None] = []
     for i in range(F):
         if fb[i]:
@@ -241,6 +246,8 @@ def finish_batch(
                 ex[name] = col[i]
         for name, col in zip(tail_names, tail_cols):
             ex[name] = col[i]
+        if scale_list[i] > 1.0:
+            ex["covariance_scale"] = scale_list[i]
         p = p_list[i]
         out.append(PoseEstimate(
             method=method, ok=True, roll_rad=p[0], pitch_rad=p[1], yaw_rad=p[2], height_m=p[5],

@@ -32,6 +32,14 @@ _QUANT = (("roll_err_deg", "roll [deg]"), ("pitch_err_deg", "pitch [deg]"),
           ("yaw_err_deg", "yaw [deg]"), ("height_err_m", "height [m]"))
 
 
+def _legend(ax: plt.Axes, **kw) -> None:
+    """A legend when the axes hold labelled artists (a run whose every estimate failed has none)."""
+    if ax.get_legend_handles_labels()[0]:
+        ax.legend(**kw)
+    else:
+        ax.text(0.5, 0.5, "no finite values", transform=ax.transAxes, ha="center", va="center")
+
+
 def _save(fig: plt.Figure, path: Path) -> None:
     buf = io.BytesIO()
     fig.tight_layout()
@@ -73,7 +81,7 @@ def plot_error_vs_height(table: pd.DataFrame, path: Path) -> None:
                 ax.set_ylabel(f"sigma {label}")
             if row == len(quantities) - 1:
                 ax.set_xlabel("camera height [m]")
-    axes[0, 0].legend(fontsize=7)
+    _legend(axes[0, 0], fontsize=7)
     fig.suptitle("Error sigma vs height per resolution (dashed: Cramér–Rao bound of each estimator's frames)")
     _save(fig, path)
 
@@ -89,7 +97,7 @@ def plot_distributions(errors: pd.DataFrame, path: Path) -> None:
         ax.set_xlabel(f"error {label}")
         ax.grid(alpha=0.3)
     axes[0].set_ylabel("frames")
-    axes[0].legend(fontsize=7)
+    _legend(axes[0], fontsize=7)
     _save(fig, path)
 
 
@@ -112,7 +120,7 @@ def plot_centroid_vs_size(ce_by_det: dict[str, pd.DataFrame], path: Path) -> Non
     ax.set_xlabel("apparent beacon radius [px]")
     ax.set_ylabel("centroid RMS error [px]")
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=8)
+    _legend(ax, fontsize=8)
     _save(fig, path)
 
 
@@ -136,7 +144,7 @@ def example_frame(run: rl.RunPaths, frame: pd.Series, beacons: pd.DataFrame,
             ax.annotate(str(int(r.beacon_id)), (r.u_px, r.v_px), color="yellow", fontsize=7,
                         xytext=(4, -4), textcoords="offset points")
     ax.set_title(f"frame {frame.frame_id}: {frame.camera}, {frame.camera_height_m:g} m, {frame.get('lighting', '')}")
-    ax.legend(fontsize=7, loc="lower right")
+    _legend(ax, fontsize=7, loc="lower right")
     ax.set_axis_off()
     _save(fig, path)
 

@@ -219,3 +219,17 @@ def test_clean_frames_stay_in_the_batch(method, refine):
     R = np.broadcast_to(opts.R_world_from_cam, (len(frames), 3, 3))
     got = _least_squares_batch(method, frames, camera, LAYOUT, opts, np.ascontiguousarray(R))
     assert sum(e is None for e in got) <= 4
+
+
+@pytest.mark.parametrize("method", ["conic", "pnp"])
+def test_batch_matches_single_frames_when_detections_understate_their_covariance(method):
+    """Noise of 0.3 px declared as 0.03 px (a clipped spot's cog does that): both paths widen
+    the covariance by the same robust scale, ~100, and keep the poses."""
+    rng = np.random.default_rng(21)
+    frames = [_with(f, cov=np.broadcast_to(np.eye(2) * 0.03**2, (len(f), 2, 2)))
+              for f in _random_frames(rng, 12, preset("8mp"), 0.3)]
+    got = _compare(method, frames, preset("8mp"), EstimateOptions())
+    assert all(e.ok for e in got), [e.reason for e in got if not e.ok]
+    scales = [e.extras["covariance_scale"] for e in got]
+    # the median of 13 chi-square(2) values is within a factor ~2 of its expectation
+    assert 100 / 3 < np.median(scales) < 100 * 3

@@ -64,6 +64,35 @@ def test_swapped_ids_are_detected(method):
         assert "residual" in est.reason
 
 
+@pytest.mark.parametrize("method", METHODS)
+def test_covariances_understated_alike_are_widened_not_taken_for_outliers(method):
+    """0.5 px noise declared as 0.05 px: every residual is ~10 sigma. No point is an outlier;
+    the estimate is ok, says by how much it widened the covariance, and its sigmas then
+    match the errors a 0.5 px declaration gives."""
+    det = _noisy(np.random.default_rng(12))
+    small = Detections(det.points_px, det.beacon_ids, np.broadcast_to(np.eye(2) * 0.05**2, (len(det), 2, 2)))
+    est = registry.get(method)(small, CAMERA, DeckLayout(), EstimateOptions())
+    honest = registry.get(method)(det, CAMERA, DeckLayout(), EstimateOptions(sigma_px=0.5))
+    assert est.ok, est.reason
+    assert est.extras["n_outliers_removed"] == 0
+    assert 100 / 3 < est.extras["covariance_scale"] < 100 * 3
+    assert "covariance_scale" not in honest.extras
+    ratio = np.sqrt(np.diag(est.covariance) / np.diag(honest.covariance))
+    assert np.all((ratio > 1 / 1.8) & (ratio < 1.8))
+
+
+def test_a_wrong_point_is_not_hidden_in_the_covariance_scale():
+    """Understated covariances plus one point 30 px off: the point is removed, not absorbed."""
+    det = _noisy(np.random.default_rng(13))
+    pts = det.points_px.copy()
+    pts[5] += [30.0, -10.0]
+    small = Detections(pts, det.beacon_ids, np.broadcast_to(np.eye(2) * 0.05**2, (len(det), 2, 2)))
+    est = registry.get("pnp")(small, CAMERA, DeckLayout(), EstimateOptions())
+    assert est.ok, est.reason
+    assert est.extras["n_outliers_removed"] == 1 and est.extras["outlier_id_0"] == int(det.beacon_ids[5])
+    assert np.all(np.abs(pose_error(est, SHIP, CAM_POSE)[:3]) < 0.01)
+
+
 def test_too_many_outliers_are_flagged_not_hidden():
     det = _noisy(np.random.default_rng(8))
     pts = det.points_px.copy()

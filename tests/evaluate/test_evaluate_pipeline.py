@@ -121,3 +121,16 @@ def test_frames_that_do_not_match_are_rejected(run):
     d.to_parquet(run / "detections" / "fake.parquet", index=False)
     with pytest.raises(InputDataError, match="frame ids the dataset does not have"):
         compute_errors(run_paths(run))
+
+
+def test_distribution_plot_of_a_run_whose_every_estimate_failed(tmp_path):
+    """Failed estimates carry NaN errors: the figure is still written (no legend of nothing,
+    which matplotlib warns about and this suite turns into an error)."""
+    import pandas as pd
+    from deckpose.evaluate.report import plot_distributions
+
+    nan = float("nan")
+    errors = pd.DataFrame({"detector": ["cog"] * 3, "method": ["pnp"] * 3, "roll_err_deg": [nan] * 3,
+                           "pitch_err_deg": [nan] * 3, "yaw_err_deg": [nan] * 3, "height_err_m": [nan] * 3})
+    plot_distributions(errors, tmp_path / "d.png")
+    assert (tmp_path / "d.png").stat().st_size > 1000
