@@ -349,7 +349,16 @@ def find_candidates(
                 continue
             seen.add(key)
             r_eq = math.sqrt(area / math.pi)
-            pad = int(math.ceil(options.window_sigma * max(r_eq, 1.0))) + 3
+            if search is not None:
+                # The core is the spot above spot_level of its peak: its radius is
+                # sqrt(2 ln(1/spot_level)) sigma of a Gaussian spot (0.67 sigma at 0.8; a
+                # clipped core is wider, which only widens the window). The window reaches
+                # window_sigma sigma for the measurement plus 1.5 sigma beyond the wings
+                # for the pedestal.
+                sigma_core = max(r_eq, 1.0) / math.sqrt(2.0 * math.log(1.0 / options.spot_level))
+                pad = int(math.ceil((options.window_sigma + 1.5) * sigma_core)) + 3
+            else:
+                pad = int(math.ceil(options.window_sigma * max(r_eq, 1.0))) + 3
             gu0, gv0 = box[0] + x, box[1] + y
             wb = (
                 max(0, gu0 - pad),
@@ -372,7 +381,8 @@ def find_candidates(
                 # plane's tilt moved the centre (rendered 80 m beacons: gauss 2.0x the CRB
                 # with the border plane, 1.06x above the pedestal; analytic spots on a flat
                 # background lose at most 0.14x, benchmarks/bench_detectors.py).
-                ped = spot_pedestal(wpix, mask, plane[0])
+                ped = spot_pedestal(wpix, mask, plane[0],
+                                    options.window_sigma * sigma_core - r_eq)
                 noise_box = spot_noise
                 clip = True
                 plane = (ped, 0.0, 0.0)

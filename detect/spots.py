@@ -313,17 +313,37 @@ def spot_boxes(
     return boxes, ""
 
 
-def spot_pedestal(pixels: np.ndarray, core: np.ndarray, border_level_dn: float) -> float:
+#: Angular sectors and percentile of the pedestal around a spot (see :func:`spot_pedestal`).
+PEDESTAL_SECTORS = 8
+PEDESTAL_PERCENTILE = 75.0
+
+
+def spot_pedestal(
+    pixels: np.ndarray, core: np.ndarray, border_level_dn: float, wings_px: float | None = None
+) -> float:
     """Level under a bright spot: the brightest window pixel away from its core, DN.
 
-    "Away" is farther than ``2 r + 2`` px from the core, ``r`` the core's
-    equivalent radius, beyond the spot's own wings. At least ``border_level_dn``
-    (the window border's fitted level). Pixels the beacon does not light (a
-    white marking it sits on) stay below it.
+    "Away" is farther than ``wings_px`` from the core, beyond the spot's own
+    wings (default ``2 r + 2`` px, ``r`` the core's equivalent radius). At least
+    ``border_level_dn`` (the window border's fitted level). Pixels the beacon does
+    not light (a white marking it sits on) stay below it.
     """
-    r_px = int(math.ceil(2.0 * math.sqrt(core.sum() / math.pi) + 2.0))
+    r_core = math.sqrt(core.sum() / math.pi)
+    r_px = int(math.ceil(2.0 * r_core + 2.0 if wings_px is None else max(wings_px, 2.0 * r_core + 2.0)))
     # distance to the core (exact Euclidean): linear time, where a dilation with a disc of
     # radius r_px costs r_px^2 per pixel (minutes for a large bright marking)
     dist = cv2.distanceTransform((~core).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
-    away = pixels[dist > r_px]
-    return max(border_level_dn, float(away.max())) if away.size else border_level_dn
+    far = dist > r_px
+    if not far.any():
+        return border_level_dn
+    if wings_px is None:
+        return max(border_level_dn, float(pixels[far].max()))
+    # Eight sectors around the core: a clean spot's glow and the noise are the same in
+    # each; a marking or housing edge raises the upper quartile of the sectors it crosses.
+    vv, uu = np.nonzero(core)
+    h, w = pixels.shape
+    ang = np.arctan2(np.arange(h)[:, None] - vv.mean(), np.arange(w)[None, :] - uu.mean())
+    sector = ((ang + np.pi) * (PEDESTAL_SECTORS / (2 * np.pi))).astype(int) % PEDESTAL_SECTORS
+    levels = [np.percentile(pixels[far & (sector == k)], PEDESTAL_PERCENTILE)
+              for k in range(PEDESTAL_SECTORS) if np.any(far & (sector == k))]
+    return max(border_level_dn, float(max(levels)))

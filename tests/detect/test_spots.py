@@ -73,3 +73,44 @@ def test_spot_threshold_lies_between_background_and_the_spots() -> None:
     assert s.factor == 5 and s.bright_dn == 5000.0
     assert abs(s.background_dn - 103.0) < 3.0  # median of the largest of three N(100, 3)
     assert s.threshold_dn == pytest.approx(s.background_dn + 0.8 * (5000.0 - s.background_dn))
+
+
+def _glowing_spot(rng: np.random.Generator, sigma_px: float, size: int = 81):
+    """A Gaussian core (peak 10000) with a 4x wider glow (5 % of the light) on a
+    background of 100 with noise sigma 5; returns the window, its core mask and sigma."""
+    yy, xx = np.mgrid[0:size, 0:size].astype(float)
+    c = (size - 1) / 2 + 0.3
+    r2 = (xx - c) ** 2 + (yy - c) ** 2
+    core = 10000.0 * np.exp(-r2 / (2 * sigma_px**2))
+    glow = 0.05 / 16 * 10000.0 / 0.95 * np.exp(-r2 / (2 * (4 * sigma_px) ** 2))
+    img = 100.0 + core + glow + rng.normal(0.0, 5.0, r2.shape)
+    return img, core > 0.8 * 10000.0
+
+
+@pytest.mark.parametrize("sigma_px", [1.9, 3.6, 7.0])
+def test_pedestal_of_a_clean_spot_lies_below_its_wings(sigma_px: float) -> None:
+    """Beyond window_sigma spot sigmas the pedestal is the glow plus noise, far below the
+    wings at twice the core radius (where the old pedestal, their maximum, sat)."""
+    from deckpose.detect.spots import spot_pedestal
+
+    img, core = _glowing_spot(np.random.default_rng(4), sigma_px)
+    r_core = np.sqrt(core.sum() / np.pi)
+    sigma_core = r_core / np.sqrt(2 * np.log(1 / 0.8))
+    ped = spot_pedestal(img, core, 100.0, 3.0 * sigma_core - r_core)
+    old = spot_pedestal(img, core, 100.0)
+    glow_at_3_sigma = 0.05 / 16 * 10000.0 / 0.95 * np.exp(-((3.0 / 4) ** 2) / 2)
+    assert 100.0 < ped < 100.0 + glow_at_3_sigma + 0.1 * 10000 * np.exp(-4.5) + 4 * 5.0
+    assert old - 100.0 > 2 * (ped - 100.0)
+
+
+def test_pedestal_rises_to_a_marking_on_one_side() -> None:
+    """A bright marking next to the spot raises the pedestal to its level, so the
+    marking (which the beacon does not light) does not pull the centre."""
+    from deckpose.detect.spots import spot_pedestal
+
+    img, core = _glowing_spot(np.random.default_rng(5), 3.6, size=41)  # a detector's window
+    img[:, 33:37] += 2000.0  # a white line 13-16 px (3.6-4.5 sigma) right of the spot
+    r_core = np.sqrt(core.sum() / np.pi)
+    sigma_core = r_core / np.sqrt(2 * np.log(1 / 0.8))
+    ped = spot_pedestal(img, core, 100.0, 3.0 * sigma_core - r_core)
+    assert ped > 100.0 + 2000.0 - 4 * 5.0
