@@ -17,7 +17,7 @@ import numpy as np
 import pandas as pd
 
 from deckpose.atomic_io import atomic_open, atomic_path
-from deckpose.detect.benchmark import crb_per_beacon, match_run, summarise
+from deckpose.detect.benchmark import centroid_by_lighting, crb_per_beacon, match_run, summarise
 from deckpose.detect.identify import IdentifyOptions
 from deckpose.detect.registry import DetectorOptions
 from deckpose.detect.run import detect_frames_with
@@ -135,6 +135,20 @@ def markdown_table(summary: pd.DataFrame) -> str:
     return "\n".join(lines)
 
 
+def lighting_section(by_light: pd.DataFrame) -> list[str]:
+    """Markdown lines of the centroid error per lighting (none when the dataset has one)."""
+    if by_light.empty:
+        return []
+    lines = ["## Centroid error by lighting", "",
+             "The table above pools the dataset's lightings; here they are apart.", "",
+             "| detector | camera | height m | lighting | beacons | RMS px | CRB px | RMS/CRB |",
+             "|" + "|".join(["---"] * 8) + "|"]
+    for r in by_light.sort_values(["camera", "height_m", "detector", "lighting"]).itertuples():
+        lines.append(f"| {r.detector} | {r.camera} | {r.height_m:g} | {r.lighting} | {r.beacons} | "
+                     f"{_fmt(r.rms_px, 4)} | {_fmt(r.crb_px, 4)} | {_fmt(r.rms_over_crb, 2)} |")
+    return lines + [""]
+
+
 def plot_error_vs_height(summary: pd.DataFrame, path: Path) -> None:
     import matplotlib
 
@@ -217,11 +231,19 @@ def write_report(
     options: DetectorOptions,
     note: str = "",
 ) -> Path:
-    """Write the Markdown report, CSV table and plots; returns the Markdown path."""
+    """Write the Markdown report, CSV table and plots; returns the Markdown path.
+
+    A dataset with several lightings also gets ``bench_detectors_by_lighting.csv`` and a
+    section of the report with the centroid error per lighting.
+    """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     with atomic_path(out / "bench_detectors.csv") as tmp:
         summary.to_csv(tmp, index=False, float_format="%.6g")
+    by_light = centroid_by_lighting(matches)
+    if not by_light.empty:
+        with atomic_path(out / "bench_detectors_by_lighting.csv") as tmp:
+            by_light.to_csv(tmp, index=False, float_format="%.6g")
     plot_error_vs_height(summary, out / "error_vs_height.png")
     plot_error_vs_size(matches, out / "error_vs_size.png")
     gen = manifest.get("generator", "a rendered deckpose dataset")
@@ -250,6 +272,7 @@ def write_report(
         "identification (decoded image, this machine); CPU ms = median CPU time of the same "
         "work on its one thread (the one-core cost when other jobs share the machine).",
         "",
+        *lighting_section(by_light),
         "![error vs height](error_vs_height.png)",
         "",
         "![error vs size](error_vs_size.png)",

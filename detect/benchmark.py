@@ -104,7 +104,7 @@ def crb_per_beacon(beacons: pd.DataFrame, sensor: SensorModel | None) -> np.ndar
 def match_run(
     detections: pd.DataFrame, frames_out: pd.DataFrame, beacons: pd.DataFrame, frames: pd.DataFrame
 ) -> pd.DataFrame:
-    """Matched per-beacon rows of a whole run, with camera, height and time per frame.
+    """Matched per-beacon rows of a whole run, with camera, height (and lighting) per frame.
 
     ``frames_out`` is ``detect_frames.parquet``; ``beacons`` and ``frames`` the dataset's tables.
     """
@@ -115,8 +115,36 @@ def match_run(
     for fid, g in vis.groupby("frame_id"):
         parts.append(match_frame(det_by.get(fid, empty), g.reset_index(drop=True)))
     m = pd.concat(parts, ignore_index=True) if parts else vis.iloc[:0]
-    info = frames[["frame_id", "camera", "camera_height_m"]]
-    return m.merge(info, on="frame_id", how="left")
+    cols = ["frame_id", "camera", "camera_height_m"] + (["lighting"] if "lighting" in frames else [])
+    return m.merge(frames[cols], on="frame_id", how="left")
+
+
+def centroid_by_lighting(matches: pd.DataFrame) -> pd.DataFrame:
+    """Centroid error against the CRB per detector x camera x height x lighting.
+
+    Empty unless ``matches`` (from :func:`match_run`, with ``detector`` and
+    ``crb_var_px2`` columns) holds more than one lighting: the summary pools them,
+    and night, dusk and day frames need not share one figure.
+
+    Returns
+    -------
+    DataFrame
+        ``detector, camera, height_m, lighting, beacons, rms_px, crb_px, rms_over_crb``.
+    """
+    cols = ["detector", "camera", "height_m", "lighting", "beacons", "rms_px", "crb_px", "rms_over_crb"]
+    if "lighting" not in matches or matches["lighting"].nunique() < 2:
+        return pd.DataFrame(columns=cols)
+    m = matches[matches["matched"]]
+    rows = []
+    keys = ["detector", "camera", "camera_height_m", "lighting"]
+    for (det, cam, h, light), g in m.groupby(keys, sort=True):
+        e2 = (g["du_px"].to_numpy(float) ** 2 + g["dv_px"].to_numpy(float) ** 2) / 2
+        crb = g["crb_var_px2"].to_numpy(float)
+        rms = math.sqrt(float(np.mean(e2)))
+        crb_rms = math.sqrt(float(np.mean(crb))) if np.all(np.isfinite(crb)) else math.nan
+        rows.append([det, cam, float(h), str(light), len(g), rms, crb_rms,
+                     rms / crb_rms if crb_rms > 0 else math.nan])
+    return pd.DataFrame(rows, columns=cols)
 
 
 def summarise(

@@ -160,3 +160,26 @@ def test_declared_gain_comes_from_the_manifest_sensor_block():
     assert declared_gain({"sensor": {"gain_dn_per_e": 0.273, "noise": False}}) is None
     assert declared_gain({"sensor": {"read_noise_e": 4}}) is None
     assert declared_gain({}) is None  # an image folder or an old dataset: estimated per frame
+
+
+def test_bench_detectors_splits_centroid_error_by_lighting(tiny_dataset, tmp_path):
+    """With night and dusk frames the report adds a per-lighting table whose rows add up to
+    the pooled summary: beacon counts sum, and the pooled RMS^2 is their count-weighted mean."""
+    ds = tmp_path / "lit"
+    shutil.copytree(tiny_dataset, ds)
+    frames = pd.read_parquet(ds / "frames.parquet")
+    frames["lighting"] = np.where(frames.frame_id % 2 == 0, "night", "dusk")
+    frames.to_parquet(ds / "frames.parquet")
+    out = tmp_path / "bench"
+    argv = ["bench-detectors", str(ds), "--detectors", "cog", "--out", str(out), "--no-progress"]
+    assert main(argv) == 0
+    md = (out / "bench_detectors.md").read_text()
+    assert "## Centroid error by lighting" in md
+    pooled = pd.read_csv(out / "bench_detectors.csv")
+    by = pd.read_csv(out / "bench_detectors_by_lighting.csv")
+    assert set(by.lighting) == {"night", "dusk"}
+    for h, g in by.groupby("height_m"):
+        p = pooled[pooled.height_m == h].iloc[0]
+        assert g.beacons.sum() == p.beacons * p.recall
+        pooled_rms = np.sqrt((g.beacons * g.rms_px**2).sum() / g.beacons.sum())
+        assert pooled_rms == pytest.approx(p.rms_px, rel=1e-5)  # CSVs keep 6 digits
