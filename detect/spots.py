@@ -321,12 +321,16 @@ PEDESTAL_PERCENTILE = 75.0
 def spot_pedestal(
     pixels: np.ndarray, core: np.ndarray, border_level_dn: float, wings_px: float | None = None
 ) -> float:
-    """Level under a bright spot: the brightest window pixel away from its core, DN.
+    """Level under a bright spot, DN.
 
-    "Away" is farther than ``wings_px`` from the core, beyond the spot's own
-    wings (default ``2 r + 2`` px, ``r`` the core's equivalent radius). At least
-    ``border_level_dn`` (the window border's fitted level). Pixels the beacon does
-    not light (a white marking it sits on) stay below it.
+    Taken from the window pixels "away" from the core, farther than ``wings_px``
+    from it, beyond the spot's own wings. With ``wings_px`` it is the highest
+    :data:`PEDESTAL_PERCENTILE` percentile of the :data:`PEDESTAL_SECTORS` sectors
+    around the core: a clean spot's glow and noise are alike in every sector, while a
+    marking or housing edge the beacon does not light raises the sectors it crosses,
+    so it stays below the pedestal. Without ``wings_px``, the brightest pixel farther
+    than ``2 r + 2`` px (``r`` the core's equivalent radius). At least
+    ``border_level_dn`` (the window border's fitted level).
     """
     r_core = math.sqrt(core.sum() / math.pi)
     r_px = int(math.ceil(2.0 * r_core + 2.0 if wings_px is None else max(wings_px, 2.0 * r_core + 2.0)))
