@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from deckpose.estimate.least_squares_batch import FrameObservations
-from deckpose.estimate.observations import _DIFF_STEP, _positions
+from deckpose.estimate.observations import _distortion_jacobian, _positions
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -89,19 +89,6 @@ def _per_frame_all(flags: NDArray[np.bool_], frame_of: NDArray[np.int64], n_fram
     """Per frame: every flag of the frame's detections is True (True for a frame without any)."""
     bad = np.bincount(frame_of, weights=~flags, minlength=n_frames)
     return bad == 0
-
-
-def _distortion_jacobian(camera: CameraModel, xy: FloatArray) -> FloatArray:
-    """d(pixel)/d(normalised) at normalised points, (N, 2, 2): the per-frame formula, all points at once."""
-    n = xy.shape[0]
-    h = _DIFF_STEP
-    offs = np.array([[h, 0.0], [-h, 0.0], [0.0, h], [0.0, -h]])
-    pts = (xy[None, :, :] + offs[:, None, :]).reshape(-1, 2)
-    px = camera.project(np.column_stack([pts, np.ones(len(pts))])).reshape(4, n, 2)
-    D = np.empty((n, 2, 2))
-    D[:, :, 0] = (px[0] - px[1]) / (2 * h)
-    D[:, :, 1] = (px[2] - px[3]) / (2 * h)
-    return D
 
 
 def group_observations(

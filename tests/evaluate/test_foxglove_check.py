@@ -10,8 +10,6 @@ from pathlib import Path
 
 import pytest
 
-from deckpose.cli import main
-from tests.evaluate.fake_run import make_fake_run
 
 TOOL = Path(__file__).resolve().parents[2] / "tools" / "foxglove_check"
 NODE = shutil.which("node")
@@ -25,14 +23,6 @@ pytestmark = pytest.mark.skipif(
 def _check(*paths: Path) -> subprocess.CompletedProcess:
     return subprocess.run([NODE, str(TOOL / "check.mjs"), *map(str, paths)], capture_output=True, text=True,
                           timeout=120, check=False)
-
-
-@pytest.fixture(scope="module")
-def evaluated_run(tmp_path_factory):
-    root = make_fake_run(tmp_path_factory.mktemp("foxcheck") / "run")
-    assert main(["estimate", "--run", str(root), "--detector", "fake", "--method", "thesis"]) == 0
-    assert main(["evaluate", str(root), "--preview-px", "256"]) == 0
-    return root
 
 
 def test_log_and_layout_pass_the_app_readers(evaluated_run):

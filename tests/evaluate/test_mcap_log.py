@@ -8,18 +8,8 @@ import pandas as pd
 import pytest
 from mcap.reader import make_reader
 
-from deckpose.cli import main
 from deckpose.evaluate.mcap_log import annotations_msg, foxglove_layout, log_stamps, plot_path
-from tests.evaluate.fake_run import make_fake_run
 from tests.tolerances import ROUNDOFF
-
-
-@pytest.fixture(scope="module")
-def evaluated_run(tmp_path_factory):
-    root = make_fake_run(tmp_path_factory.mktemp("fox") / "run")
-    assert main(["estimate", "--run", str(root), "--detector", "fake", "--method", "thesis"]) == 0
-    assert main(["evaluate", str(root), "--preview-px", "256"]) == 0
-    return root
 
 
 def test_log_stamps_are_distinct_when_lighting_replays_the_series():
