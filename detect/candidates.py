@@ -81,8 +81,9 @@ class Candidate:
     threshold_dn : float
         Full-resolution threshold used for ``mask``, DN.
     clip_signal : bool
-        Bright-spot search: ``background_dn`` is the spot's pedestal (the brightest
-        window pixel away from the core: a marking under the beacon, its glow) and
+        Bright-spot search (always, there): ``background_dn`` is the spot's pedestal
+        (:func:`~deckpose.detect.spots.spot_pedestal`: the level around the core beyond
+        its wings, raised by a marking under the beacon) and
         :meth:`signal` clips at 0, so a dark beacon housing or a white line around
         the core does not pull the centre.
     """
@@ -218,13 +219,18 @@ def coarse_boxes(
     return boxes, ""
 
 
+def _saturated(image: np.ndarray, box: tuple[int, int, int, int], sat: float) -> np.ndarray:
+    """Pixels of the window with any channel at or above ``sat``, (h, w) bool."""
+    u0, v0, u1, v1 = box
+    block = image[v0:v1, u0:u1]
+    return (block >= sat).any(axis=2) if block.ndim == 3 else block >= sat
+
+
 def _window(
     image: np.ndarray, box: tuple[int, int, int, int], sat: float
 ) -> tuple[np.ndarray, np.ndarray]:
     u0, v0, u1, v1 = box
-    block = image[v0:v1, u0:u1]
-    saturated = (block >= sat).any(axis=2) if block.ndim == 3 else block >= sat
-    return mono(block), saturated
+    return mono(image[v0:v1, u0:u1]), _saturated(image, box, sat)
 
 
 def border_plane(pixels: np.ndarray) -> tuple[float, float, float]:
@@ -312,26 +318,25 @@ def find_candidates(
             tuple[float, float, float],
             float,
             float,
-            bool,
         ]
     ]
     raw = []
     seen: set[tuple[int, int]] = set()
     for box in boxes:
-        pix, _ = _window(image, box, sat_dn)
-        # The threshold follows the local background (the box border) where it is brighter;
-        # with an uneven background, the local noise too.
-        if options.background_kernel_px > 0:
-            noise_box = max(border_noise(pix), noise_floor_dn(image))
-            thr_box = _border_median(pix) + options.threshold_sigma * noise_box
-        else:
-            noise_box = st.noise_dn
-            thr_box = max(thr, _border_median(pix) + k_noise)
         if search is not None:
-            # Bright-spot search: the blob is the spot's bright core (peak channel).
-            u0b, v0b, u1b, v1b = box
-            above = search.peak(u0b, v0b, u1b, v1b) > spot_thr
+            # Bright-spot search: the blob is the spot's bright core (peak channel); its
+            # threshold and noise are the spot's own, set below.
+            above = search.peak(*box) > spot_thr
         else:
+            pix, _ = _window(image, box, sat_dn)
+            # The threshold follows the local background (the box border) where it is
+            # brighter; with an uneven background, the local noise too.
+            if options.background_kernel_px > 0:
+                noise_box = max(border_noise(pix), noise_floor_dn(image))
+                thr_box = _border_median(pix) + options.threshold_sigma * noise_box
+            else:
+                noise_box = st.noise_dn
+                thr_box = max(thr, _border_median(pix) + k_noise)
             above = pix > thr_box
         n, labels, cstats, _ = cv2.connectedComponentsWithStats(
             above.astype(np.uint8), connectivity=8
@@ -341,8 +346,11 @@ def find_candidates(
             if area < options.min_area_px:
                 continue
             comp = labels[y : y + h, x : x + w] == lab
+            # the component's brightest pixel (of the channel sum) names the blob
+            block = (pix[y : y + h, x : x + w] if search is None else
+                     mono(image[box[1] + y : box[1] + y + h, box[0] + x : box[0] + x + w]))
             peak = np.unravel_index(
-                np.argmax(np.where(comp, pix[y : y + h, x : x + w], -np.inf)), comp.shape
+                np.argmax(np.where(comp, block, -np.inf)), comp.shape
             )
             key = (box[1] + y + int(peak[0]), box[0] + x + int(peak[1]))
             if key in seen:  # the same blob reached from two overlapping coarse boxes
@@ -366,16 +374,17 @@ def find_candidates(
                 min(W, gu0 + w + pad),
                 min(H, gv0 + h + pad),
             )
-            wpix, wsat = _window(image, wb, sat_dn)
-            mask = np.zeros(wpix.shape, bool)
-            mask[gv0 - wb[1] : gv0 - wb[1] + h, gu0 - wb[0] : gu0 - wb[0] + w] = comp
             if search is not None:  # measure the peak channel: the red bow is as bright as the rest
                 wpix = search.peak(*wb).astype(np.float64)
+                wsat = _saturated(image, wb, sat_dn)
+            else:
+                wpix, wsat = _window(image, wb, sat_dn)
+            mask = np.zeros(wpix.shape, bool)
+            mask[gv0 - wb[1] : gv0 - wb[1] + h, gu0 - wb[0] : gu0 - wb[0] + w] = comp
             plane = border_plane(wpix)
-            clip = False
             if search is not None:
-                # Every bright spot is measured above its pedestal, the brightest level away
-                # from the core: a marking, a housing or the spot's own glow around it. A
+                # Every bright spot is measured above its pedestal (spot_pedestal: the level
+                # around the core, beyond its wings: a marking, a housing or its own glow). A
                 # plane through the window border did worse even where the pedestal was
                 # within the noise: a small core's window border lies in its glow, and the
                 # plane's tilt moved the centre (rendered 80 m beacons: gauss 2.0x the CRB
@@ -384,11 +393,10 @@ def find_candidates(
                 ped = spot_pedestal(wpix, mask, plane[0],
                                     options.window_sigma * sigma_core - r_eq)
                 noise_box = spot_noise
-                clip = True
                 plane = (ped, 0.0, 0.0)
                 # half the core's height above the background, peak-channel DN
                 thr_box = plane[0] + 0.5 * (float(wpix[mask].max()) - plane[0])
-            raw.append((wpix, mask, wsat, wb[0], wb[1], plane, thr_box, noise_box, clip))
+            raw.append((wpix, mask, wsat, wb[0], wb[1], plane, thr_box, noise_box))
     if not raw:
         return [], (
             f"dark frame: no blob above {thr:.1f} DN (background {st.background_dn:.1f} DN, "
@@ -396,8 +404,8 @@ def find_candidates(
         )
     gain0 = options.gain_dn_per_e or 1.0
     cands = [
-        Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, gain0, t, clip_signal=clip)
-        for p, m, s, u0, v0, bg, t, nz, clip in raw
+        Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, gain0, t, clip_signal=search is not None)
+        for p, m, s, u0, v0, bg, t, nz in raw
     ]
     if options.gain_dn_per_e is None:
         from deckpose.detect.gain import estimate_gain  # gain uses cog, which uses this module
