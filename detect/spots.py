@@ -319,29 +319,26 @@ PEDESTAL_PERCENTILE = 75.0
 
 
 def spot_pedestal(
-    pixels: np.ndarray, core: np.ndarray, border_level_dn: float, wings_px: float | None = None
+    pixels: np.ndarray, core: np.ndarray, border_level_dn: float, wings_px: float
 ) -> float:
     """Level under a bright spot, DN.
 
-    Taken from the window pixels "away" from the core, farther than ``wings_px``
-    from it, beyond the spot's own wings. With ``wings_px`` it is the highest
-    :data:`PEDESTAL_PERCENTILE` percentile of the :data:`PEDESTAL_SECTORS` sectors
-    around the core: a clean spot's glow and noise are alike in every sector, while a
-    marking or housing edge the beacon does not light raises the sectors it crosses,
-    so it stays below the pedestal. Without ``wings_px``, the brightest pixel farther
-    than ``2 r + 2`` px (``r`` the core's equivalent radius). At least
+    Taken from the window pixels "away" from the core: farther than ``wings_px``
+    (at least ``2 r + 2`` px, ``r`` the core's equivalent radius), beyond the spot's
+    own wings. It is the highest :data:`PEDESTAL_PERCENTILE` percentile of the
+    :data:`PEDESTAL_SECTORS` sectors around the core: a clean spot's glow and noise
+    are alike in every sector, while a marking or housing edge the beacon does not
+    light raises the sectors it crosses, so it stays below the pedestal. At least
     ``border_level_dn`` (the window border's fitted level).
     """
     r_core = math.sqrt(core.sum() / math.pi)
-    r_px = int(math.ceil(2.0 * r_core + 2.0 if wings_px is None else max(wings_px, 2.0 * r_core + 2.0)))
+    r_px = int(math.ceil(max(wings_px, 2.0 * r_core + 2.0)))
     # distance to the core (exact Euclidean): linear time, where a dilation with a disc of
     # radius r_px costs r_px^2 per pixel (minutes for a large bright marking)
     dist = cv2.distanceTransform((~core).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
     far = dist > r_px
     if not far.any():
         return border_level_dn
-    if wings_px is None:
-        return max(border_level_dn, float(pixels[far].max()))
     # Eight sectors around the core: a clean spot's glow and the noise are the same in
     # each; a marking or housing edge raises the upper quartile of the sectors it crosses.
     vv, uu = np.nonzero(core)

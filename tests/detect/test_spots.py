@@ -97,7 +97,9 @@ def test_pedestal_of_a_clean_spot_lies_below_its_wings(sigma_px: float) -> None:
     r_core = np.sqrt(core.sum() / np.pi)
     sigma_core = r_core / np.sqrt(2 * np.log(1 / 0.8))
     ped = spot_pedestal(img, core, 100.0, 3.0 * sigma_core - r_core)
-    old = spot_pedestal(img, core, 100.0)
+    # the pedestal before: the brightest pixel farther than 2 r + 2 from the core
+    dist = cv2.distanceTransform((~core).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+    old = max(100.0, float(img[dist > int(np.ceil(2 * r_core + 2))].max()))
     glow_at_3_sigma = 0.05 / 16 * 10000.0 / 0.95 * np.exp(-((3.0 / 4) ** 2) / 2)
     assert 100.0 < ped < 100.0 + glow_at_3_sigma + 0.1 * 10000 * np.exp(-4.5) + 4 * 5.0
     assert old - 100.0 > 2 * (ped - 100.0)
