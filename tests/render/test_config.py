@@ -84,10 +84,32 @@ def test_resolved_config_round_trips() -> None:
     assert config_from_dict(config_to_dict(cfg)) == cfg
 
 
-@pytest.mark.parametrize("name", ["smoke.yaml", "thesis_sweep.yaml", "detector_benchmark.yaml"])
+#: The one shipped config that is not a render config: the analytic-spot dataset's.
+SYNTHETIC_CONFIG = "detect_bench_synthetic.yaml"
+
+
+@pytest.mark.parametrize(
+    "name", sorted(p.name for p in (REPO / "configs").glob("*.yaml") if p.name != SYNTHETIC_CONFIG)
+)
 def test_shipped_configs_parse(name: str) -> None:
     cfg = load_config(REPO / "configs" / name)
     assert cfg.cameras and cfg.heights_m
+
+
+def test_shipped_synthetic_dataset_config_parses() -> None:
+    from deckpose.detect.synthetic_dataset import read_config
+
+    cfg = read_config(REPO / "configs" / SYNTHETIC_CONFIG)
+    assert cfg.cameras and cfg.heights_m
+
+
+def test_noise_free_crb_config_differs_from_its_noisy_twin_only_in_noise() -> None:
+    import dataclasses
+
+    noisy = load_config(REPO / "configs" / "detector_crb.yaml")
+    clean = load_config(REPO / "configs" / "detector_crb_noisefree.yaml")
+    assert noisy.sensor.noise and not clean.sensor.noise
+    assert dataclasses.replace(clean, name=noisy.name, sensor=noisy.sensor) == noisy
 
 
 def test_embedded_default_is_the_smoke_config() -> None:
