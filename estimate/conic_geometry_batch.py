@@ -152,11 +152,6 @@ def circle_planes_batch(C: FloatArray, radius_m: float) -> tuple[FloatArray, Flo
     return normals, centres, valid
 
 
-def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
-    return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1], a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
-                     a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
-
-
 def in_plane_alignment_batch(
     xy: FloatArray, points_deck_m: FloatArray, normal_up: FloatArray, centre_m: FloatArray
 ) -> tuple[FloatArray, FloatArray, BoolArray]:
@@ -190,7 +185,7 @@ def in_plane_alignment_batch(
         if np.any(alt):
             ex[alt] = np.array([0.0, 1.0, 0.0]) - n_up[alt, 1, None] * n_up[alt]
         e1 = ex / np.sqrt(np.sum(ex * ex, axis=1))[:, None]
-        e2 = _cross(n_up, e1)
+        e2 = np.cross(n_up, e1)
         E = np.stack([e1, e2], axis=1)  # (F, 2, 3)
         q = ((xy @ np.swapaxes(E[:, :, :2], 1, 2)) + E[:, None, :, 2]) * s_ray[:, :, None] - (
             E @ centre_m[:, :, None])[:, None, :, 0]
@@ -203,7 +198,7 @@ def in_plane_alignment_batch(
         c, s = np.cos(psi), np.sin(psi)
         shift = qm - np.stack([c * pm[0] - s * pm[1], s * pm[0] + c * pm[1]], axis=1)
         x_deck = c[:, None] * e1 + s[:, None] * e2
-        y_deck = _cross(n_up, x_deck)
+        y_deck = np.cross(n_up, x_deck)
         R = np.stack([x_deck, y_deck, n_up], axis=2)
         t = centre_m + shift[:, 0, None] * e1 + shift[:, 1, None] * e2
     return R, t, ok

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+from scipy.spatial.transform import Rotation
 from deckpose.estimate.least_squares_batch import (
     FrameObservations,
     evaluate_fit_batch,
@@ -27,25 +28,8 @@ BoolArray = NDArray[np.bool_]
 
 
 def rotation_matrices(rvec: FloatArray) -> FloatArray:
-    """Rotation matrices (F, 3, 3) of Rodrigues vectors (F, 3), the formula of ``cv2.Rodrigues``."""
-    theta = np.sqrt(np.sum(rvec * rvec, axis=1))
-    tiny = theta < np.finfo(float).eps
-    with np.errstate(invalid="ignore", divide="ignore"):
-        k = rvec / np.where(tiny, 1.0, theta)[:, None]
-    c, s = np.cos(theta), np.sin(theta)
-    c1 = 1.0 - c
-    R = c1[:, None, None] * k[:, :, None] * k[:, None, :]
-    R[:, 0, 0] += c
-    R[:, 1, 1] += c
-    R[:, 2, 2] += c
-    R[:, 0, 1] -= s * k[:, 2]
-    R[:, 0, 2] += s * k[:, 1]
-    R[:, 1, 0] += s * k[:, 2]
-    R[:, 1, 2] -= s * k[:, 0]
-    R[:, 2, 0] -= s * k[:, 1]
-    R[:, 2, 1] += s * k[:, 0]
-    R[tiny] = np.eye(3)
-    return R
+    """Rotation matrices (F, 3, 3) of Rodrigues vectors (F, 3), as ``cv2.Rodrigues`` gives them."""
+    return Rotation.from_rotvec(rvec).as_matrix()
 
 
 def _close(a: FloatArray, b: FloatArray, tol: float) -> BoolArray:
