@@ -105,15 +105,29 @@ class Candidate:
         h, w = self.pixels.shape
         return np.meshgrid(np.arange(w, dtype=float) + self.u0, np.arange(h, dtype=float) + self.v0)
 
-    def signal(self) -> np.ndarray:
-        """Background-subtracted pixels, DN."""
+    def background_plane(self) -> np.ndarray:
+        """The background's tilt over the window (zero at its centre), (h, w) DN."""
         h, w = self.pixels.shape
         gu, gv = self.background_grad
-        plane = (np.arange(h)[:, None] - (h - 1) / 2) * gv + (
+        return (np.arange(h)[:, None] - (h - 1) / 2) * gv + (
             np.arange(w)[None, :] - (w - 1) / 2
         ) * gu
-        s = self.pixels - self.background_dn - plane
+
+    def signal(self) -> np.ndarray:
+        """Background-subtracted pixels, DN."""
+        s = self.pixels - self.background_dn - self.background_plane()
         return np.maximum(s, 0.0) if self.clip_signal else s
+
+    def floor_dn(self, u_px: float, v_px: float, radius_px: float) -> float:
+        """Level a spot at ``(u_px, v_px)`` rises from, above the background's tilt, DN.
+
+        The :data:`FLOOR_PERCENTILE` percentile of the de-tilted pixels within
+        ``radius_px`` of the spot: the darker part of its surroundings (a beacon's
+        housing, the deck), not the pedestal, which a bright marking nearby raises.
+        """
+        uu, vv = self.grid()
+        near = np.hypot(uu - u_px, vv - v_px) <= radius_px
+        return float(np.percentile((self.pixels - self.background_plane())[near], FLOOR_PERCENTILE))
 
     def variance(self, signal_dn: np.ndarray | None = None) -> np.ndarray:
         """Per-pixel noise variance, DN^2: background noise plus shot noise of the signal."""
@@ -151,6 +165,10 @@ class Candidate:
             var = (size**2 + 1.0 / 12.0) / n_e * (1.0 + bg_e2 / n_e)
             cov_px2 = np.eye(2) * var
         return (float(u_px), float(v_px), np.asarray(cov_px2, float), float(flux_dn), size, score)
+
+
+#: Percentile of a spot's surroundings that gives its floor (:meth:`Candidate.floor_dn`).
+FLOOR_PERCENTILE = 20.0
 
 
 MeasureFn = Callable[[Candidate], "tuple[float, float, np.ndarray, float, float, float] | None"]

@@ -38,17 +38,37 @@ def binary_centroid(cand: Candidate) -> Row:
     return base[:2] + (base[2] + np.eye(2) * quant,) + base[3:]
 
 
+#: An unclipped spot's floor-based window may grow to at most this many times the
+#: pedestal-based spot sigma (see :func:`cog_centroid`).
+FLOOR_SIGMA_GROWTH = 1.3
+
+
 def cog_centroid(
-    cand: Candidate, window_sigma: float = 3.0, max_iter: int = 30, tol_px: float = 1e-4
+    cand: Candidate,
+    window_sigma: float = 3.0,
+    max_iter: int = 30,
+    tol_px: float = 1e-4,
+    *,
+    above_floor: bool = True,
 ) -> Row | None:
     """Iterated, soft-windowed intensity centroid of one candidate (``None`` if degenerate).
 
     The window is a disc of radius ``window_sigma * sigma`` whose edge pixels are
     weighted by their approximate coverage; ``sigma`` is re-estimated from the
     windowed second moment (corrected for the truncation) at each iteration.
+
+    The signal is first the candidate's own (:meth:`Candidate.signal`: above its
+    pedestal for a bright spot). A bright spot whose core is not clipped
+    (``clip_signal`` and no saturated core pixel) is then measured again from that
+    result, above its floor (:meth:`Candidate.floor_dn`: the level its wings fall
+    to, such as the beacon's dark housing), so its wings count: above the deck's
+    pedestal, the wings of a rendered 80 m beacon at dusk were cut and cog was
+    1.50x the centroid CRB (1.14x above the floor, reports/detectors_crb/). In this
+    second pass the spot sigma may grow to at most :data:`FLOOR_SIGMA_GROWTH` times
+    the first pass's, so lit deck reaching into a window around a small housing
+    cannot widen the window without end. ``above_floor=False`` keeps the first pass.
     """
     s_full = cand.signal()
-    h, w = s_full.shape
     ms = np.where(cand.mask, s_full, 0.0)
     F = ms.sum()
     if not F > 0:
@@ -57,8 +77,33 @@ def cog_centroid(
     wts = ms[vv0, uu0]
     u = float((wts * uu0).sum() / F) + cand.u0
     v = float((wts * vv0).sum() / F) + cand.v0
-    sigma = cand.mask_moments()[2]
+    h, w = s_full.shape
     sigma_max = 0.5 * min(h, w) / window_sigma + 1.0
+    row = _windowed_centroid(
+        cand, s_full, u, v, cand.mask_moments()[2], window_sigma, sigma_max, max_iter, tol_px
+    )
+    if row is None or not above_floor or not cand.clip_signal or cand.saturated[cand.mask].any():
+        return row
+    u, v, _, _, sigma, _ = row
+    floor = cand.floor_dn(u, v, window_sigma * sigma + 2.0)
+    s_floor = np.maximum(cand.pixels - cand.background_plane() - floor, 0.0)
+    grown = min(sigma_max, FLOOR_SIGMA_GROWTH * sigma)
+    return _windowed_centroid(cand, s_floor, u, v, sigma, window_sigma, grown, max_iter, tol_px)
+
+
+def _windowed_centroid(
+    cand: Candidate,
+    s_full: np.ndarray,
+    u: float,
+    v: float,
+    sigma: float,
+    window_sigma: float,
+    sigma_max: float,
+    max_iter: int,
+    tol_px: float,
+) -> Row | None:
+    """The iteration of :func:`cog_centroid` on the signal ``s_full`` (DN), from ``(u, v, sigma)``."""
+    h, w = s_full.shape
     m2_frac = truncated_m2_fraction(window_sigma)
     for it in range(max_iter + 1):
         R = window_sigma * sigma

@@ -31,7 +31,7 @@ def estimate_gain(cands: list[Candidate], window_sigma: float = 3.0, max_blobs: 
     unclipped = [c for c in cands if not c.saturated[c.mask].any()]
     by_size = sorted(unclipped, key=lambda c: -int(c.mask.sum()))
     for c in by_size[:max_blobs]:
-        row = cog_centroid(c, window_sigma)
+        row = cog_centroid(c, window_sigma, above_floor=False)
         if row is None:
             continue
         u, v, _, flux, sigma_mom, _ = row

@@ -51,7 +51,7 @@ def _model_and_jac(
 
 def gauss_fit(cand: Candidate, window_sigma: float = 3.0) -> Row | None:
     """Fit one candidate; ``None`` when the fit fails or is degenerate."""
-    start = cog_centroid(cand, window_sigma)
+    start = cog_centroid(cand, window_sigma, above_floor=False)
     if start is None:
         return None
     if cand.clip_signal or cand.saturated[cand.mask].any():
