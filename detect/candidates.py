@@ -118,16 +118,27 @@ class Candidate:
         s = self.pixels - self.background_dn - self.background_plane()
         return np.maximum(s, 0.0) if self.clip_signal else s
 
-    def floor_dn(self, u_px: float, v_px: float, radius_px: float) -> float:
-        """Level a spot at ``(u_px, v_px)`` rises from, above the background's tilt, DN.
+    def above_floor(
+        self, u_px: float, v_px: float, radius_px: float
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """Pixels above the level a spot at ``(u_px, v_px)`` rises from, and where that level was taken.
 
-        The :data:`FLOOR_PERCENTILE` percentile of the de-tilted pixels within
-        ``radius_px`` of the spot: the darker part of its surroundings (a beacon's
-        housing, the deck), not the pedestal, which a bright marking nearby raises.
+        The floor is the :data:`FLOOR_PERCENTILE` percentile of the de-tilted pixels
+        within ``radius_px`` of the spot: the darker part of its surroundings (a
+        beacon's housing, the deck), not the pedestal, which a bright marking nearby
+        raises.
+
+        Returns
+        -------
+        signal_dn : (h, w) array of float
+            De-tilted pixels minus the floor, DN (not clipped).
+        near : (h, w) array of bool
+            The pixels within ``radius_px`` of the spot.
         """
         uu, vv = self.grid()
         near = np.hypot(uu - u_px, vv - v_px) <= radius_px
-        return float(np.percentile((self.pixels - self.background_plane())[near], FLOOR_PERCENTILE))
+        detilted = self.pixels - self.background_plane()
+        return detilted - float(np.percentile(detilted[near], FLOOR_PERCENTILE)), near
 
     def variance(self, signal_dn: np.ndarray | None = None) -> np.ndarray:
         """Per-pixel noise variance, DN^2: background noise plus shot noise of the signal."""
@@ -167,7 +178,7 @@ class Candidate:
         return (float(u_px), float(v_px), np.asarray(cov_px2, float), float(flux_dn), size, score)
 
 
-#: Percentile of a spot's surroundings that gives its floor (:meth:`Candidate.floor_dn`).
+#: Percentile of a spot's surroundings that gives its floor (:meth:`Candidate.above_floor`).
 FLOOR_PERCENTILE = 20.0
 
 

@@ -60,7 +60,7 @@ def cog_centroid(
     The signal is first the candidate's own (:meth:`Candidate.signal`: above its
     pedestal for a bright spot). A bright spot whose core is not clipped
     (``clip_signal`` and no saturated core pixel) is then measured again from that
-    result, above its floor (:meth:`Candidate.floor_dn`: the level its wings fall
+    result, above its floor (:meth:`Candidate.above_floor`: the level its wings fall
     to, such as the beacon's dark housing), so its wings count: above the deck's
     pedestal, the wings of a rendered 80 m beacon at dusk were cut and cog was
     1.50x the centroid CRB (1.14x above the floor, reports/detectors_crb/). In this
@@ -85,8 +85,7 @@ def cog_centroid(
     if row is None or not above_floor or not cand.clip_signal or cand.saturated[cand.mask].any():
         return row
     u, v, _, _, sigma, _ = row
-    floor = cand.floor_dn(u, v, window_sigma * sigma + 2.0)
-    s_floor = np.maximum(cand.pixels - cand.background_plane() - floor, 0.0)
+    s_floor = np.maximum(cand.above_floor(u, v, window_sigma * sigma + 2.0)[0], 0.0)
     grown = min(sigma_max, FLOOR_SIGMA_GROWTH * sigma)
     return _windowed_centroid(cand, s_floor, u, v, sigma, window_sigma, grown, max_iter, tol_px)
 

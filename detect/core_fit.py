@@ -97,12 +97,10 @@ def core_fit(cand: Candidate, start: Row, window_sigma: float = 3.0) -> Row | No
         ``None`` when too few unsaturated core pixels remain or the fit fails.
     """
     u0, v0, _, F0, s0, _ = start
+    # Above the level the core rises from: the darker part of the window (a beacon's
+    # housing, the deck), not the candidate's pedestal, which may be a bright marking nearby.
+    signal, near = cand.above_floor(u0, v0, window_sigma * s0 + 2.0)
     uu, vv = cand.grid()
-    near = np.hypot(uu - u0, vv - v0) <= window_sigma * s0 + 2.0
-    # The level the core rises from: the darker part of the window (a beacon's housing,
-    # the deck), not the candidate's pedestal, which may be a bright marking nearby.
-    floor = cand.floor_dn(u0, v0, window_sigma * s0 + 2.0)
-    signal = cand.pixels - cand.background_plane() - floor
     sat_all = cand.saturated & near
     top = float(signal[sat_all].min()) if sat_all.any() else float(signal[near].max())
     if not top > 0:
