@@ -3,7 +3,8 @@
 This is the entry point the CLI and the benchmarks use: estimators that refine
 by themselves (``conic``, ``pnp``) mark their result ``extras["refined"] = 1``;
 for any other (the thesis's) :func:`run_estimator` appends the generic
-maximum-likelihood refinement when ``options.refine`` is set.
+maximum-likelihood refinement when ``options.refine`` is set, and
+``options.posterior_mean`` then replaces the refined pose by its posterior mean.
 
 :func:`estimate_batch` estimates many frames at once: ``conic``, ``pnp`` and
 ``thesis`` (and the refinement) run as stacked array operations over all frames
@@ -23,6 +24,7 @@ from deckpose.estimate import registry
 from deckpose.estimate.conic_batch import conic_candidates_batch
 from deckpose.estimate.observations_batch import group_observations, stack_detections
 from deckpose.estimate.pnp_batch import pnp_candidates_batch
+from deckpose.estimate.posterior_mean import apply_posterior_mean
 from deckpose.estimate.refine import refine_estimate, refine_estimates_batch
 from deckpose.estimate.registry import EstimateOptions
 from deckpose.estimate.solution_batch import finish_batch
@@ -46,6 +48,9 @@ def run_estimator(
     est = fn(detections, camera, layout, options)
     if options.refine and est.ok and not est.extras.get("refined", 0.0):
         est = refine_estimate(est, detections, camera, layout, options)
+    if options.posterior_mean:
+        est = apply_posterior_mean([est], [detections], camera, layout, options,
+                                   np.asarray(options.R_world_from_cam)[None])[0]
     return est
 
 
@@ -148,6 +153,13 @@ def estimate_batch(
         if options.refine and name not in ("conic", "pnp"):
             ests = refine_estimates_batch(ests, chunk, camera, layout, options, R_chunk,
                                           skip=set(todo))
+        if options.posterior_mean:  # the single-frame results in ``todo`` have theirs already
+            single = set(todo)
+            fresh = [i for i in range(len(ests)) if i not in single]
+            means = apply_posterior_mean([ests[i] for i in fresh], [chunk[i] for i in fresh], camera,
+                                         layout, options, R_chunk[fresh])
+            for i, e in zip(fresh, means):
+                ests[i] = e
         out.extend(ests)
     return out
 

@@ -22,6 +22,10 @@ BATCH_POSE_SIGMA = 2e-3
 #: Batched vs single-frame chi-square values (sum of squared whitened residuals):
 #: at 2e-3 sigma from the optimum a chi-square differs by (2e-3)^2 = 4e-6.
 BATCH_CHI2 = 1e-5
+#: Batched vs single-frame effective number of posterior-mean nodes, relative. The nodes sit
+#: at up to ~4 sigma from the ML pose, which the two paths agree on to BATCH_POSE_SIGMA: each
+#: log-weight moves by up to ~4 x 2e-3, the sum of squared weights by about twice that.
+BATCH_POSTERIOR_NODES = 2e-2
 #: Batched vs single-frame covariances and everything computed without iterating
 #: (closed forms, the thesis estimator, sigmas): relative, a few float64 round-offs
 #: amplified by 6x6 inversions and eigen-solves.

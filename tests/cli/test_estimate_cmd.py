@@ -136,6 +136,24 @@ def test_radius_option_scales_the_height(setup):
     np.testing.assert_allclose(res.height_m, [D / 2 for _, D in truth], rtol=1e-9)
 
 
+def test_posterior_mean_option(setup):
+    """``--posterior-mean`` refines, reports the mean and keeps the ML pose in ml_* columns."""
+    tmp, cam_path, df, truth = setup
+    rng = np.random.default_rng(3)
+    df = df.assign(u_px=df.u_px + rng.normal(0, 1.0, len(df)), v_px=df.v_px + rng.normal(0, 1.0, len(df)))
+    det = tmp / "det.csv"
+    df.to_csv(det, index=False)
+    out = tmp / "est.csv"
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(out), "--method", "thesis",
+                 "--posterior-mean", "--sigma-px", "1"]) == 0
+    res = pd.read_csv(out)
+    assert res["ok"].all() and (res["posterior_mean"] == 1).all() and (res["refined"] == 1).all()
+    for (pose, D), (_, row) in zip(truth, res.iterrows()):
+        assert abs(row.roll_deg - np.degrees(row.ml_roll_rad)) < 0.5 * row.sigma_roll_deg
+        assert abs(row.roll_deg - np.degrees(pose.roll_rad)) < 5 * row.sigma_roll_deg
+        assert abs(row.height_m - D) < 5 * row.sigma_height_m
+
+
 def test_help_of_every_subcommand(capsys):
     from deckpose.cli import build_parser
 

@@ -15,7 +15,7 @@ from deckpose.records import POSE_PARAMS, Detections, PoseEstimate
 from deckpose.rotation import rot_x, rot_y
 from tests.estimate.synthetic import detections_for
 from tests.estimate.test_roundtrip import ODD_CAMERA
-from tests.tolerances import BATCH_CHI2, BATCH_POSE_SIGMA, BATCH_RELATIVE
+from tests.tolerances import BATCH_CHI2, BATCH_POSE_SIGMA, BATCH_POSTERIOR_NODES, BATCH_RELATIVE
 
 METHODS = ["conic", "pnp", "thesis"]
 LAYOUT = DeckLayout()
@@ -88,6 +88,8 @@ def _tol_for(name: str, single: PoseEstimate) -> tuple[float, float]:
         return BATCH_CHI2, BATCH_RELATIVE
     if name == "ambiguity_mahalanobis":  # distance between two solutions, each within tolerance
         return 2 * BATCH_POSE_SIGMA, BATCH_RELATIVE
+    if name == "posterior_effective_nodes":  # the nodes move with the ML pose (BATCH_POSE_SIGMA)
+        return 0.0, BATCH_POSTERIOR_NODES
     if name == "reprojection_rms_px":
         return 0.0, math.sqrt(BATCH_CHI2)
     if name.endswith("_rad") or name.startswith("rvec_"):
@@ -146,10 +148,13 @@ def test_batch_matches_single_frames_on_noisy_frames(method, refine, sigma_px):
 
 
 @pytest.mark.parametrize("method", METHODS)
-@pytest.mark.parametrize("refine", [False, True])
+@pytest.mark.parametrize("refine", [False, True, "posterior_mean"])
 def test_batch_matches_single_frames_on_mixed_batches(method, refine):
     frames = _mixed_frames(np.random.default_rng(3), preset("8mp"))
-    got = _compare(method, frames, preset("8mp"), EstimateOptions(sigma_px=0.5, refine=refine))
+    opts = EstimateOptions(sigma_px=0.5, refine=bool(refine), posterior_mean=refine == "posterior_mean")
+    got = _compare(method, frames, preset("8mp"), opts)
+    if refine == "posterior_mean":  # every ok estimate has its mean, the frame with a beacon listed twice too
+        assert all(e.extras["posterior_mean"] == 1.0 for e in got if e.ok)
     reasons = {e.reason.split(":")[0] for e in got if not e.ok}
     assert len(reasons) >= 3  # the batch really held failing frames of several kinds
     assert any(e.ok and e.extras.get("n_outliers_removed", 0) for e in got) or method == "thesis"

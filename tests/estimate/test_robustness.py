@@ -149,9 +149,10 @@ def _check(est):
 
 @pytest.mark.parametrize("method", METHODS)
 @settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(det=st.one_of(garbage_detections(), perturbed_truth()), refine=st.booleans())
+@given(det=st.one_of(garbage_detections(), perturbed_truth()), refine=st.sampled_from([False, True, "mean"]))
 def test_random_inputs_never_raise_nor_report_nan_as_ok(method, det, refine):
-    _check(run_estimator(method, det, CAMERA, DeckLayout(), EstimateOptions(refine=refine, sigma_px=0.5)))
+    opts = EstimateOptions(refine=bool(refine), posterior_mean=refine == "mean", sigma_px=0.5)
+    _check(run_estimator(method, det, CAMERA, DeckLayout(), opts))
 
 
 @pytest.mark.parametrize("method", ["conic", "pnp"])
