@@ -12,6 +12,11 @@ and the whole cell in one ``estimate_batch`` call; their ratio; and how many
 frames the two disagree on (ok flag, reason, or a pose by more than 2e-3 sigma).
 The errors are those of the batched estimates.
 
+``pnp+mean`` and ``conic+mean`` report the posterior mean under a uniform prior
+(``EstimateOptions.posterior_mean``) instead of the maximum-likelihood pose of
+``pnp`` and ``conic+refine``: a biased estimator, whose error the bound (which
+holds for unbiased ones) does not limit.
+
 ``thesis`` is the faithful thesis estimator: its own angles (``R = Rx Ry Rz``)
 are converted to our ZYX convention by the estimator itself, so its errors are
 compared with the same bound. It gives no surge or sway (it assumes the deck
@@ -67,8 +72,12 @@ VARIANTS = (
     ("conic-geom", "conic", {"conic_polish_steps": 0}),
     ("conic+refine", "conic", {"refine": True}),
     ("pnp", "pnp", {}),
+    ("conic+mean", "conic", {"posterior_mean": True}),
+    ("pnp+mean", "pnp", {"posterior_mean": True}),
     ("thesis", "thesis", {}),
 )
+#: The issue's targets: RMS / CRB at most this in every cell.
+TARGETS = {"pnp": 1.05, "conic+refine": 1.05, "conic": 3.0, "pnp+mean": 1.05, "conic+mean": 1.05}
 QUANTITIES = ("roll_rad", "pitch_rad", "yaw_rad", "height_m")
 
 
@@ -231,7 +240,7 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.tables_from is not None:
         print(markdown_tables(pd.read_csv(args.tables_from),
-                              {"pnp": 1.05, "conic+refine": 1.05, "conic": 3.0}))
+                              TARGETS))
         return 0
     known = set(registry.names())
     variants = [v for v in VARIANTS if v[0] in args.estimators and v[1] in known]
