@@ -1,6 +1,6 @@
 """The posterior mean of the pose under a uniform prior, around a maximum-likelihood fit.
 
-Where the signal-to-noise ratio is low (2 px of noise on a ring about 150 px
+Where the signal-to-noise ratio is low (2 px of noise on a ring 377 x 282 px
 across: 4 MP at 80 m) the likelihood of the six pose parameters is no longer
 Gaussian: its tilt direction is curved, and the maximum-likelihood (ML)
 estimate's errors grow heavier tails than the Cramér–Rao bound describes
