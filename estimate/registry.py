@@ -147,3 +147,51 @@ def get(name: str) -> EstimatorFn:
         return _REGISTRY[name]
     except KeyError:
         raise ConfigError(f"unknown estimator {name!r}; choose one of {', '.join(sorted(_REGISTRY))}") from None
+
+
+#: Suffixes of a method label and the option each sets: ``conic+refine``, ``pnp+mean``.
+VARIANT_SUFFIXES: dict[str, str] = {"refine": "refine", "mean": "posterior_mean"}
+
+
+@dataclass(frozen=True)
+class MethodSpec:
+    """An estimator with the options its label names (``pnp+mean`` = pnp, posterior mean).
+
+    Attributes
+    ----------
+    name : str
+        A registered estimator.
+    refine : bool
+    posterior_mean : bool
+    """
+
+    name: str
+    refine: bool = False
+    posterior_mean: bool = False
+
+    @property
+    def label(self) -> str:
+        """``name``, ``name+refine`` or ``name+mean``: how runs and reports name this variant."""
+        if self.posterior_mean:
+            return f"{self.name}+mean"
+        return f"{self.name}+refine" if self.refine else self.name
+
+
+def parse_method(label: str) -> MethodSpec:
+    """``thesis``, ``conic+refine``, ``pnp+mean`` ... as a :class:`MethodSpec`.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown estimator or suffix, with the valid choices.
+    """
+    name, *suffixes = str(label).split("+")
+    get(name)  # unknown estimator: ConfigError with the names
+    flags = {"refine": False, "posterior_mean": False}
+    for s in suffixes:
+        if s not in VARIANT_SUFFIXES:
+            raise ConfigError(f"unknown variant '+{s}' in method {label!r}; a method is an estimator "
+                              f"({', '.join(names())}) optionally followed by "
+                              f"{' or '.join('+' + k for k in VARIANT_SUFFIXES)}")
+        flags[VARIANT_SUFFIXES[s]] = True
+    return MethodSpec(name, **flags)

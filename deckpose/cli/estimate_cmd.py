@@ -12,6 +12,7 @@ if TYPE_CHECKING:
     from tqdm import tqdm
 
     from deckpose.camera import CameraModel
+    from deckpose.estimate import registry
     from deckpose.estimate.registry import EstimateOptions
     from deckpose.layout import DeckLayout
     from deckpose.records import Detections, PoseEstimate
@@ -24,7 +25,8 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
         description=(
             "Read detections (CSV or Parquet with columns frame_id, beacon_id, u_px, v_px; "
             "beacon_id -1 = unassigned) and a ROS camera_info YAML, and write one row per frame: "
-            "frame_id, method, ok, reason, roll_deg, pitch_deg, yaw_deg (ZYX), surge_m, sway_m, "
+            "frame_id, method (with its variant: pnp+mean), ok, reason, roll_deg, pitch_deg, "
+            "yaw_deg (ZYX), surge_m, sway_m, "
             "height_m (empty where the method does not give them), plus method extras "
             "(for --method thesis: thesis_roll_deg, thesis_pitch_deg, thesis_yaw_deg, the "
             "thesis's own X-Y-Z angles). A frame that cannot be solved gets ok=false and a reason."
@@ -39,7 +41,9 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
     p.add_argument("--detector", help="with --run: which detector's detections to use")
     from deckpose.estimate import registry
 
-    p.add_argument("--method", default="thesis", choices=registry.names(), help="estimator")
+    p.add_argument("--method", default="thesis",
+                   help=f"estimator ({', '.join(registry.names())}), optionally with a variant suffix: "
+                   "+refine (= --refine) or +mean (= --posterior-mean), e.g. pnp+mean")
     p.add_argument("--layout", type=Path, help="deck layout YAML (default: 12 ring beacons, radius 10, centre beacon)")
     p.add_argument("--radius", type=float, help="ring radius, overrides the layout's radius_m")
     p.add_argument("--refine", action="store_true", help="maximum-likelihood refinement after the estimator")
@@ -64,8 +68,9 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.layout import DeckLayout, read_layout
     from deckpose.tables import write_table
 
+    spec = _method_spec(args)
     if args.run is not None:
-        return _run_folder(args)
+        return _run_folder(args, spec)
     if args.detections is None or args.camera is None or args.output is None:
         raise ConfigError("give DETECTIONS --camera CAMERA.yaml -o OUTPUT, or --run RUN --detector NAME")
     layout = read_layout(args.layout) if args.layout else DeckLayout()
@@ -73,20 +78,31 @@ def run(args: argparse.Namespace) -> int:
         if not args.radius > 0:
             raise ConfigError(f"--radius must be positive, got {args.radius}")
         layout = dataclasses.replace(layout, radius_m=float(args.radius))
-    options = registry.EstimateOptions(sigma_px=args.sigma_px, refine=args.refine,
-                                       posterior_mean=args.posterior_mean)
+    options = registry.EstimateOptions(sigma_px=args.sigma_px, refine=spec.refine,
+                                       posterior_mean=spec.posterior_mean)
     camera = read_camera_info(args.camera)
     frames = read_detections(args.detections, layout)
     ids = list(frames)
-    with tqdm(total=len(ids), desc=f"estimate ({args.method})", unit="frame", disable=None,
+    with tqdm(total=len(ids), desc=f"estimate ({spec.label})", unit="frame", disable=None,
               leave=False) as bar:
-        results = _estimate_in_chunks(args.method, [frames[i] for i in ids], camera, layout, options,
+        results = _estimate_in_chunks(spec.name, [frames[i] for i in ids], camera, layout, options,
                                       None, bar)
-    df = estimates_frame(ids, results)
+    df = estimates_frame(ids, results).assign(method=spec.label)
     write_table(df, args.output, "estimates")
     n_ok = int(df["ok"].sum()) if len(df) else 0
     print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {args.output}")
     return 0
+
+
+def _method_spec(args: argparse.Namespace) -> registry.MethodSpec:
+    """The estimator and its variant from ``--method`` (``pnp+mean``) and the flags."""
+    import dataclasses
+
+    from deckpose.estimate import registry
+
+    spec = registry.parse_method(args.method)
+    return dataclasses.replace(spec, refine=spec.refine or args.refine,
+                               posterior_mean=spec.posterior_mean or args.posterior_mean)
 
 
 def _estimate_in_chunks(method: str, detections: list[Detections], camera: CameraModel,
@@ -105,8 +121,12 @@ def _estimate_in_chunks(method: str, detections: list[Detections], camera: Camer
     return out
 
 
-def _run_folder(args: argparse.Namespace) -> int:
-    """``--run`` mode: per-frame cameras and camera attitudes from the dataset's frames table."""
+def _run_folder(args: argparse.Namespace, spec: registry.MethodSpec) -> int:
+    """``--run`` mode: per-frame cameras and camera attitudes from the dataset's frames table.
+
+    The output is named after the variant's label (``RUN/estimates/cog--pnp+mean.parquet``), so
+    a method's variants sit side by side.
+    """
     import dataclasses
 
     from tqdm import tqdm
@@ -135,23 +155,23 @@ def _run_folder(args: argparse.Namespace) -> int:
     dets = detections_from_frame(det_df, layout, str(run.detections(args.detector)))
     from deckpose.records import Detections
 
-    options = registry.EstimateOptions(sigma_px=args.sigma_px, refine=args.refine,
-                                       posterior_mean=args.posterior_mean)
+    options = registry.EstimateOptions(sigma_px=args.sigma_px, refine=spec.refine,
+                                       posterior_mean=spec.posterior_mean)
     ids = [int(f) for f in frames.index]
     R_all = rl.R_world_from_cam_all(frames)
     results: list[PoseEstimate | None] = [None] * len(ids)
-    with tqdm(total=len(ids), desc=f"estimate ({args.method})", unit="frame", disable=None,
+    with tqdm(total=len(ids), desc=f"estimate ({spec.label})", unit="frame", disable=None,
               leave=False) as bar:
         # One batch per camera, each frame with its own camera attitude.
         for cam_name, rows in frames.reset_index().groupby("camera", sort=True).indices.items():
             dets_cam = [dets.get(ids[k], Detections(np.zeros((0, 2)), np.zeros(0, dtype=np.int64),
                                                     frame_id=ids[k])) for k in rows]
-            got = _estimate_in_chunks(args.method, dets_cam, cameras[cam_name], layout, options,
+            got = _estimate_in_chunks(spec.name, dets_cam, cameras[cam_name], layout, options,
                                       R_all[rows], bar)
             for k, e in zip(rows, got):
                 results[k] = e
-    df = estimates_frame(ids, results)  # type: ignore[arg-type]
-    out = run.estimates(args.detector, args.method)
+    df = estimates_frame(ids, results).assign(method=spec.label)  # type: ignore[arg-type]
+    out = run.estimates(args.detector, spec.label)
     write_table(df, out, "estimates")
     n_ok = int(df["ok"].sum()) if len(df) else 0
     print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {out}")

@@ -41,7 +41,8 @@ class PipelineOptions:
     detectors : tuple of str
         Detector names, each run over the whole dataset.
     methods : tuple of str
-        Estimator names, each run on every detector's detections.
+        Method labels (an estimator name, optionally ``+refine`` or ``+mean``), each run on
+        every detector's detections.
     workers : int
         Local render worker processes.
     scheduler : str or None
@@ -99,7 +100,9 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
     p.add_argument("config", type=Path, help="render config YAML (see configs/)")
     p.add_argument("run", type=Path, help="run folder (the dataset; later stages add to it)")
     p.add_argument("--detector", type=_csv, default="cog", help="detector name(s), comma-separated")
-    p.add_argument("--method", type=_csv, default=",".join(DEFAULT_METHODS), help="estimator name(s), comma-separated")
+    p.add_argument("--method", type=_csv, default=",".join(DEFAULT_METHODS),
+                   help="estimator name(s), comma-separated, each optionally with +refine or +mean "
+                   "(posterior mean), e.g. thesis,pnp,pnp+mean")
     p.add_argument("--workers", type=int, default=1, help="local render worker processes")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler for the render stage")
     p.add_argument("--no-mcap", action="store_true", help="skip the MCAP log")
@@ -148,10 +151,12 @@ def check_names(options: PipelineOptions) -> None:
     from deckpose.estimate import registry as estimators
 
     for kind, given, known in (("detector", options.detectors, detectors.names()),
-                               ("estimator", options.methods, estimators.names())):
+                               ("estimator", [m.split("+")[0] for m in options.methods], estimators.names())):
         unknown = [n for n in given if n not in known]
         if unknown:
             raise ConfigError(f"unknown {kind} {', '.join(unknown)}; choose from {', '.join(known)}")
+    for m in options.methods:
+        estimators.parse_method(m)  # and its variant suffix: +refine or +mean
 
 
 def _read_record(run_dir: Path) -> dict:

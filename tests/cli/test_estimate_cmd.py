@@ -154,6 +154,26 @@ def test_posterior_mean_option(setup):
         assert abs(row.height_m - D) < 5 * row.sigma_height_m
 
 
+def test_method_label_names_the_variant(setup, capsys):
+    """``--method pnp+mean`` is ``--method pnp --posterior-mean``; the method column carries the label."""
+    tmp, cam_path, df, truth = setup
+    det = tmp / "det.csv"
+    df.to_csv(det, index=False)
+    a, b = tmp / "a.csv", tmp / "b.csv"
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(a), "--method", "pnp+mean"]) == 0
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(b), "--method", "pnp",
+                 "--posterior-mean"]) == 0
+    ra, rb = pd.read_csv(a), pd.read_csv(b)
+    assert (ra.method == "pnp+mean").all() and (rb.method == "pnp+mean").all()
+    pd.testing.assert_frame_equal(ra, rb)
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(a), "--method", "conic",
+                 "--refine"]) == 0
+    assert (pd.read_csv(a).method == "conic+refine").all()
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(a), "--method", "pnp+fast"]) == 2
+    err = capsys.readouterr().err
+    assert "unknown variant '+fast'" in err and "+mean" in err
+
+
 def test_help_of_every_subcommand(capsys):
     from deckpose.cli import build_parser
 

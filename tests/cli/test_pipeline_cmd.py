@@ -26,11 +26,11 @@ def _tiny_config(tmp_path: Path) -> Path:
 
 def test_pipeline_runs_every_stage_publishes_and_resumes(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     cfg, run, pub = _tiny_config(tmp_path), tmp_path / "run", tmp_path / "reports" / "tiny"
-    argv = ["pipeline", str(cfg), str(run), "--method", "conic,pnp", "--workers", "1", "--no-progress",
+    argv = ["pipeline", str(cfg), str(run), "--method", "conic,pnp+mean", "--workers", "1", "--no-progress",
             "--publish", str(pub)]
     assert main(argv) == 0
     errors = pd.read_parquet(run / "evaluation" / "errors.parquet")
-    assert set(errors.method) == {"conic", "pnp"} and len(errors) == 4  # 2 frames x 2 methods
+    assert set(errors.method) == {"conic", "pnp+mean"} and len(errors) == 4  # 2 frames x 2 methods
     assert errors.ok.all()
     # published: the report with its figures and tables, the record, not the dataset or the log
     for name in ("report.md", "resolution_tables.md", "resolution_tables.csv", "pipeline.json",
@@ -38,7 +38,7 @@ def test_pipeline_runs_every_stage_publishes_and_resumes(tmp_path: Path, capsys:
         assert (pub / name).exists(), name
     assert not (pub / "log.mcap").exists() and not (pub / "images").exists()
     record = json.loads((pub / "pipeline.json").read_text())
-    assert record["methods"] == ["conic", "pnp"] and record["detectors"] == ["cog"]
+    assert record["methods"] == ["conic", "pnp+mean"] and record["detectors"] == ["cog"]
     assert record["command"][:4] == ["deckpose", "pipeline", str(cfg), str(run)]
     assert set(record["stage_seconds"]) >= {"render", "detect", "estimate", "evaluate"}
     report = (pub / "report.md").read_text()
@@ -58,6 +58,8 @@ def test_unknown_names_fail_before_rendering(tmp_path: Path, capsys: pytest.Capt
     assert main(["pipeline", str(cfg), str(run), "--method", "thesis,nosuch", "--no-progress"]) == 2
     err = capsys.readouterr().err
     assert "unknown estimator nosuch" in err and "pnp" in err
+    assert main(["pipeline", str(cfg), str(run), "--method", "thesis,pnp+nosuch", "--no-progress"]) == 2
+    assert "unknown variant '+nosuch'" in capsys.readouterr().err
     assert not run.exists()
 
 

@@ -47,6 +47,18 @@ def test_errors_against_truth(run):
     assert 0.2 < ratio < 5.0
 
 
+def test_variants_of_a_method_are_kept_apart(run):
+    """``thesis`` and ``thesis+mean`` in one run: two estimate files, two methods in the errors."""
+    assert main(["estimate", "--run", str(run), "--detector", "fake", "--method", "thesis",
+                 "--posterior-mean"]) == 0
+    assert (run / "estimates" / "fake--thesis.parquet").exists()
+    mean = pd.read_parquet(run / "estimates" / "fake--thesis+mean.parquet")
+    assert mean.ok.all() and (mean.method == "thesis+mean").all() and (mean.posterior_mean == 1).all()
+    e = compute_errors(run_paths(run))
+    assert set(e.method) == {"thesis", "thesis+mean"} and len(e) == 2 * len(mean)
+    assert e[e.method == "thesis+mean"].surge_err_m.notna().all()  # refined: 6 DoF
+
+
 def test_frame_errors_wrap_yaw_and_use_true_height():
     frames = pd.DataFrame(dict(frame_id=[0], camera=["c"], camera_height_m=[30.0], roll_rad=[0.0], pitch_rad=[0.0],
                                yaw_rad=[np.radians(179.0)], heave_m=[2.0], surge_m=[1.0], sway_m=[0.0],
