@@ -67,6 +67,15 @@ def detections_from_frame(df: pd.DataFrame, layout: DeckLayout, source: str = "d
     cov = None
     if has_cov:
         c = df[["cov_uu", "cov_uv", "cov_vv"]].to_numpy(float)
+        with np.errstate(invalid="ignore"):
+            not_pd = np.all(np.isfinite(c), axis=1) & ~(
+                (c[:, 0] > 0) & (c[:, 2] > 0) & (c[:, 0] * c[:, 2] - c[:, 1] ** 2 > 0))
+        if not_pd.any():
+            row = int(np.flatnonzero(not_pd)[0])
+            raise InputDataError(
+                f"{source}: row {row + 1}: covariance (cov_uu, cov_uv, cov_vv) = {tuple(c[row].tolist())} px^2 "
+                "is not positive definite; variances must be positive and cov_uv^2 < cov_uu * cov_vv "
+                "(leave all three empty where a detection's covariance is unknown)")
         cov = np.stack([np.stack([c[:, 0], c[:, 1]], -1), np.stack([c[:, 1], c[:, 2]], -1)], -2)
     score = df["score"].to_numpy(float) if "score" in df.columns else None
     out: dict[int, Detections] = {}

@@ -16,6 +16,7 @@ import numpy as np
 from deckpose.estimate.least_squares import evaluate_fit
 from deckpose.estimate.observations import build_observations
 from deckpose.estimate.pose_model import params_from_relative
+from deckpose.estimate.registry import SIGMA_PX_RANGE
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -88,8 +89,9 @@ def cramer_rao_bound(
     -------
     CramerRaoBound
     """
-    if not sigma_px > 0:
-        raise ConfigError(f"sigma_px must be positive, got {sigma_px}")
+    lo, hi = SIGMA_PX_RANGE
+    if not lo <= sigma_px <= hi:
+        raise ConfigError(f"sigma_px must be a pixel noise between {lo:g} and {hi:g} px, got {sigma_px}")
     proj = project_layout(layout, ship, camera_pose, camera)
     use = proj.visible if visible_only else np.isfinite(proj.points_px).all(axis=1)
     ids = np.flatnonzero(use)

@@ -304,12 +304,13 @@ def _with_mean(est: PoseEstimate, mean: FloatArray, cov: FloatArray, ess: float,
                t_cd: FloatArray) -> PoseEstimate:
     extras = dict(est.extras)
     extras["posterior_effective_nodes"] = ess
+    for name in POSE_PARAMS:
+        extras["ml_" + name] = float(getattr(est, name))
     if not np.all(np.isfinite(mean)):
         extras["posterior_mean"] = 0.0
         return dataclasses.replace(est, extras=extras)
     extras["posterior_mean"] = 1.0
-    for name, v, s in zip(POSE_PARAMS, mean, np.sqrt(np.diag(cov))):
-        extras["ml_" + name] = float(getattr(est, name))
+    for name, s in zip(POSE_PARAMS, np.sqrt(np.diag(cov))):
         extras["posterior_sigma_" + name] = float(s)
     for k, ax in enumerate("xyz"):
         extras[f"rvec_cam_from_deck_{ax}"] = float(rvec[k])

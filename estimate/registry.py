@@ -26,6 +26,10 @@ from deckpose.pose import R_WORLD_FROM_NADIR_CAM
 from deckpose.records import Detections, PoseEstimate
 
 
+#: Accepted pixel noise, px: beyond it the squared sigma and its inverse leave float64's safe range.
+SIGMA_PX_RANGE = (1e-6, 1e6)
+
+
 @dataclass(frozen=True)
 class EstimateOptions:
     """Options shared by all estimators.
@@ -84,8 +88,9 @@ class EstimateOptions:
     def __post_init__(self) -> None:
         if self.posterior_mean and not self.refine:
             object.__setattr__(self, "refine", True)  # the posterior is sampled around the ML fit
-        if not self.sigma_px > 0:
-            raise ConfigError(f"sigma_px must be positive, got {self.sigma_px}")
+        if not SIGMA_PX_RANGE[0] <= self.sigma_px <= SIGMA_PX_RANGE[1]:
+            raise ConfigError(f"sigma_px must be a pixel noise between {SIGMA_PX_RANGE[0]:g} and "
+                              f"{SIGMA_PX_RANGE[1]:g} px, got {self.sigma_px}")
         if not self.max_reprojection_rms_px > 0:
             raise ConfigError("max_reprojection_rms_px must be positive")
         R = np.array(self.R_world_from_cam, dtype=float)

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 if TYPE_CHECKING:
+    import pandas as pd
     from tqdm import tqdm
 
     from deckpose.camera import CameraModel
@@ -37,14 +38,16 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
     p.add_argument("--camera", type=Path, help="ROS camera_info YAML of the camera")
     p.add_argument("-o", "--output", type=Path, help="output table (.csv or .parquet)")
     p.add_argument("--run", type=Path, help="a run folder: read RUN/detections/DETECTOR.parquet with each "
-                   "frame's own camera and write RUN/estimates/DETECTOR--METHOD.parquet")
-    p.add_argument("--detector", help="with --run: which detector's detections to use")
+                   "frame's own camera and write RUN/estimates/DETECTOR--METHOD.parquet (METHOD with its variant, e.g. cog--pnp+mean.parquet)")
+    p.add_argument("--detector", default=argparse.SUPPRESS,
+                   help="with --run: which detector's detections to use (default: the run's only detector)")
     from deckpose.estimate import registry
 
     p.add_argument("--method", default="thesis",
                    help=f"estimator ({', '.join(registry.names())}), optionally with a variant suffix: "
                    "+refine (= --refine) or +mean (= --posterior-mean), e.g. pnp+mean")
-    p.add_argument("--layout", type=Path, help="deck layout YAML (default: 12 ring beacons, radius 10, centre beacon)")
+    p.add_argument("--layout", type=Path, default=argparse.SUPPRESS,
+                   help="deck layout YAML (default: 12 ring beacons, radius 10, centre beacon)")
     p.add_argument("--radius", type=float, help="ring radius, overrides the layout's radius_m")
     p.add_argument("--refine", action="store_true", help="maximum-likelihood refinement after the estimator")
     p.add_argument("--posterior-mean", action="store_true",
@@ -73,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
         return _run_folder(args, spec)
     if args.detections is None or args.camera is None or args.output is None:
         raise ConfigError("give DETECTIONS --camera CAMERA.yaml -o OUTPUT, or --run RUN --detector NAME")
-    layout = read_layout(args.layout) if args.layout else DeckLayout()
+    layout = read_layout(args.layout) if getattr(args, "layout", None) else DeckLayout()
     if args.radius is not None:
         if not args.radius > 0:
             raise ConfigError(f"--radius must be positive, got {args.radius}")
@@ -90,8 +93,20 @@ def run(args: argparse.Namespace) -> int:
     df = estimates_frame(ids, results).assign(method=spec.label)
     write_table(df, args.output, "estimates")
     n_ok = int(df["ok"].sum()) if len(df) else 0
-    print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {args.output}")
+    print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {args.output}{_mean_note(df)}")
     return 0
+
+
+def _mean_note(df: pd.DataFrame) -> str:
+    """A line on the ok frames that kept their ML pose though the posterior mean was asked for."""
+    if "posterior_mean" not in df.columns:
+        return ""
+    kept = int((df["ok"] & (df["posterior_mean"] == 0)).sum())
+    if not kept:
+        return ""
+    return (f"\n{kept} ok frame(s) kept the maximum-likelihood pose (posterior_mean = 0): the likelihood is "
+            "too far from the Laplace approximation for the posterior sample (posterior_effective_nodes < 8), "
+            "as with few beacons and a weakly determined pose")
 
 
 def _method_spec(args: argparse.Namespace) -> registry.MethodSpec:
@@ -140,7 +155,7 @@ def _run_folder(args: argparse.Namespace, spec: registry.MethodSpec) -> int:
 
     run = rl.run_paths(args.run)
     detectors = run.detectors()
-    if args.detector is None:
+    if getattr(args, "detector", None) is None:
         if len(detectors) != 1:
             raise ConfigError(f"--run needs --detector (this run has detections of: {detectors or 'none'})")
         args.detector = detectors[0]
@@ -174,5 +189,5 @@ def _run_folder(args: argparse.Namespace, spec: registry.MethodSpec) -> int:
     out = run.estimates(args.detector, spec.label)
     write_table(df, out, "estimates")
     n_ok = int(df["ok"].sum()) if len(df) else 0
-    print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {out}")
+    print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {out}{_mean_note(df)}")
     return 0

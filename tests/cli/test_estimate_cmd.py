@@ -154,6 +154,42 @@ def test_posterior_mean_option(setup):
         assert abs(row.height_m - D) < 5 * row.sigma_height_m
 
 
+def test_sigma_px_out_of_range_is_refused(setup, capsys):
+    tmp, cam_path, df, truth = setup
+    det = tmp / "det.csv"
+    df.to_csv(det, index=False)
+    for bad in ("0", "-1", "nan", "inf", "1e300"):
+        assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(tmp / "e.csv"),
+                     "--sigma-px", bad]) == 2, bad
+        assert "sigma_px must be a pixel noise between" in capsys.readouterr().err
+    assert not (tmp / "e.csv").exists()
+
+
+def test_covariance_that_is_not_positive_definite_names_the_row(setup, capsys):
+    tmp, cam_path, df, truth = setup
+    df = df.assign(cov_uu=0.25, cov_uv=0.0, cov_vv=0.25)
+    df.loc[5, "cov_uu"] = -0.25
+    det = tmp / "det.csv"
+    df.to_csv(det, index=False)
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(tmp / "e.csv")]) == 2
+    err = capsys.readouterr().err
+    assert "row 6" in err and "not positive definite" in err
+
+
+def test_frames_that_keep_the_ml_pose_are_counted(setup, capsys, monkeypatch):
+    import deckpose.estimate.posterior_mean as pmm
+
+    tmp, cam_path, df, truth = setup
+    det = tmp / "det.csv"
+    df.to_csv(det, index=False)
+    monkeypatch.setattr(pmm, "MIN_EFFECTIVE_NODES", 1e9)  # no frame's sample is good enough
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(tmp / "e.csv"),
+                 "--method", "pnp+mean"]) == 0
+    assert "6 ok frame(s) kept the maximum-likelihood pose (posterior_mean = 0)" in capsys.readouterr().out
+    res = pd.read_csv(tmp / "e.csv")
+    np.testing.assert_allclose(np.radians(res.roll_deg), res.ml_roll_rad, rtol=1e-12)
+
+
 def test_method_label_names_the_variant(setup, capsys):
     """``--method pnp+mean`` is ``--method pnp --posterior-mean``; the method column carries the label."""
     tmp, cam_path, df, truth = setup

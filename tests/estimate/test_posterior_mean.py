@@ -140,6 +140,20 @@ def test_too_few_effective_nodes_keep_the_ml_pose():
     assert np.all(np.isnan(mean[0])) and np.all(np.isfinite(mean[1:]))
 
 
+def test_a_frame_that_cannot_be_sampled_keeps_its_ml_pose_and_says_so(monkeypatch):
+    import deckpose.estimate.posterior_mean as pmm
+
+    rng = np.random.default_rng(8)
+    dets = [d for d, _, _ in _frames(rng, 4, CAM4, 40.0, 0.5)]
+    ml = estimate_batch("pnp", dets, CAM4, LAYOUT, EstimateOptions(sigma_px=0.5))
+    monkeypatch.setattr(pmm, "MIN_EFFECTIVE_NODES", 2.0 * N_NODES)  # no sample is good enough
+    got = estimate_batch("pnp", dets, CAM4, LAYOUT, EstimateOptions(sigma_px=0.5, posterior_mean=True))
+    for a, b in zip(ml, got):
+        assert b.ok and b.extras["posterior_mean"] == 0.0 and 0 < b.extras["posterior_effective_nodes"] <= N_NODES
+        for name in POSE_PARAMS:
+            assert getattr(b, name) == getattr(a, name) == b.extras["ml_" + name]
+
+
 def test_implies_refine_and_works_for_every_estimator():
     assert EstimateOptions(posterior_mean=True).refine
     rng = np.random.default_rng(6)
