@@ -37,8 +37,9 @@ from scipy.stats import qmc
 from deckpose.records import POSE_PARAMS, Detections, PoseEstimate
 
 if TYPE_CHECKING:
-    from deckpose.camera import CameraModel
     from deckpose.estimate.registry import EstimateOptions
+
+    from deckpose.camera import CameraModel
     from deckpose.layout import DeckLayout
 
 FloatArray = NDArray[np.float64]

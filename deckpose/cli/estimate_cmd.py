@@ -38,7 +38,8 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
     p.add_argument("--camera", type=Path, help="ROS camera_info YAML of the camera")
     p.add_argument("-o", "--output", type=Path, help="output table (.csv or .parquet)")
     p.add_argument("--run", type=Path, help="a run folder: read RUN/detections/DETECTOR.parquet with each "
-                   "frame's own camera and write RUN/estimates/DETECTOR--METHOD.parquet (METHOD with its variant, e.g. cog--pnp+mean.parquet)")
+                   "frame's own camera and write RUN/estimates/DETECTOR--METHOD.parquet (METHOD with its "
+                   "variant, e.g. cog--pnp+mean.parquet)")
     p.add_argument("--detector", default=argparse.SUPPRESS,
                    help="with --run: which detector's detections to use (default: the run's only detector)")
     from deckpose.estimate import registry
@@ -53,7 +54,8 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
     p.add_argument("--posterior-mean", action="store_true",
                    help="report the posterior mean of the pose under a uniform prior (implies --refine): "
                    "lower RMS error than the maximum-likelihood pose when the noise is large against the "
-                   "ring's size in the image, the same pose when it is small; ml_* columns keep the ML pose")
+                   "ring's size in the image, the same pose when it is small; ml_* columns keep the ML pose, which "
+                   "stays the pose (posterior_mean = 0) where the posterior cannot be sampled")
     p.add_argument("--sigma-px", type=float, default=1.0, help="pixel sigma when detections carry no covariance")
     p.set_defaults(func=run)
 

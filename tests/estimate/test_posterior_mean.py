@@ -131,9 +131,9 @@ def test_too_few_effective_nodes_keep_the_ml_pose():
     p = np.array([[getattr(e, n) for n in POSE_PARAMS] for e in ests])
     C = np.array([e.covariance for e in ests])
     mean, cov, ess = posterior_moments_batch(p, C, obs)
-    assert np.all(np.isfinite(mean)) and np.all(ess >= MIN_EFFECTIVE_NODES)
+    assert np.all(np.isfinite(mean)) and np.all(np.isfinite(cov)) and np.all(ess >= MIN_EFFECTIVE_NODES)
     mean, cov, ess = posterior_moments_batch(p, C * 1e6, obs)
-    assert np.all(np.isnan(mean)) and np.all(ess < MIN_EFFECTIVE_NODES)
+    assert np.all(np.isnan(mean)) and np.all(np.isnan(cov)) and np.all(ess < MIN_EFFECTIVE_NODES)
     bad = C.copy()
     bad[0] = -np.eye(6)  # not a covariance
     mean, _, _ = posterior_moments_batch(p, bad, obs)
@@ -167,7 +167,7 @@ def test_implies_refine_and_works_for_every_estimator():
 
 def test_outliers_removed_by_the_fit_stay_out_of_the_likelihood():
     rng = np.random.default_rng(7)
-    (det, ship, cam), = _frames(rng, 1, preset("8mp"), 30.0, 0.5)
+    (det, _, _), = _frames(rng, 1, preset("8mp"), 30.0, 0.5)
     pts = np.vstack([det.points_px, det.points_px[2] + [60.0, -45.0]])  # a reflection labelled beacon 2
     ids = np.append(det.beacon_ids, 2)
     bad = Detections(pts, ids, np.broadcast_to(np.eye(2) * 0.25, (len(ids), 2, 2)))
