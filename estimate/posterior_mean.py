@@ -163,9 +163,9 @@ def posterior_moments_batch(
     x, log_q = unit_nodes()
     C = np.array(covariance_ml, dtype=float)
     with np.errstate(invalid="ignore"):
-        pd = np.all(np.isfinite(C), axis=(1, 2))
-        pd[pd] = np.all(np.linalg.eigvalsh(C[pd]) > 0, axis=1)
-    C[~pd] = np.eye(6)
+        is_pd = np.all(np.isfinite(C), axis=(1, 2))
+        is_pd[is_pd] = np.all(np.linalg.eigvalsh(C[is_pd]) > 0, axis=1)
+    C[~is_pd] = np.eye(6)
     L = np.linalg.cholesky(C)  # (F, 6, 6)
     mean = np.empty((F, 6))
     cov = np.empty((F, 6, 6))
@@ -184,7 +184,7 @@ def posterior_moments_batch(
         mean[sl] = params_ml[sl] + d_mean
         cov[sl] = np.einsum("fs,fsi,fsj->fij", w, centred, centred)
         ess[sl] = 1.0 / np.sum(w * w, axis=1)
-    bad = ~pd | ~(ess >= MIN_EFFECTIVE_NODES) | ~np.all(np.isfinite(mean), axis=1)
+    bad = ~is_pd | ~(ess >= MIN_EFFECTIVE_NODES) | ~np.all(np.isfinite(mean), axis=1)
     mean[bad] = np.nan
     cov[bad] = np.nan
     mean[:, :3] = (mean[:, :3] + np.pi) % (2.0 * np.pi) - np.pi
