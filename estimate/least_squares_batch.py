@@ -185,6 +185,38 @@ def solve_batch(A: FloatArray, b: FloatArray) -> tuple[FloatArray, BoolArray]:
     return (x[..., 0] if vec else x), ok
 
 
+def _trig(angles_rad: FloatArray) -> tuple[FloatArray, ...]:
+    """``cos, sin`` of roll, pitch, yaw of (..., 3) angles: six (...) arrays."""
+    a = angles_rad
+    return (np.cos(a[..., 0]), np.sin(a[..., 0]), np.cos(a[..., 1]), np.sin(a[..., 1]),
+            np.cos(a[..., 2]), np.sin(a[..., 2]))
+
+
+def _fill_rotation(R: FloatArray, cr: FloatArray, sr: FloatArray, cp: FloatArray, sp: FloatArray,
+                   cy: FloatArray, sy: FloatArray) -> None:
+    """Write ``R_world_from_deck`` (ZYX) of the given sines and cosines into ``R`` (..., 3, 3)."""
+    R[..., 0, 0] = cy * cp
+    R[..., 0, 1] = cy * sp * sr - sy * cr
+    R[..., 0, 2] = cy * sp * cr + sy * sr
+    R[..., 1, 0] = sy * cp
+    R[..., 1, 1] = sy * sp * sr + cy * cr
+    R[..., 1, 2] = sy * sp * cr - cy * sr
+    R[..., 2, 0] = -sp
+    R[..., 2, 1] = cp * sr
+    R[..., 2, 2] = cp * cr
+
+
+def rotation_batch(angles_rad: FloatArray) -> FloatArray:
+    """``R_world_from_deck`` (ZYX) of (..., 3) roll, pitch, yaw: (..., 3, 3).
+
+    The values of :func:`deckpose.rotation.R_from_zyx`, written out (no stacking or
+    matrix products), as :func:`rotation_and_derivatives_batch` computes them.
+    """
+    R = np.empty(angles_rad.shape[:-1] + (3, 3))
+    _fill_rotation(R, *_trig(angles_rad))
+    return R
+
+
 def rotation_and_derivatives_batch(angles_rad: FloatArray) -> FloatArray:
     """``R_world_from_deck`` (ZYX) and its derivatives by roll, pitch, yaw: (F, 4, 3, 3).
 
@@ -193,20 +225,10 @@ def rotation_and_derivatives_batch(angles_rad: FloatArray) -> FloatArray:
     angles_rad : (F, 3) array of float
         Roll, pitch, yaw.
     """
-    cr, sr = np.cos(angles_rad[:, 0]), np.sin(angles_rad[:, 0])
-    cp, sp = np.cos(angles_rad[:, 1]), np.sin(angles_rad[:, 1])
-    cy, sy = np.cos(angles_rad[:, 2]), np.sin(angles_rad[:, 2])
+    cr, sr, cp, sp, cy, sy = _trig(angles_rad)
     out = np.empty((angles_rad.shape[0], 4, 3, 3))
     R, dr, dp, dy = out[:, 0], out[:, 1], out[:, 2], out[:, 3]
-    R[:, 0, 0] = cy * cp
-    R[:, 0, 1] = cy * sp * sr - sy * cr
-    R[:, 0, 2] = cy * sp * cr + sy * sr
-    R[:, 1, 0] = sy * cp
-    R[:, 1, 1] = sy * sp * sr + cy * cr
-    R[:, 1, 2] = sy * sp * cr - cy * sr
-    R[:, 2, 0] = -sp
-    R[:, 2, 1] = cp * sr
-    R[:, 2, 2] = cp * cr
+    _fill_rotation(R, cr, sr, cp, sp, cy, sy)
     dr[:, :, 0] = 0.0
     dr[:, 0, 1] = cy * sp * cr + sy * sr
     dr[:, 0, 2] = -cy * sp * sr + sy * cr
@@ -237,16 +259,19 @@ def _project(params: FloatArray, points_deck_m: FloatArray, R_world_from_cam: Fl
     """
     F, M = params.shape[0], points_deck_m.shape[0]
     R_cw = np.swapaxes(R_world_from_cam, 1, 2)
-    Rs = R_cw[:, None] @ rotation_and_derivatives_batch(params[:, :3])  # (F, 4, 3, 3)
     tw = np.stack([params[:, 3], params[:, 4], -params[:, 5]], axis=1)
     d = (R_cw @ tw[:, :, None])[:, :, 0]
+    if not jacobian:  # the rotation alone, not its derivatives
+        Q = (R_cw @ rotation_batch(params[:, :3])) @ points_deck_m.T  # (F, 3, M) camera-frame points
+        Z = Q[:, 2] + d[:, 2, None]
+        invZ = 1.0 / Z
+        return (Q[:, 0] + d[:, 0, None]) * invZ, (Q[:, 1] + d[:, 1, None]) * invZ, Z, None
+    Rs = R_cw[:, None] @ rotation_and_derivatives_batch(params[:, :3])  # (F, 4, 3, 3)
     QT = (Rs.reshape(-1, 3) @ points_deck_m.T).reshape(F, 4, 3, M)  # camera-frame points, derivatives
     Z = QT[:, 0, 2] + d[:, 2, None]
     invZ = 1.0 / Z
     x = (QT[:, 0, 0] + d[:, 0, None]) * invZ
     y = (QT[:, 0, 1] + d[:, 1, None]) * invZ
-    if not jacobian:
-        return x, y, Z, None
     dP = np.empty((F, 3, 6, M))
     dP[:, :, :3, :] = QT[:, 1:].transpose(0, 2, 1, 3)
     dP[:, :, 3:, :] = (R_cw * np.array([1.0, 1.0, -1.0]))[:, :, :, None]
@@ -417,7 +442,7 @@ def relative_from_params_batch(params: FloatArray, R_world_from_cam: FloatArray
                                ) -> tuple[FloatArray, FloatArray]:
     """Inverse of :func:`params_from_relative_batch`: ``R_cam_from_deck`` (F, 3, 3), ``t`` (F, 3)."""
     R_cw = np.swapaxes(R_world_from_cam, 1, 2)
-    R_wd = rotation_and_derivatives_batch(params[:, :3])[:, 0]
+    R_wd = rotation_batch(params[:, :3])
     tw = np.stack([params[:, 3], params[:, 4], -params[:, 5]], axis=1)
     return R_cw @ R_wd, np.einsum("fij,fj->fi", R_cw, tw)
 

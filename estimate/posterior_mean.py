@@ -29,7 +29,7 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
-from deckpose.estimate.least_squares_batch import FrameObservations
+from deckpose.estimate.least_squares_batch import FrameObservations, project_normalised_batch
 from numpy.typing import NDArray
 from scipy import stats
 from scipy.stats import qmc
@@ -79,31 +79,11 @@ def unit_nodes() -> tuple[FloatArray, FloatArray]:
     return x, log_q
 
 
-def _R_world_from_deck(angles_rad: FloatArray) -> FloatArray:
-    """:func:`deckpose.rotation.R_from_zyx` of (..., 3) roll, pitch, yaw, written out: (..., 3, 3)."""
-    cr, sr = np.cos(angles_rad[..., 0]), np.sin(angles_rad[..., 0])
-    cp, sp = np.cos(angles_rad[..., 1]), np.sin(angles_rad[..., 1])
-    cy, sy = np.cos(angles_rad[..., 2]), np.sin(angles_rad[..., 2])
-    R = np.empty(angles_rad.shape[:-1] + (3, 3))
-    spcr, spsr = sp * cr, sp * sr
-    R[..., 0, 0] = cy * cp
-    R[..., 0, 1] = cy * spsr - sy * cr
-    R[..., 0, 2] = cy * spcr + sy * sr
-    R[..., 1, 0] = sy * cp
-    R[..., 1, 1] = sy * spsr + cy * cr
-    R[..., 1, 2] = sy * spcr - cy * sr
-    R[..., 2, 0] = -sp
-    R[..., 2, 1] = cp * sr
-    R[..., 2, 2] = cp * cr
-    return R
-
-
 def chi2_at_nodes(params: FloatArray, obs: FrameObservations) -> FloatArray:
     """Chi-square of ``S`` poses of each of ``F`` frames against that frame's observations.
 
-    The arithmetic of :func:`~estimate.least_squares_batch.chi2_batch` for ``S`` poses
-    per frame, without copying the observations ``S`` times or forming the rotation's
-    derivatives.
+    :func:`~estimate.least_squares_batch.chi2_batch` for ``S`` poses per frame, without
+    copying the observations ``S`` times.
 
     Parameters
     ----------
@@ -117,14 +97,13 @@ def chi2_at_nodes(params: FloatArray, obs: FrameObservations) -> FloatArray:
     (F, S) array of float
         Sum of squared whitened residuals; inf where a beacon is not in front of the camera.
     """
-    R_wd = _R_world_from_deck(params[..., :3])  # (F, S, 3, 3)
-    R_cw = np.swapaxes(obs.R_world_from_cam, 1, 2)[:, None]  # (F, 1, 3, 3)
-    tw = np.stack([params[..., 3], params[..., 4], -params[..., 5]], axis=-1)
-    d = (R_cw @ tw[..., None])[..., 0]  # (F, S, 3)
-    Q = (R_cw @ R_wd) @ obs.points_deck_m.T + d[..., None]  # (F, S, 3, M) camera-frame points
-    Z = Q[:, :, 2]
-    rx = Q[:, :, 0] / Z - obs.xy[:, None, :, 0]
-    ry = Q[:, :, 1] / Z - obs.xy[:, None, :, 1]
+    F, S = params.shape[:2]
+    R_wc = np.broadcast_to(obs.R_world_from_cam[:, None], (F, S, 3, 3)).reshape(F * S, 3, 3)
+    xy, _, Z = project_normalised_batch(params.reshape(F * S, 6), obs.points_deck_m, R_wc, jacobian=False)
+    M = obs.points_deck_m.shape[0]
+    xy, Z = xy.reshape(F, S, M, 2), Z.reshape(F, S, M)
+    rx = xy[..., 0] - obs.xy[:, None, :, 0]
+    ry = xy[..., 1] - obs.xy[:, None, :, 1]
     Li = obs.sqrt_info[:, None]  # (F, 1, M or 1, 2, 2)
     wx = Li[..., 0, 0] * rx + Li[..., 0, 1] * ry
     wy = Li[..., 1, 0] * rx + Li[..., 1, 1] * ry

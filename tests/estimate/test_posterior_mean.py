@@ -60,7 +60,7 @@ def test_nodes_are_antithetic_student_t_points():
 
 
 def test_chi2_at_nodes_is_the_fit_chi2():
-    """The node likelihood, written for S poses per frame, is the solvers' chi-square (an independent code path)."""
+    """The node likelihood, evaluated for S poses per frame, is the solvers' chi-square of each pose."""
     rng = np.random.default_rng(1)
     camera = ODD_CAMERA  # distortion, non-square pixels, off-centre principal point
     frames = _frames(rng, 5, camera, 40.0, 0.7)
