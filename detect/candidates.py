@@ -36,10 +36,12 @@ from deckpose.detect.background import (
     frame_stats,
     mono,
     noise_floor_dn,
+    FrameStats,
     robust_stats,
     tile_stats,
 )
 from deckpose.detect.registry import Blobs, DetectorOptions
+from deckpose.detect.significance import significant_spots
 from deckpose.detect.spots import (
     SpotSearch,
     coarse_factor,
@@ -178,6 +180,10 @@ class Candidate:
         return (float(u_px), float(v_px), np.asarray(cov_px2, float), float(flux_dn), size, score)
 
 
+#: A blob covering more than this fraction of the frame is no beacon: the 13 beacons of a
+#: deck in view are each far smaller (a 64 MP frame at 20 m: 0.01 %).
+MAX_SPOT_AREA_FRACTION = 0.01
+
 #: Percentile of a spot's surroundings that gives its floor (:meth:`Candidate.above_floor`).
 FLOOR_PERCENTILE = 20.0
 
@@ -299,6 +305,13 @@ BoxesFn = Callable[
 ]
 
 
+#: A candidate window before the gain is known: pixels, blob mask, saturated pixels,
+#: corner (u0, v0), background plane, threshold, noise, and whether its signal is clipped.
+RawWindow = tuple[
+    np.ndarray, np.ndarray, np.ndarray, int, int, tuple[float, float, float], float, float, bool
+]
+
+
 def find_candidates(
     frame: Frame, options: DetectorOptions, *, boxes_fn: BoxesFn = coarse_boxes
 ) -> tuple[list[Candidate], str]:
@@ -337,19 +350,7 @@ def find_candidates(
     thr = st.background_dn + options.threshold_sigma * st.noise_dn
     k_noise = options.threshold_sigma * st.noise_dn
     H, W = image.shape[:2]
-    raw: list[
-        tuple[
-            np.ndarray,
-            np.ndarray,
-            np.ndarray,
-            int,
-            int,
-            tuple[float, float, float],
-            float,
-            float,
-        ]
-    ]
-    raw = []
+    raw: list[RawWindow] = []
     seen: set[tuple[int, int]] = set()
     for box in boxes:
         if search is not None:
@@ -372,8 +373,8 @@ def find_candidates(
         )
         for lab in range(1, n):
             x, y, w, h, area = (int(c) for c in cstats[lab])
-            if area < options.min_area_px:
-                continue
+            if area < options.min_area_px or area > MAX_SPOT_AREA_FRACTION * H * W:
+                continue  # noise, or an extended light (glare, a lit patch): no beacon
             comp = labels[y : y + h, x : x + w] == lab
             # the component's brightest pixel (of the channel sum) names the blob
             block = (pix[y : y + h, x : x + w] if search is None else
@@ -403,9 +404,16 @@ def find_candidates(
                 min(W, gu0 + w + pad),
                 min(H, gv0 + h + pad),
             )
-            if search is not None:  # measure the peak channel: the red bow is as bright as the rest
-                wpix = search.peak(*wb).astype(np.float64)
+            if search is not None:
+                # A clipped core is measured on the peak channel, whose clip level is one
+                # number (core_fit censors it); an unclipped one on the channel sum, where
+                # the photons (and the centroid's Cramer-Rao bound) are.
                 wsat = _saturated(image, wb, sat_dn)
+                core = wsat[gv0 - wb[1] : gv0 - wb[1] + h, gu0 - wb[0] : gu0 - wb[0] + w]
+                if bool(core[comp].any()) or image.ndim == 2:
+                    wpix = search.peak(*wb).astype(np.float64)
+                else:
+                    wpix = mono(image[wb[1] : wb[3], wb[0] : wb[2]])
             else:
                 wpix, wsat = _window(image, wb, sat_dn)
             mask = np.zeros(wpix.shape, bool)
@@ -425,7 +433,11 @@ def find_candidates(
                 plane = (ped, 0.0, 0.0)
                 # half the core's height above the background, peak-channel DN
                 thr_box = plane[0] + 0.5 * (float(wpix[mask].max()) - plane[0])
-            raw.append((wpix, mask, wsat, wb[0], wb[1], plane, thr_box, noise_box))
+            raw.append((wpix, mask, wsat, wb[0], wb[1], plane, thr_box, noise_box, search is not None))
+    if search is not None and options.significance_sigma > 0:
+        raw, reason = _significant_windows(image, options, st, sat_dn, raw)
+        if reason:
+            return [], reason
     if not raw:
         return [], (
             f"dark frame: no blob above {thr:.1f} DN (background {st.background_dn:.1f} DN, "
@@ -433,8 +445,8 @@ def find_candidates(
         )
     gain0 = options.gain_dn_per_e or 1.0
     cands = [
-        Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, gain0, t, clip_signal=search is not None)
-        for p, m, s, u0, v0, bg, t, nz in raw
+        Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, gain0, t, clip_signal=clip)
+        for p, m, s, u0, v0, bg, t, nz, clip in raw
     ]
     if options.gain_dn_per_e is None:
         from deckpose.detect.gain import estimate_gain  # gain uses cog, which uses this module
@@ -442,6 +454,75 @@ def find_candidates(
         gain = estimate_gain(cands, options.window_sigma)
         cands = [dataclasses.replace(c, gain_dn_per_e=gain) for c in cands]
     return cands, ""
+
+
+def _significant_windows(
+    image: np.ndarray,
+    options: DetectorOptions,
+    st: FrameStats,
+    sat_dn: float,
+    bright: list[RawWindow],
+) -> tuple[list[RawWindow], str]:
+    """The bright-spot windows that are spots, and windows of the other significant spots.
+
+    The significant spots are those of :mod:`deckpose.detect.significance`. A
+    bright-spot window whose core is not clipped is kept only when a significant
+    spot lies on its core (a noise peak on a bright patch or glare is not one); a
+    clipped core (a saturated beacon, whose plateau no ring test sees) is kept. Each
+    significant spot outside the kept windows gets a window of its own, measured
+    on the channel sum above a plane fitted to its border; its blob is the spot's
+    half-maximum region (of the window smoothed by a 1 px Gaussian) around its peak.
+
+    Returns the windows and, when the frame fails, the reason.
+    """
+    centres, radii, reason = significant_spots(
+        image, options.significance_sigma, options.max_blobs
+    )
+    if reason:
+        return [], reason
+    H, W = image.shape[:2]
+    taken: list[tuple[float, float, float, float]] = []
+    out: list[RawWindow] = []
+    for win in bright:
+        _p, m, sat, u0, v0 = win[:5]
+        rows, cols = np.nonzero(m)
+        box = (u0 + cols.min(), v0 + rows.min(), u0 + cols.max(), v0 + rows.max())
+        hit = any(box[0] - r - 2 <= uc <= box[2] + r + 2 and box[1] - r - 2 <= vc <= box[3] + r + 2
+                  for (uc, vc), r in zip(centres, radii))
+        if hit or sat[m].any():
+            out.append(win)
+            taken.append(box)
+    for (uc, vc), r in zip(centres, radii):
+        near_px = r + 2.0
+        if any(a - near_px <= uc <= c + near_px and b - near_px <= vc <= d + near_px
+               for a, b, c, d in taken):
+            continue
+        half = int(math.ceil(1.5 * r)) + 4
+        wb = (max(0, int(uc) - half), max(0, int(vc) - half),
+              min(W, int(uc) + half + 1), min(H, int(vc) + half + 1))
+        if wb[2] - wb[0] < 5 or wb[3] - wb[1] < 5:
+            continue
+        wpix = mono(image[wb[1] : wb[3], wb[0] : wb[2]])
+        plane = border_plane(wpix)
+        h, w = wpix.shape
+        tilt = (np.arange(h)[:, None] - (h - 1) / 2) * plane[2] + (
+            np.arange(w)[None, :] - (w - 1) / 2
+        ) * plane[1]
+        smooth = cv2.GaussianBlur(wpix - plane[0] - tilt, (0, 0), 1.0)
+        # the peak nearest the search's centre, within the ring it passed on
+        vv, uu = np.mgrid[0:h, 0:w]
+        near = np.hypot(uu + wb[0] - uc, vv + wb[1] - vc) <= max(r, 2.0)
+        pv, pu = np.unravel_index(np.argmax(np.where(near, smooth, -np.inf)), smooth.shape)
+        top = float(smooth[pv, pu])
+        if not top > 0:
+            continue
+        _n, labels = cv2.connectedComponents((smooth > 0.5 * top).astype(np.uint8), connectivity=8)
+        mask = labels == labels[pv, pu]
+        noise = max(st.noise_dn, border_noise(wpix))
+        out.append((wpix, mask, _saturated(image, wb, sat_dn), wb[0], wb[1], plane,
+                    plane[0] + 0.5 * top, noise, False))
+        taken.append((wb[0] + pu - 1.0, wb[1] + pv - 1.0, wb[0] + pu + 1.0, wb[1] + pv + 1.0))
+    return out, ""
 
 
 def measure_candidates(

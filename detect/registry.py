@@ -78,6 +78,11 @@ class DetectorOptions:
         sea are not candidates. 0 switches it off: every blob ``threshold_sigma``
         noise sigmas above the background is a candidate (dark frames of
         unsaturated spots of very different brightness).
+    significance_sigma : float
+        Significance search (:mod:`deckpose.detect.significance`), on with the
+        bright-spot search: every compact spot this many local noise sigmas above the
+        highest point of a ring around it is a candidate too, however dim beside the
+        brightest beacon. 0 switches it off (only the bright-spot search).
     """
 
     threshold_sigma: float = 6.0
@@ -88,6 +93,7 @@ class DetectorOptions:
     gain_dn_per_e: float | None = None
     background_kernel_px: int = 0
     spot_level: float = 0.8
+    significance_sigma: float = 5.0
 
     def __post_init__(self) -> None:
         if not self.threshold_sigma > 0:
@@ -102,6 +108,10 @@ class DetectorOptions:
             raise ConfigError(f"background_kernel_px must be >= 0, got {self.background_kernel_px}")
         if not 0.0 <= self.spot_level < 1.0:
             raise ConfigError(f"spot_level must be in [0, 1), got {self.spot_level}")
+        if not (self.significance_sigma == 0 or self.significance_sigma >= 2.0):
+            raise ConfigError(
+                f"significance_sigma must be 0 (off) or >= 2, got {self.significance_sigma}"
+            )
         if self.gain_dn_per_e is not None and not self.gain_dn_per_e > 0:
             raise ConfigError(f"gain_dn_per_e must be positive or None, got {self.gain_dn_per_e}")
 

@@ -130,14 +130,14 @@ def _hide_and_glint(
 ) -> tuple[np.ndarray, np.ndarray]:
     """The frame with beacon ``hide_id`` painted out and one glint added; and the glint (u, v).
 
-    The beacon's core and housing are inpainted from their surroundings (OpenCV
+    The beacon's core, housing and glow are inpainted from their surroundings (OpenCV
     Telea); the glint is a saturated white Gaussian spot as large as the beacons,
     at least 40 px from every beacon.
     """
     img = image.copy()
     row = truth.loc[hide_id]
     mask = np.zeros(img.shape[:2], np.uint8)
-    r_px = int(np.ceil(3.0 * row.apparent_radius_px + 3))
+    r_px = int(np.ceil(10.0 * row.apparent_radius_px + 10))  # core, housing and glow
     cv2.circle(mask, (int(round(row.u_px)), int(round(row.v_px))), r_px, 1, -1)
     img = cv2.inpaint(img, mask, 3, cv2.INPAINT_TELEA)
     H, W = img.shape[:2]

@@ -1,0 +1,198 @@
+"""Significance search: every compact spot that stands out of its own surroundings.
+
+The bright-spot search (:mod:`deckpose.detect.spots`) keeps the spots near the
+frame's brightest level, which drops a beacon much dimmer than the brightest
+one (LED tolerance, viewing angle, a red bow on a mono sensor). This search
+finds spots by their significance instead, whatever their brightness:
+
+1. The channel-sum image is block-summed by a power of two ``f`` (so that at most
+   :data:`SEARCH_MAX_PX` pixels remain; OpenCV area resampling, which keeps every
+   photon) and smoothed with a small Gaussian: together, close to a matched filter
+   for a spot of 1.5-3 px sigma. Its noise ``sigma_G`` follows from the block sums'
+   pixel-difference noise and the Gaussian's norm.
+2. Candidates are local maxima of the smoothed image at least ``significance_sigma``
+   of its noise above the frame's background.
+3. Each candidate is tested against its own surroundings: on rings of
+   :data:`RING_RADII` coarse pixels, the *highest* of :data:`RING_SAMPLES` samples is
+   its pedestal, and the candidate must exceed that pedestal by ``significance_sigma``
+   local noise sigmas on at least one ring (the local noise is the larger of
+   ``sigma_G`` and the robust spread of the ring's samples, so deck texture counts as
+   noise). A line or an edge through the candidate raises the pedestal to its own
+   level, so markings, the deck's edge and glare gradients are not spots; a spot on
+   a line still stands above it. A short bar passes a ring wider than it, so the
+   ring inside that one must be round too (:data:`MAX_RING_ASYMMETRY`).
+
+The result is a full-resolution box per spot, sized from the ring it passed on.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import cv2
+import numpy as np
+from deckpose.detect.background import MIN_NOISE_DN, difference_noise
+
+#: The coarse image has at most this many pixels (block size a power of two).
+SEARCH_MAX_PX = 4_200_000
+#: Radii (coarse pixels) of the rings a candidate is compared with.
+RING_RADII = (2.0, 3.5, 6.0, 10.0, 16.0)
+#: Fewest samples per ring; larger rings have one every :data:`RING_SPACING_PX` coarse
+#: pixels, so a thin line crossing the ring cannot slip between two samples.
+RING_SAMPLES = 16
+RING_SPACING_PX = 1.5
+#: Smoothing of the coarse image: about this many full-resolution pixels (Gaussian sigma).
+SMOOTH_PX = 1.5
+#: A spot is round: on the ring inside the one it passed on, the highest sample rises
+#: at most this fraction of the way from the ring's median to the centre's level.
+MAX_RING_ASYMMETRY = 0.5
+#: Tile side of :func:`texture_noise`, coarse pixels.
+TEXTURE_TILE_PX = 64
+#: More local maxima above the prefilter than this fail the frame (a flat noise field).
+MAX_PEAKS = 200_000
+
+
+def search_factor(shape: tuple[int, int]) -> int:
+    """Power-of-two block size that brings ``H * W`` to at most :data:`SEARCH_MAX_PX`."""
+    f = 1
+    while shape[0] * shape[1] / (f * f) > SEARCH_MAX_PX:
+        f *= 2
+    return f
+
+
+def block_sum(image: np.ndarray, factor: int) -> np.ndarray:
+    """Channel sum of ``image`` in ``factor x factor`` blocks (as block means x f^2), float32.
+
+    Rows and columns beyond a multiple of ``factor`` are dropped.
+    """
+    a = np.asarray(image)
+    if a.dtype.type not in (np.uint8, np.uint16, np.float32):
+        a = a.astype(np.float32)
+    H, W = a.shape[:2]
+    f = 1
+    while f < factor:  # halve at a time: OpenCV's 2x area path is the fast one
+        h, w = a.shape[0] // 2, a.shape[1] // 2
+        a = cv2.resize(a[: 2 * h, : 2 * w], (w, h), interpolation=cv2.INTER_AREA)
+        f *= 2
+    a = np.asarray(a)
+    if a.ndim == 3:
+        s = cv2.transform(a.astype(np.float32, copy=False), np.ones((1, 3), np.float32))
+    else:
+        s = a.astype(np.float32)
+    del H, W
+    return np.asarray(s, np.float32).reshape(a.shape[:2]) * float(factor * factor)
+
+
+def _gaussian_norm(sigma: float) -> tuple[int, float]:
+    k = 2 * math.ceil(3.0 * sigma) + 1
+    g = cv2.getGaussianKernel(k, sigma).ravel()
+    return k, float(np.sum(g**2))  # the 2-D kernel's L2 norm is the 1-D one's squared
+
+
+def texture_noise(G: np.ndarray, step_px: int) -> np.ndarray:
+    """Spread of a smoothed coarse image on a spot's scale, per tile, (ceil(h/T), ceil(w/T)).
+
+    Differences of pixels ``step_px`` apart (a ring's radius) cancel smooth light
+    and leave the noise and any texture at that scale:
+    ``1.4826 MAD / sqrt(2)`` over strided samples of each :data:`TEXTURE_TILE_PX`
+    tile. A sea or deck texture that makes spot-like bumps raises the threshold
+    where it is; an edge crossing a tile touches few of its samples.
+    """
+    h, w = G.shape
+    T, d = TEXTURE_TILE_PX, step_px
+    th, tw = -(-h // T), -(-w // T)
+    diff = np.zeros((th * T, tw * T), np.float32)
+    diff[:h, : w - d] = G[:, d:] - G[:, :-d]
+    valid = np.zeros((th * T, tw * T), bool)
+    valid[:h, : w - d] = True
+    st = 4  # every 4th row and column: 256 samples per tile
+    sub = diff[::st, ::st].reshape(th, T // st, tw, T // st).transpose(0, 2, 1, 3)
+    ok = valid[::st, ::st].reshape(th, T // st, tw, T // st).transpose(0, 2, 1, 3)
+    sub = np.where(ok, sub, np.nan).reshape(th, tw, -1)
+    with warnings.catch_warnings():  # a tile without samples (a narrow frame) is 0
+        warnings.simplefilter("ignore", RuntimeWarning)
+        med = np.nanmedian(sub, axis=2)
+        mad = np.nanmedian(np.abs(sub - med[..., None]), axis=2)
+    return np.nan_to_num(1.4826 * mad / math.sqrt(2.0), nan=0.0)
+
+
+def significant_spots(
+    image: np.ndarray, significance_sigma: float, max_spots: int
+) -> tuple[np.ndarray, np.ndarray, str]:
+    """Centres and sizes of the frame's significant compact spots.
+
+    Parameters
+    ----------
+    image : (H, W) or (H, W, 3) array
+    significance_sigma : float
+        Threshold, in local noise sigmas of the smoothed coarse image.
+    max_spots : int
+        More spots than this fail the frame.
+
+    Returns
+    -------
+    centres_px : (n, 2) array of float
+        Approximate full-resolution ``(u, v)`` of each spot (its coarse pixel's centre).
+    radius_px : (n,) array of float
+        Full-resolution radius of the ring the spot passed on (its size, roughly).
+    reason : str
+        Why the frame failed ("" when it did not).
+    """
+    f = search_factor(image.shape[:2])
+    S = block_sum(image, f)
+    sigma_c = max(0.5, SMOOTH_PX / f)
+    k, norm = _gaussian_norm(sigma_c)
+    G = cv2.GaussianBlur(S, (k, k), sigma_c, borderType=cv2.BORDER_REFLECT)
+    noise_S = max(difference_noise(S, signal=lambda x: np.asarray(x, np.float64)), MIN_NOISE_DN)
+    sigma_G = noise_S * norm
+    h, w = G.shape
+    step = max(1, int(math.sqrt(h * w / 30_000)))
+    bg = float(np.median(G[::step, ::step]))
+    dil = cv2.dilate(G, np.ones((3, 3), np.uint8))
+    peaks = (G >= dil) & (G > bg + significance_sigma * sigma_G)
+    ys, xs = np.nonzero(peaks)
+    if ys.size > MAX_PEAKS:
+        return np.zeros((0, 2)), np.zeros(0), (
+            f"{ys.size} local maxima above the significance threshold: "
+            "a flat bright or noisy frame (glare?)"
+        )
+    if ys.size == 0:
+        return np.zeros((0, 2)), np.zeros(0), ""
+    gp = G[ys, xs].astype(np.float64)
+    ty, tx = ys // TEXTURE_TILE_PX, xs // TEXTURE_TILE_PX
+    radius = np.zeros(ys.size)
+    round_inside = np.ones(ys.size, bool)  # the ring inside this one was round
+    for r in RING_RADII:
+        n_s = max(RING_SAMPLES, math.ceil(2 * math.pi * r / RING_SPACING_PX))
+        ang = 2 * np.pi * np.arange(n_s) / n_s
+        # texture on this ring's scale: pixel pairs r apart
+        sigma_floor = np.maximum(sigma_G, texture_noise(G, max(2, round(r)))[ty, tx])
+        sx = np.clip(np.rint(xs[:, None] + r * np.cos(ang)[None]).astype(np.intp), 0, w - 1)
+        sy = np.clip(np.rint(ys[:, None] + r * np.sin(ang)[None]).astype(np.intp), 0, h - 1)
+        ring = G[sy, sx].astype(np.float64)
+        med = np.median(ring, axis=1)
+        spread = 1.4826 * np.median(np.abs(ring - med[:, None]), axis=1)
+        top = ring.max(axis=1)
+        z = (gp - top) / np.maximum(spread, sigma_floor)
+        # the smallest ring passed, if the spot is round inside it
+        radius[(z > significance_sigma) & round_inside & (radius == 0)] = r
+        # round: no sample of this ring near the centre's level unless all are (a bar or a
+        # line through the centre reaches it on two sides and leaves the rest dark)
+        round_inside = (top - med) < MAX_RING_ASYMMETRY * np.maximum(gp - med, 1e-12)
+    ok = radius > 0
+    # plateaus (a saturated core) give several equal maxima: keep one per 2 coarse px
+    pts = np.column_stack([xs[ok], ys[ok]]).astype(np.float64)
+    rad, val = radius[ok], gp[ok]
+    order = np.argsort(-val)
+    kept: list[int] = []
+    for i in order:
+        if all(abs(pts[i, 0] - pts[j, 0]) > 2 or abs(pts[i, 1] - pts[j, 1]) > 2 for j in kept):
+            kept.append(int(i))
+        if len(kept) > max_spots:
+            return np.zeros((0, 2)), np.zeros(0), (
+                f"more than {max_spots} significant spots (max_blobs): glare, noise or texture"
+            )
+    kept_a = np.array(kept, np.intp)
+    centres = (pts[kept_a] + 0.5) * f - 0.5
+    return centres, rad[kept_a] * f, ""
