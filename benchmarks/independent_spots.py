@@ -19,7 +19,8 @@ detector's fault:
   RGB or mono;
 * truth: every beacon's exact centre and the per-axis centroid CRB of the
   channel-sum image (Fisher information of the pixel-integrated spot under
-  Poisson + read noise, the spot's other parameters known).
+  Poisson + read noise + the rounding to the stored DN step, as Gaussian variances,
+  the spot's other parameters known).
 
 Only numpy and scipy are used. Everything is drawn from the
 ``numpy.random.Generator`` passed in.
@@ -77,6 +78,10 @@ class SpotFrameSpec:
         Ring beacons removed (never the bow).
     drop_centre : bool
         Remove the centre beacon.
+    drop_bow : bool
+        Remove the bow beacon (a frame that cannot be identified).
+    flux_override : tuple of (int, float)
+        ``(beacon id, electrons)`` pairs that replace those beacons' drawn flux.
     other_lights : int
         Non-beacon lights placed off the ring (navigation lights, floodlights, glints).
     height_m : (float, float)
@@ -101,6 +106,8 @@ class SpotFrameSpec:
     saturate: bool = False
     missing_ring: int = 0
     drop_centre: bool = False
+    drop_bow: bool = False
+    flux_override: tuple[tuple[int, float], ...] = ()
     other_lights: int = 0
     height_m: tuple[float, float] = (35.0, 60.0)
     tilt_deg: float = 5.0
@@ -222,14 +229,20 @@ def make_frame(spec: SpotFrameSpec, rng: np.random.Generator) -> SpotFrame:
         keep[rng.choice(np.arange(1, N_RING), spec.missing_ring, replace=False)] = False
     if spec.drop_centre:
         keep[N_RING] = False
+    if spec.drop_bow:
+        keep[0] = False
     ids, uv = ids[keep], uv[keep]
     m = ids.size
     sigma = rng.uniform(*spec.sigma_px, m)
     flux = np.exp(rng.uniform(*np.log(spec.flux_e), m)) * rng.uniform(*spec.uneven, m)
     flux[ids == 0] *= spec.bow_factor
+    for bid, f_e in spec.flux_override:
+        flux[ids == bid] = f_e
     colours = [RED if i == 0 else WHITE for i in ids]
     # other lights, away from every beacon and from the ring ellipse
     centre = uv[ids == N_RING][0] if (ids == N_RING).any() else uv[ids < N_RING].mean(axis=0)
+    if spec.other_lights and not (ids == N_RING).any():  # the ring's centre, not its mean
+        centre = project(np.zeros((1, 3)), K, h, R_tilt, 0.0)[0]
     r_img = float(np.median(np.linalg.norm(uv[ids < N_RING] - centre, axis=1)))
     lights, kinds, l_sigma, l_flux, l_col = [], [], [], [], []
     kinds_cycle = ["red sidelight", "green sidelight", "floodlight", "glint", "floodlight"]
@@ -288,7 +301,9 @@ def make_frame(spec: SpotFrameSpec, rng: np.random.Generator) -> SpotFrame:
         px, py = spot_profile(u, s, xs), spot_profile(v, s, ys)
         dx, dy = spot_derivative(u, s, xs), spot_derivative(v, s, ys)
         grey = 1.0 if spec.rgb or col is not RED else MONO_RED_FACTOR
-        var = mu[v0:v1, u0:u1].sum(axis=2) + n_ch * spec.read_noise_e**2
+        # Poisson + read noise + rounding to the stored DN step (1/12 step^2), electrons^2
+        step_e = (16.0 if spec.bits == 12 else 1.0) / gain
+        var = mu[v0:v1, u0:u1].sum(axis=2) + n_ch * (spec.read_noise_e**2 + step_e**2 / 12.0)
         d_u = f * grey * np.outer(py, dx)
         d_v = f * grey * np.outer(dy, px)
         F = np.array([[np.sum(d_u * d_u / var), np.sum(d_u * d_v / var)],

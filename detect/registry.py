@@ -198,7 +198,11 @@ _BUILTIN_MODULES: tuple[str, ...] = (
     "deckpose.detect.gauss",
     "deckpose.detect.log_blobs",
     "deckpose.detect.opencv_blob",
+    "deckpose.detect.peers",
 )
+
+#: Peer detectors of the optional extra ``peers``, and the package each needs.
+OPTIONAL_DETECTORS = {"sep": "sep", "photutils": "photutils"}
 
 _loaded = False
 
@@ -253,6 +257,11 @@ def get(name: str) -> DetectorFn:
     try:
         return _REGISTRY[name]
     except KeyError:
+        if name in OPTIONAL_DETECTORS:
+            raise ConfigError(
+                f"detector {name!r} needs the optional package {OPTIONAL_DETECTORS[name]!r}: "
+                "pip install 'deckpose[peers]'"
+            ) from None
         raise ConfigError(
             f"unknown detector {name!r}; choose one of {', '.join(sorted(_REGISTRY))}"
         ) from None

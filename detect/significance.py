@@ -28,7 +28,6 @@ The result is a full-resolution box per spot, sized from the ring it passed on.
 from __future__ import annotations
 
 import math
-import warnings
 
 import cv2
 import numpy as np
@@ -90,31 +89,35 @@ def _gaussian_norm(sigma: float) -> tuple[int, float]:
     return k, float(np.sum(g**2))  # the 2-D kernel's L2 norm is the 1-D one's squared
 
 
-def texture_noise(G: np.ndarray, step_px: int) -> np.ndarray:
-    """Spread of a smoothed coarse image on a spot's scale, per tile, (ceil(h/T), ceil(w/T)).
+def texture_noise(G: np.ndarray, step_px: int, tiles: np.ndarray) -> np.ndarray:
+    """Spread of a smoothed coarse image on a spot's scale in some tiles, (n,).
 
-    Differences of pixels ``step_px`` apart (a ring's radius) cancel smooth light
-    and leave the noise and any texture at that scale:
-    ``1.4826 MAD / sqrt(2)`` over strided samples of each :data:`TEXTURE_TILE_PX`
-    tile. A sea or deck texture that makes spot-like bumps raises the threshold
-    where it is; an edge crossing a tile touches few of its samples.
+    Differences of pixels ``step_px`` apart (a ring's radius) along rows cancel
+    smooth light and leave the noise and any texture at that scale:
+    ``1.4826 MAD / sqrt(2)`` over every 4th row and column of each
+    :data:`TEXTURE_TILE_PX` tile. A sea or deck texture that makes spot-like bumps
+    raises the threshold where it is; an edge crossing a tile touches few of its
+    samples.
+
+    Parameters
+    ----------
+    G : (h, w) array of float
+    step_px : int
+    tiles : (n, 2) array of int
+        Tile rows and columns (``v // T``, ``u // T``).
     """
     h, w = G.shape
-    T, d = TEXTURE_TILE_PX, step_px
-    th, tw = -(-h // T), -(-w // T)
-    diff = np.zeros((th * T, tw * T), np.float32)
-    diff[:h, : w - d] = G[:, d:] - G[:, :-d]
-    valid = np.zeros((th * T, tw * T), bool)
-    valid[:h, : w - d] = True
-    st = 4  # every 4th row and column: 256 samples per tile
-    sub = diff[::st, ::st].reshape(th, T // st, tw, T // st).transpose(0, 2, 1, 3)
-    ok = valid[::st, ::st].reshape(th, T // st, tw, T // st).transpose(0, 2, 1, 3)
-    sub = np.where(ok, sub, np.nan).reshape(th, tw, -1)
-    with warnings.catch_warnings():  # a tile without samples (a narrow frame) is 0
-        warnings.simplefilter("ignore", RuntimeWarning)
-        med = np.nanmedian(sub, axis=2)
-        mad = np.nanmedian(np.abs(sub - med[..., None]), axis=2)
-    return np.nan_to_num(1.4826 * mad / math.sqrt(2.0), nan=0.0)
+    T, st = TEXTURE_TILE_PX, 4
+    offs = np.arange(0, T, st)
+    rows = np.minimum(tiles[:, 0:1] * T + offs[None], h - 1)  # (n, T/st)
+    cols = np.minimum(tiles[:, 1:2] * T + offs[None], w - 1 - step_px)
+    cols = np.maximum(cols, 0)
+    r = rows[:, :, None]
+    c = cols[:, None, :]
+    d = (G[r, np.minimum(c + step_px, w - 1)] - G[r, c]).reshape(tiles.shape[0], -1)
+    med = np.median(d, axis=1)
+    mad = np.median(np.abs(d - med[:, None]), axis=1)
+    return 1.4826 * mad / math.sqrt(2.0)
 
 
 def significant_spots(
@@ -160,14 +163,18 @@ def significant_spots(
     if ys.size == 0:
         return np.zeros((0, 2)), np.zeros(0), ""
     gp = G[ys, xs].astype(np.float64)
-    ty, tx = ys // TEXTURE_TILE_PX, xs // TEXTURE_TILE_PX
+    tiles, tile_of = np.unique(
+        np.column_stack([ys // TEXTURE_TILE_PX, xs // TEXTURE_TILE_PX]), axis=0,
+        return_inverse=True,
+    )
+    tile_of = tile_of.ravel()
     radius = np.zeros(ys.size)
     round_inside = np.ones(ys.size, bool)  # the ring inside this one was round
     for r in RING_RADII:
         n_s = max(RING_SAMPLES, math.ceil(2 * math.pi * r / RING_SPACING_PX))
         ang = 2 * np.pi * np.arange(n_s) / n_s
         # texture on this ring's scale: pixel pairs r apart
-        sigma_floor = np.maximum(sigma_G, texture_noise(G, max(2, round(r)))[ty, tx])
+        sigma_floor = np.maximum(sigma_G, texture_noise(G, max(2, round(r)), tiles)[tile_of])
         sx = np.clip(np.rint(xs[:, None] + r * np.cos(ang)[None]).astype(np.intp), 0, w - 1)
         sy = np.clip(np.rint(ys[:, None] + r * np.sin(ang)[None]).astype(np.intp), 0, h - 1)
         ring = G[sy, sx].astype(np.float64)

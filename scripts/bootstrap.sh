@@ -35,9 +35,18 @@ fi
 stamp=.venv/.deckpose-stamp
 want=$(cat pyproject.toml | sha256sum | cut -d' ' -f1)
 if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ] || ! .venv/bin/python -c "import deckpose" 2>/dev/null; then
-  echo "[deckpose] installing deckpose and its dependencies into .venv"
+  echo "[deckpose] installing deckpose and its dependencies into .venv (about a minute; log in .venv/install.log)"
   .venv/bin/python -m pip install -q --upgrade pip >/dev/null 2>&1 || true
-  if ! .venv/bin/python -m pip install -q -e ".[test,cluster]" > .venv/install.log 2>&1; then
+  # one line per package as pip collects it, so a long install shows progress
+  set +e
+  .venv/bin/python -m pip install --progress-bar off -e ".[test,cluster,peers]" 2>&1 \
+    | tee .venv/install.log \
+    | { grep --line-buffered -E '^(Collecting|Successfully installed)' \
+        | sed -u -e 's/^Collecting /[deckpose]   collecting /' \
+                 -e 's/^Successfully installed.*/[deckpose]   installed/'; true; }
+  rc=${PIPESTATUS[0]}
+  set -e
+  if [ "$rc" -ne 0 ]; then
     cat .venv/install.log >&2
     echo "[deckpose] pip install failed (log above, also in .venv/install.log)" >&2
     exit 1
