@@ -123,6 +123,11 @@ def _ellipse_inliers(
     return d < tol, d, tol
 
 
+#: Fewest RANSAC samples before the adaptive stop (which needs a 99.9 % chance of one
+#: all-inlier sample given the best inlier ratio so far).
+MIN_RANSAC_SAMPLES = 8
+
+
 def ransac_ellipse(
     points: FloatArray, opts: IdentifyOptions, max_inliers: int
 ) -> NDArray[np.bool_]:
@@ -159,7 +164,7 @@ def ransac_ellipse(
             w5 = (k / n) ** 5
             needed = int(math.ceil(math.log(1e-3) / math.log1p(-w5))) if w5 < 1 else 1
         tried += 1
-        if not exhaustive and tried >= max(needed, 20):
+        if not exhaustive and tried >= max(needed, MIN_RANSAC_SAMPLES):
             break
     return best
 

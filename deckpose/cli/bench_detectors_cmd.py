@@ -50,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
         gain_dn_per_e=args.gain if args.gain is not None else declared_gain(manifest),
         background_kernel_px=args.background_kernel_px,
         spot_level=args.spot_level,
+        significance_sigma=args.significance_sigma,
     )
     summary, matches = run_benchmark(
         args.dataset, names, options=options, progress=not args.no_progress

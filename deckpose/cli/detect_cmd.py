@@ -67,6 +67,14 @@ def add_detector_arguments(p: argparse.ArgumentParser) -> None:
         "above the background (default 0.8)",
     )
     p.add_argument(
+        "--significance-sigma",
+        type=float,
+        default=5.0,
+        help="significance search, beside the bright-spot search: every compact spot this many "
+        "local noise sigmas above its surroundings is a candidate, however dim; 0 = off "
+        "(default 5)",
+    )
+    p.add_argument(
         "--plugin",
         action="append",
         default=[],
@@ -111,6 +119,7 @@ def run(args: argparse.Namespace) -> int:
         gain_dn_per_e=args.gain if args.gain is not None else declared_gain(frameset.manifest),
         background_kernel_px=args.background_kernel_px,
         spot_level=args.spot_level,
+        significance_sigma=args.significance_sigma,
     )
     ident = IdentifyOptions()
     dets, frames = detect_frames(
