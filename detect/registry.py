@@ -29,6 +29,7 @@ point in the group ``deckpose.detectors``.
 from __future__ import annotations
 
 import importlib
+import importlib.util
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -238,11 +239,39 @@ def _load_builtins() -> None:
 
 
 def load_plugin(module: str) -> None:
-    """Import a user module that registers detectors with :func:`register`."""
+    """Import a user module that registers detectors with :func:`register`.
+
+    ``module`` is a module name (found on ``sys.path`` or in the current folder)
+    or the path of a Python file (``./mypeak.py``).
+    """
+    import sys
+    from pathlib import Path
+
+    path = Path(module)
     try:
+        if module.endswith(".py") or path.is_file():
+            if not path.is_file():
+                raise ConfigError(f"cannot import detector plugin {module!r}: no such file")
+            spec = importlib.util.spec_from_file_location(path.stem, path)
+            if spec is None or spec.loader is None:
+                raise ConfigError(f"cannot import detector plugin {module!r}: not a Python file")
+            mod = importlib.util.module_from_spec(spec)
+            sys.modules[path.stem] = mod
+            try:
+                spec.loader.exec_module(mod)
+            except BaseException:
+                sys.modules.pop(path.stem, None)  # no half-imported module stays behind
+                raise
+            return
+        if "" not in sys.path and str(Path.cwd()) not in sys.path:
+            sys.path.insert(0, str(Path.cwd()))  # a module in the current folder
         importlib.import_module(module)
-    except ImportError as exc:
-        raise ConfigError(f"cannot import detector plugin {module!r}: {exc}") from exc
+    except ConfigError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - any error in user code is the plugin's fault
+        raise ConfigError(
+            f"cannot import detector plugin {module!r}: {type(exc).__name__}: {exc}"
+        ) from exc
 
 
 def names() -> list[str]:

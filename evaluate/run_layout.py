@@ -105,9 +105,9 @@ def _require(path: Path, command: str) -> None:
 def require_dataset(run: RunPaths) -> None:
     """Raise unless the render stage's outputs are present."""
     if not run.root.is_dir():
-        raise InputDataError(f"run folder {run.root} does not exist; make it with: deckpose render CONFIG.yaml -o {run.root}")
+        raise InputDataError(f"run folder {run.root} does not exist; make it with: deckpose render CONFIG.yaml {run.root}")
     for p in (run.manifest, run.frames, run.beacons):
-        _require(p, f"deckpose render CONFIG.yaml -o {run.root}")
+        _require(p, f"deckpose render CONFIG.yaml {run.root}")
 
 
 def read_manifest(run: RunPaths) -> dict[str, Any]:
@@ -142,7 +142,7 @@ def read_cameras(run: RunPaths, names: list[str] | None = None) -> dict[str, Cam
     out = {}
     for n in names:
         path = run.cameras_dir / f"{n}.yaml"
-        _require(path, f"deckpose render CONFIG.yaml -o {run.root}")
+        _require(path, f"deckpose render CONFIG.yaml {run.root}")
         out[n] = read_camera_info(path)
     return out
 

@@ -17,7 +17,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
             "frames are reported and skipped."
         ),
     )
-    p.add_argument("dataset", metavar="DATASET", help="dataset folder, or a folder of images")
+    p.add_argument(
+        "dataset",
+        metavar="DATASET",
+        nargs="?",
+        help="dataset folder, or a folder of images (not needed with --list)",
+    )
     p.add_argument("--detector", default="cog", help="detector name (see --list); default cog")
     p.add_argument(
         "--out",
@@ -102,6 +107,8 @@ def run(args: argparse.Namespace) -> int:
     if args.list:
         print("\n".join(registry.names()))
         return 0
+    if args.dataset is None:
+        raise ConfigError("no DATASET given: name a dataset folder or a folder of images")
     registry.get(args.detector)  # fail early on an unknown name
     if is_dataset(args.dataset):
         frameset = open_dataset(args.dataset)

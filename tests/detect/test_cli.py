@@ -89,6 +89,44 @@ def test_plugin_detector_appears_in_the_cli(tmp_path, monkeypatch, capsys):
         registry.unregister("my-cog")
 
 
+def test_detect_list_needs_no_dataset(capsys):
+    # the README's command: `deckpose detect --list`
+    assert main(["detect", "--list"]) == 0
+    assert {"binary", "cog", "gauss"} <= set(capsys.readouterr().out.split())
+    assert main(["detect"]) == 2
+    assert "no DATASET" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("how", ["module in the current folder", "file path"])
+def test_plugin_from_the_current_folder_or_a_file(tmp_path, monkeypatch, capsys, how):
+    (tmp_path / "mypeak_plugin.py").write_text(
+        "from deckpose.detect import registry\n"
+        "from deckpose.detect.centroid import detect_cog\n"
+        "registry.register('my-peak')(detect_cog)\n"
+    )
+    monkeypatch.chdir(tmp_path)  # no PYTHONPATH, as a user types it
+    arg = "mypeak_plugin" if how.startswith("module") else "./mypeak_plugin.py"
+    try:
+        assert main(["detect", "--plugin", arg, "--list"]) == 0
+        assert "my-peak" in capsys.readouterr().out.split()
+    finally:
+        from deckpose.detect import registry
+
+        registry.unregister("my-peak")
+        import sys
+
+        sys.modules.pop("mypeak_plugin", None)
+
+
+def test_a_broken_plugin_is_one_line_not_a_traceback(tmp_path, monkeypatch, capsys):
+    (tmp_path / "broken.py").write_text("raise RuntimeError('boom')\n")
+    monkeypatch.chdir(tmp_path)
+    for arg in ("./broken.py", "broken", "./missing.py"):
+        assert main(["detect", "--plugin", arg, "--list"]) == 2
+        err = capsys.readouterr().err
+        assert "cannot import detector plugin" in err and "Traceback" not in err
+
+
 def test_bench_detectors_report(tiny_dataset, tmp_path, capsys):
     out = tmp_path / "bench"
     assert (

@@ -124,7 +124,12 @@ def test_missing_stage_names_the_command(tmp_path, capsys):
     assert main(["report", str(root)]) == 2
     assert f"deckpose evaluate {root}" in capsys.readouterr().err
     assert main(["evaluate", str(tmp_path / "nope")]) == 2
-    assert "deckpose render" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    # the hint is a command render accepts (CONFIG then the output folder; it has no -o)
+    assert f"make it with: deckpose render CONFIG.yaml {tmp_path / 'nope'}" in err
+    with pytest.raises(SystemExit):
+        main(["render", "--help"])
+    assert " -o " not in capsys.readouterr().out
 
 
 def test_frames_that_do_not_match_are_rejected(run):
