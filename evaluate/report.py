@@ -133,8 +133,15 @@ def example_frame(run: rl.RunPaths, frame: pd.Series, beacons: pd.DataFrame,
         img = (img >> 8).astype(np.uint8)
     if img.ndim == 3:
         img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
-    fig, ax = plt.subplots(figsize=(8, 8 * img.shape[0] / img.shape[1]))
-    ax.imshow(img, cmap="gray", interpolation="nearest")
+    H, W = img.shape[:2]
+    # matplotlib gets at most max_px on the long side (a 64 MP frame handed over whole made
+    # `deckpose report` peak at 4.6 GiB); the axes keep full-resolution pixel coordinates
+    scale = min(1.0, max_px / max(H, W))
+    if scale < 1.0:
+        img = cv2.resize(img, (max(1, round(W * scale)), max(1, round(H * scale))),
+                         interpolation=cv2.INTER_AREA)
+    fig, ax = plt.subplots(figsize=(8, 8 * H / W))
+    ax.imshow(img, cmap="gray", interpolation="nearest", extent=(-0.5, W - 0.5, H - 0.5, -0.5))
     b = beacons[(beacons.frame_id == frame.frame_id) & beacons.visible.astype(bool)]
     ax.scatter(b.u_px, b.v_px, s=80, facecolors="none", edgecolors="lime", label="truth")
     for det, d in dets.items():

@@ -151,3 +151,35 @@ def test_distribution_plot_of_a_run_whose_every_estimate_failed(tmp_path):
                            "pitch_err_deg": [nan] * 3, "yaw_err_deg": [nan] * 3, "height_err_m": [nan] * 3})
     plot_distributions(errors, tmp_path / "d.png")
     assert (tmp_path / "d.png").stat().st_size > 1000
+
+
+def test_example_frame_hands_matplotlib_at_most_max_px(run, tmp_path, monkeypatch):
+    # `deckpose report` peaked at 4.6 GiB on 64 MP frames: example_frame handed the whole
+    # image to matplotlib and ignored max_px. A 4000x3000 frame must reach imshow as at most
+    # max_px on its long side, with the axes still in full-resolution pixels.
+    import cv2
+    import matplotlib.axes
+
+    from deckpose.evaluate import run_layout as rl
+    from deckpose.evaluate.report import example_frame
+
+    paths = rl.run_paths(run)
+    frames = pd.read_parquet(paths.frames)
+    beacons = pd.read_parquet(paths.beacons)
+    row = frames.iloc[0].copy()
+    big = np.zeros((3000, 4000, 3), np.uint16)
+    big[1500, 2000] = 65535
+    cv2.imwrite(str(tmp_path / "big.png"), big)
+    row["image"] = str(tmp_path / "big.png")  # an absolute path joins to itself
+    seen = {}
+    real = matplotlib.axes.Axes.imshow
+
+    def spy(self, X, *a, **k):
+        seen["shape"], seen["extent"] = np.shape(X), k.get("extent")
+        return real(self, X, *a, **k)
+
+    monkeypatch.setattr(matplotlib.axes.Axes, "imshow", spy)
+    example_frame(paths, row, beacons, {}, tmp_path / "ex.png", max_px=800)
+    assert max(seen["shape"][:2]) == 800
+    assert seen["extent"] == (-0.5, 3999.5, 2999.5, -0.5)
+    assert (tmp_path / "ex.png").stat().st_size > 1000
