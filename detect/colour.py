@@ -28,6 +28,7 @@ def blob_rgb_flux(image: np.ndarray, points_px: FloatArray, radii_px: FloatArray
     Returns
     -------
     (N, 3) array of float, DN
+        NaN for a blob whose aperture lies outside the image.
     """
     img = np.asarray(image)
     check_shape("image", img, (None, None, 3))
@@ -35,9 +36,15 @@ def blob_rgb_flux(image: np.ndarray, points_px: FloatArray, radii_px: FloatArray
     H, W = img.shape[:2]
     out = np.zeros((pts.shape[0], 3))
     for i, ((u, v), r) in enumerate(zip(pts, np.broadcast_to(radii_px, (pts.shape[0],)))):
+        if not (np.isfinite(u) and np.isfinite(v) and np.isfinite(r)):
+            out[i] = np.nan
+            continue
         R = 2.5 * r + 1.0
         u0, u1 = max(0, int(math.floor(u - R))), min(W, int(math.ceil(u + R)) + 1)
         v0, v1 = max(0, int(math.floor(v - R))), min(H, int(math.ceil(v + R)) + 1)
+        if u1 <= u0 or v1 <= v0:  # a centre outside the image: no colour to measure
+            out[i] = np.nan
+            continue
         block = img[v0:v1, u0:u1].astype(float)
         vv, uu = np.mgrid[v0:v1, u0:u1]
         d = np.hypot(uu - u, vv - v)

@@ -43,10 +43,13 @@ def _channel_sum(frame: Frame) -> np.ndarray:
 
 
 def _rows(
-    x: np.ndarray, y: np.ndarray, cov: np.ndarray, flux: np.ndarray, size: np.ndarray,
-    score: np.ndarray,
+    frame: Frame, x: np.ndarray, y: np.ndarray, cov: np.ndarray, flux: np.ndarray,
+    size: np.ndarray, score: np.ndarray,
 ) -> Blobs:
+    """The peers' sources as Blobs, without non-finite or out-of-image centres."""
+    H, W = frame.image.shape[:2]
     ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(cov).all(axis=(1, 2))
+    ok &= (x > -0.5) & (x < W - 0.5) & (y > -0.5) & (y < H - 0.5)
     if not ok.any():
         return Blobs.empty("no source found")
     return Blobs(np.column_stack([x[ok], y[ok]]), cov[ok], flux[ok], size[ok], score[ok])
@@ -79,7 +82,7 @@ def detect_sep(frame: Frame, options: DetectorOptions) -> Blobs:
     cov = np.where(np.isfinite(cov), cov, 1.0)
     flux = np.asarray(objs["flux"], float)
     score = flux / (rms * np.sqrt(np.maximum(np.asarray(objs["npix"], float), 1.0)))
-    return _rows(np.asarray(x, float), np.asarray(y, float), cov, flux, sig, score)
+    return _rows(frame, np.asarray(x, float), np.asarray(y, float), cov, flux, sig, score)
 
 
 def detect_photutils(frame: Frame, options: DetectorOptions) -> Blobs:
@@ -126,7 +129,8 @@ def _photutils(frame: Frame, options: DetectorOptions) -> Blobs:
                                                              / np.maximum(flux, 1.0))
     cov = var[:, None, None] * np.eye(2)[None]
     score = flux / (rms * math.sqrt(4 * math.pi * 1.5**2))
-    return _rows(np.asarray(x, float), np.asarray(y, float), cov, flux, np.full(n, 1.5), score)
+    return _rows(frame, np.asarray(x, float), np.asarray(y, float), cov, flux, np.full(n, 1.5),
+                 score)
 
 
 if available("sep"):

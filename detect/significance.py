@@ -48,6 +48,8 @@ SMOOTH_PX = 1.5
 MAX_RING_ASYMMETRY = 0.5
 #: Tile side of :func:`texture_noise`, coarse pixels.
 TEXTURE_TILE_PX = 64
+#: The whole-image prefilter asks this fraction of the ring test's threshold.
+PREFILTER_FRACTION = 0.8
 #: More local maxima above the prefilter than this fail the frame (a flat noise field).
 MAX_PEAKS = 200_000
 
@@ -153,8 +155,22 @@ def significant_spots(
     step = max(1, int(math.sqrt(h * w / 30_000)))
     bg = float(np.median(G[::step, ::step]))
     dil = cv2.dilate(G, np.ones((3, 3), np.uint8))
-    peaks = (G >= dil) & (G > bg + significance_sigma * sigma_G)
+    # Prefilter (cheap, whole image): above the frame's background and above the local mean
+    # of a box as wide as the largest ring, by PREFILTER_FRACTION of the threshold in the
+    # frame's noise; then in its tile's small-scale texture noise. A lit deck's noise peaks
+    # fail here instead of in the ring test, which costs per peak.
+    thr = PREFILTER_FRACTION * significance_sigma
+    box = 2 * int(RING_RADII[-1]) + 1
+    local = cv2.boxFilter(G, -1, (box, box), borderType=cv2.BORDER_REFLECT)
+    peaks = (G >= dil) & (G > bg + significance_sigma * sigma_G) & (G - local > thr * sigma_G)
     ys, xs = np.nonzero(peaks)
+    if ys.size:
+        all_tiles = np.column_stack(np.nonzero(np.ones(
+            (-(-h // TEXTURE_TILE_PX), -(-w // TEXTURE_TILE_PX)), bool)))
+        tex2 = texture_noise(G, 2, all_tiles).reshape(-(-h // TEXTURE_TILE_PX), -1)
+        keep = (G[ys, xs] - local[ys, xs]) > thr * np.maximum(
+            sigma_G, tex2[ys // TEXTURE_TILE_PX, xs // TEXTURE_TILE_PX])
+        ys, xs = ys[keep], xs[keep]
     if ys.size > MAX_PEAKS:
         return np.zeros((0, 2)), np.zeros(0), (
             f"{ys.size} local maxima above the significance threshold: "
@@ -168,25 +184,42 @@ def significant_spots(
         return_inverse=True,
     )
     tile_of = tile_of.ravel()
-    radius = np.zeros(ys.size)
-    round_inside = np.ones(ys.size, bool)  # the ring inside this one was round
+    # Pass 1, every peak: each ring's highest sample (a necessary condition: the spread of
+    # the ring's samples only raises the noise it is judged by).
+    rings, tops, floors = [], [], []
+    possible = np.zeros(ys.size, bool)
     for r in RING_RADII:
         n_s = max(RING_SAMPLES, math.ceil(2 * math.pi * r / RING_SPACING_PX))
         ang = 2 * np.pi * np.arange(n_s) / n_s
-        # texture on this ring's scale: pixel pairs r apart
-        sigma_floor = np.maximum(sigma_G, texture_noise(G, max(2, round(r)), tiles)[tile_of])
         sx = np.clip(np.rint(xs[:, None] + r * np.cos(ang)[None]).astype(np.intp), 0, w - 1)
         sy = np.clip(np.rint(ys[:, None] + r * np.sin(ang)[None]).astype(np.intp), 0, h - 1)
-        ring = G[sy, sx].astype(np.float64)
-        med = np.median(ring, axis=1)
-        spread = 1.4826 * np.median(np.abs(ring - med[:, None]), axis=1)
-        top = ring.max(axis=1)
-        z = (gp - top) / np.maximum(spread, sigma_floor)
+        ring = G[sy, sx]
+        top = ring.max(axis=1).astype(np.float64)
+        # texture on this ring's scale: pixel pairs r apart
+        floor = np.maximum(sigma_G, texture_noise(G, max(2, round(r)), tiles)[tile_of])
+        possible |= (gp - top) / floor > significance_sigma
+        rings.append(ring)
+        tops.append(top)
+        floors.append(floor)
+    # Pass 2, the few that may pass: median and spread of RING_SAMPLES of each ring's samples,
+    # and the roundness of the ring inside the one passed.
+    cand = np.flatnonzero(possible)
+    radius = np.zeros(ys.size)
+    round_inside = np.ones(cand.size, bool)  # the ring inside this one was round
+    g_c = gp[cand]
+    for k, r in enumerate(RING_RADII):
+        ring = rings[k][cand]
+        sub = ring[:, :: max(1, ring.shape[1] // RING_SAMPLES)].astype(np.float64)
+        med = np.median(sub, axis=1)
+        spread = 1.4826 * np.median(np.abs(sub - med[:, None]), axis=1)
+        top = tops[k][cand]
+        z = (g_c - top) / np.maximum(spread, floors[k][cand])
         # the smallest ring passed, if the spot is round inside it
-        radius[(z > significance_sigma) & round_inside & (radius == 0)] = r
+        hit = (z > significance_sigma) & round_inside & (radius[cand] == 0)
+        radius[cand[hit]] = r
         # round: no sample of this ring near the centre's level unless all are (a bar or a
         # line through the centre reaches it on two sides and leaves the rest dark)
-        round_inside = (top - med) < MAX_RING_ASYMMETRY * np.maximum(gp - med, 1e-12)
+        round_inside = (top - med) < MAX_RING_ASYMMETRY * np.maximum(g_c - med, 1e-12)
     ok = radius > 0
     # plateaus (a saturated core) give several equal maxima: keep one per 2 coarse px
     pts = np.column_stack([xs[ok], ys[ok]]).astype(np.float64)

@@ -58,3 +58,33 @@ def test_all_black_frame(tiny_dataset, tmp_path):
     cv2.imwrite(str(img), np.zeros((H, W), np.uint8))
     _, frames = detect_frames(open_dataset(ds), "binary")
     assert not frames.ok.iloc[0] and "dark frame" in frames.reason.iloc[0]
+
+
+def test_a_centre_outside_the_image_does_not_end_the_frame():
+    # A peer detector's diverged fit put a centre outside the frame; the colour measure then
+    # raised "negative dimensions" and ended the benchmark. It is now a NaN colour.
+    from deckpose.camera import preset
+    from deckpose.detect import registry
+    from deckpose.detect.colour import blob_rgb_flux
+    from deckpose.detect.pipeline import detect_frame
+    from deckpose.detect.registry import Blobs
+    from deckpose.layout import DeckLayout
+    from deckpose.records import Frame
+
+    img = np.zeros((40, 60, 3), np.uint8)
+    img[20, 30] = 200
+    flux = blob_rgb_flux(img, np.array([[30.0, 20.0], [-500.0, 20.0], [np.nan, 1.0]]),
+                         np.array([2.0, 2.0, 2.0]))
+    assert np.all(np.isfinite(flux[0])) and np.isnan(flux[1:]).all()
+
+    @registry.register("test-outside")
+    def outside(frame, options):
+        pts = np.array([[30.0, 20.0], [-500.0, 9000.0]])
+        return Blobs(pts, np.stack([np.eye(2)] * 2), [1.0, 1.0], [1.0, 1.0], [1.0, 1.0])
+
+    try:
+        cam = preset("8mp").with_size(60, 40)
+        fd = detect_frame(Frame(img, cam), "test-outside", DeckLayout())
+        assert not fd.ok and "identification" in fd.reason
+    finally:
+        registry.unregister("test-outside")
