@@ -35,7 +35,10 @@ def register(subparsers: Any) -> None:
     p.add_argument("source", choices=["thesis", "regular", "sea", "read"], help="where the motion comes from")
     p.add_argument("file", nargs="?", help="input file for 'read' (.csv or .parquet)")
     p.add_argument("-o", "--output", help="write the series here (.csv or .parquet)")
-    p.add_argument("--plot", help="write a PNG of the channels and their spectra here")
+    p.add_argument(
+        "--plot",
+        help="write a figure of the channels and their spectra here (.png, .jpg, .pdf, .svg)",
+    )
     p.add_argument("--radians", action="store_true", help="angle columns in radians (roll_rad, ...) in and out")
     p.add_argument("--thesis-table", action="store_true",
                    help="thesis: write the table exactly as the reference CSV (thesis X-Y-Z angles)")

@@ -10,10 +10,13 @@ from numpy.typing import NDArray
 from scipy import signal
 
 from deckpose.atomic_io import atomic_path
-from deckpose.errors import InputDataError
+from deckpose.errors import ConfigError, InputDataError
 from deckpose.motion.series import MotionSeries
 
 FloatArray = NDArray[np.float64]
+
+#: Image formats a plot is written in, told by the file's suffix.
+PLOT_FORMATS = ("png", "jpg", "pdf", "svg", "tiff")
 
 #: (attribute, label, plotted unit, scale to plotted unit)
 _CHANNELS = (
@@ -54,7 +57,10 @@ def channel_psd(t_s: FloatArray, x: FloatArray) -> tuple[FloatArray, FloatArray]
 
 def plot_series(series: MotionSeries, path: str | os.PathLike[str], *, title: str = "",
                 max_omega_rad_s: float = 2.0, dpi: int = 80) -> Path:
-    """Write a PNG with each channel over time (left) and its spectrum (right).
+    """Write a figure with each channel over time (left) and its spectrum (right).
+
+    The format follows the file's suffix (:data:`PLOT_FORMATS`); another suffix is a
+    :class:`~deckpose.errors.ConfigError`.
 
     Channels that are identically zero (e.g. surge and sway of a file without
     them) are left out. The file is written atomically.
@@ -104,6 +110,12 @@ def plot_series(series: MotionSeries, path: str | os.PathLike[str], *, title: st
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()
     out = Path(path)
+    fmt = out.suffix.lower().lstrip(".") or "png"
+    fmt = {"jpeg": "jpg", "tif": "tiff"}.get(fmt, fmt)
+    if fmt not in PLOT_FORMATS:
+        raise ConfigError(
+            f"cannot write a plot as {out.name}: name it .png, .jpg, .pdf, .svg or .tiff"
+        )
     with atomic_path(out) as tmp:
-        fig.savefig(tmp, format="png")
+        fig.savefig(tmp, format=fmt)
     return out

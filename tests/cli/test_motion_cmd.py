@@ -25,6 +25,44 @@ def test_sea_writes_series_config_and_plot(tmp_path, capsys):
     np.testing.assert_array_equal(read_series(again).heave_m, s.heave_m)
 
 
+@pytest.mark.parametrize(("suffix", "magic"), [(".jpg", b"\xff\xd8\xff"), (".pdf", b"%PDF"),
+                                             (".svg", b"<?xml")])
+def test_plot_format_follows_the_suffix(tmp_path, suffix, magic):
+    # --plot x.jpg wrote PNG data into a .jpg
+    path = tmp_path / f"motion{suffix}"
+    assert main(["motion", "regular", "--duration-s", "20", "--plot", str(path)]) == 0
+    assert path.read_bytes()[: len(magic)] == magic
+
+
+def test_plot_with_an_unknown_suffix_is_one_line(tmp_path, capsys):
+    assert main(["motion", "regular", "--duration-s", "20", "--plot", str(tmp_path / "m.xyz")]) == 2
+    err = capsys.readouterr().err
+    assert "m.xyz" in err and ".png" in err and "Traceback" not in err
+    assert not list(tmp_path.iterdir())  # nothing half-written
+
+
+def test_readme_motion_example_writes_under_runs(tmp_path, monkeypatch, capsys):
+    # The README's example, run as typed from a checkout (here a copy of its configs):
+    # its outputs land in runs/ (ignored by git), not in the repository root.
+    import re
+    import shutil
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    readme = (repo / "README.md").read_text()
+    cmd = re.search(r"deckpose motion sea --config (\S+) \\\n\s+-o (\S+) --plot (\S+)", readme)
+    assert cmd, "the README's motion example moved"
+    cfg, out, plot = cmd.groups()
+    assert out.startswith("runs/")
+    shutil.copytree(repo / "configs", tmp_path / "configs")
+    monkeypatch.chdir(tmp_path)
+    assert main(["motion", "sea", "--config", cfg, "-o", out, "--plot", str(tmp_path / "m.png"),
+                 "--duration-s", "60"]) == 0
+    assert (tmp_path / out).is_file() and (tmp_path / out).with_suffix("").with_suffix(
+        ".motion.yaml").is_file()
+    assert plot.startswith("reports/")
+
+
 def test_thesis_table_and_read_round_trip(tmp_path):
     if not THESIS_CSV.is_file():
         pytest.skip(f"reference file {THESIS_CSV} absent")
