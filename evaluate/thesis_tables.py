@@ -119,7 +119,7 @@ def _cell(o: float, t: float, digits: int) -> str:
 
 
 def markdown_report(df: pd.DataFrame, results: list[CellResult], config: ThesisTablesConfig,
-                    seconds: float) -> str:
+                    seconds: float, out_dir: Path | str = "reports") -> str:
     """The Markdown report: every table as ``ours / thesis / ratio``, plus an honest summary."""
     n_img = results[0].n_images if results else 0
     lines = [
@@ -135,10 +135,10 @@ def markdown_report(df: pd.DataFrame, results: list[CellResult], config: ThesisT
         f"({config.workers or os.cpu_count()} worker processes).",
         "",
         "Regenerate with `deckpose thesis-tables --repetitions "
-        f"{config.repetitions} --seed {config.seed} -o reports`.",
+        f"{config.repetitions} --seed {config.seed} -o {out_dir}`.",
         "",
     ]
-    lines += _summary(df, results)
+    lines += _summary(df, results, n_img)
     for (res, noise), num in sorted(ref.TABLE_NUMBER.items(), key=lambda kv: kv[1]):
         sub = df[(df.table == f"Table 4.{num}")]
         lines += ["", f"## Table 4.{num}: estimation max absolute error [{res.upper()} - {noise} pixels noise]", "",
@@ -184,7 +184,7 @@ def _mean(df: pd.DataFrame, quantity: str, column: str) -> float:
     return float(df[df.quantity == quantity][column].mean())
 
 
-def _summary(df: pd.DataFrame, results: list[CellResult]) -> list[str]:
+def _summary(df: pd.DataFrame, results: list[CellResult], n_draws: int) -> list[str]:
     """Plain statements of where we agree and where we do not, computed from the numbers."""
     mx = df[df.table.isin([f"Table 4.{n}" for n in range(2, 14)])]
 
@@ -199,8 +199,8 @@ def _summary(df: pd.DataFrame, results: list[CellResult]) -> list[str]:
         "## Summary",
         "",
         f"- **Roll and pitch maxima** (Tables 4.2-4.13): median ratio {rp.median():.2f} "
-        f"(range {rp.min():.2f}-{rp.max():.2f}) over {len(rp)} cells. Maxima of 247,500 draws are "
-        "themselves noisy, so single cells scatter around the median.",
+        f"(range {rp.min():.2f}-{rp.max():.2f}) over {len(rp)} cells. Maxima of {n_draws:,} draws "
+        "are themselves noisy, so single cells scatter around the median.",
         f"- **Image RMS** of the injected noise: median ratio {med('rms_mean_px'):.2f} (mean), "
         f"{med('rms_sigma_px'):.2f} (sigma).",
         f"- **Table 4.15 sigma**: roll {sig[sig.quantity == 'sigma_roll_deg'].ratio.median():.3f}, "
@@ -233,7 +233,7 @@ def write_outputs(out_dir: Path, results: list[CellResult], config: ThesisTables
     write_table(df, out_dir / "thesis_tables.csv", "thesis tables")
     md = out_dir / "thesis_tables.md"
     with atomic_open(md, "w") as fh:
-        fh.write(markdown_report(df, results, config, seconds))
+        fh.write(markdown_report(df, results, config, seconds, out_dir))
     manifest = {
         "config": asdict(config),
         "deckpose": deckpose.__version__,

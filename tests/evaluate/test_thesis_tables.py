@@ -87,6 +87,9 @@ def test_write_outputs_full_table_set(tmp_path):
     results = run_cells(ThesisTablesConfig(repetitions=1, seed=1, workers=1))
     md = write_outputs(tmp_path, results, ThesisTablesConfig(repetitions=1), 1.0)
     text = md.read_text()
+    # the text follows the run: 1 x 495 draws per cell, regenerated into this folder
+    assert "Maxima of 495 draws" in text and "247,500" not in text
+    assert f"--repetitions 1 --seed 20221 -o {tmp_path}`" in text
     for n in range(2, 16):
         assert f"## Table 4.{n}:" in text
     df = pd.read_csv(tmp_path / "thesis_tables.csv")
