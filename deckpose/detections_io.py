@@ -1,7 +1,10 @@
 """Read and validate detection tables (CSV or Parquet) into :class:`Detections` per frame.
 
 Required columns: ``frame_id, beacon_id, u_px, v_px``. Optional: ``cov_uu, cov_uv,
-cov_vv`` (px^2) and ``score``. ``beacon_id = -1`` marks an unassigned detection.
+cov_vv`` (px^2) and ``score``. ``beacon_id = -1`` marks an unassigned detection; a
+frame whose detections are all unassigned can be identified from their positions
+(:func:`identify_unassigned`, with ``is_bow`` or ``flux_r, flux_g, flux_b`` telling
+the bow).
 """
 
 from __future__ import annotations
@@ -11,6 +14,7 @@ import os
 import numpy as np
 import pandas as pd
 
+from deckpose.camera import CameraModel
 from deckpose.errors import InputDataError
 from deckpose.layout import DeckLayout
 from deckpose.records import UNASSIGNED, Detections
@@ -96,3 +100,64 @@ def detections_from_frame(df: pd.DataFrame, layout: DeckLayout, source: str = "d
 def read_detections(path: str | os.PathLike[str], layout: DeckLayout) -> dict[int, Detections]:
     """Read a detections file and return ``{frame_id: Detections}`` in frame order."""
     return detections_from_frame(read_table(path, "detections"), layout, str(path))
+
+
+#: Optional columns that let :func:`identify_unassigned` tell the bow beacon.
+BOW_COLUMN = "is_bow"
+COLOUR_COLUMNS = ("flux_r", "flux_g", "flux_b")
+
+
+def identify_unassigned(
+    df: pd.DataFrame, frames: dict[int, Detections], layout: DeckLayout, camera: CameraModel
+) -> tuple[dict[int, Detections], dict[int, str]]:
+    """Give beacon ids to frames whose detections are all unassigned (``beacon_id = -1``).
+
+    The same identification as ``deckpose detect`` (:func:`deckpose.detect.identify.
+    identify_beacons`: the ring ellipse, its even spacing, the centre), from the
+    positions. The bow beacon, which fixes the ring's ids, is told by an ``is_bow``
+    column (true on the bow's row) or by per-channel flux columns ``flux_r, flux_g,
+    flux_b`` (the distinctly red one). Frames with some ids given are left as they are.
+
+    Returns
+    -------
+    frames : dict of int to Detections
+        With ids where identification succeeded.
+    notes : dict of int to str
+        Why identification failed, per frame it failed for (what the table lacks).
+    """
+    from deckpose.detect.identify import identify_beacons
+
+    frame_col = df["frame_id"].to_numpy(float).astype(np.int64)
+    has_bow = BOW_COLUMN in df.columns
+    has_rgb = all(c in df.columns for c in COLOUR_COLUMNS)
+    if has_bow:
+        bow = df[BOW_COLUMN]
+        if bow.dtype == object:
+            bow = bow.map(lambda x: str(x).strip().lower() in ("1", "true", "yes"))
+        bow_v = bow.fillna(False).to_numpy(bool)
+    rgb_v = df[list(COLOUR_COLUMNS)].to_numpy(float) if has_rgb else None
+    out = dict(frames)
+    notes: dict[int, str] = {}
+    for f, d in frames.items():
+        if not np.all(d.beacon_ids == UNASSIGNED) or len(d.beacon_ids) == 0:
+            continue
+        rows = np.flatnonzero(frame_col == f)  # the frame's rows, in the order Detections kept
+        rgb = None
+        if rgb_v is not None:
+            rgb = rgb_v[rows]
+        elif has_bow:
+            rgb = np.where(bow_v[rows][:, None], [[1.0, 0.0, 0.0]], [[1.0, 1.0, 1.0]])
+        try:
+            ident = identify_beacons(d.points_px, layout, camera, rgb_flux=rgb)
+        except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            notes[f] = f"identification raised {type(exc).__name__}: {exc}"
+            continue
+        if ident:
+            out[f] = Detections(d.points_px, ident.beacon_ids, d.covariance_px2, d.score,
+                                frame_id=f)
+        else:
+            need = "" if (has_bow or has_rgb) else (
+                "; the table has no is_bow column (true on the bow's row) nor flux_r, flux_g, "
+                "flux_b to tell the bow by")
+            notes[f] = f"unidentified detections (beacon_id -1): {ident.reason}{need}"
+    return out, notes

@@ -25,7 +25,9 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
         help="estimate the deck pose per frame from beacon detections",
         description=(
             "Read detections (CSV or Parquet with columns frame_id, beacon_id, u_px, v_px; "
-            "beacon_id -1 = unassigned) and a ROS camera_info YAML, and write one row per frame: "
+            "beacon_id -1 = unassigned; a frame of only -1 is identified from the positions, its "
+            "bow from an is_bow or flux_r/flux_g/flux_b column) and a ROS camera_info YAML, and "
+            "write one row per frame: "
             "frame_id, method (with its variant: pnp+mean), ok, reason, roll_deg, pitch_deg, "
             "yaw_deg (ZYX), surge_m, sway_m, "
             "height_m (empty where the method does not give them), plus method extras "
@@ -66,12 +68,12 @@ def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
     from deckpose.camera_info import read_camera_info
-    from deckpose.detections_io import read_detections
+    from deckpose.detections_io import detections_from_frame, identify_unassigned
     from deckpose.errors import ConfigError
     from deckpose.estimate import registry
     from deckpose.estimate.results_table import estimates_frame
     from deckpose.layout import DeckLayout, read_layout
-    from deckpose.tables import write_table
+    from deckpose.tables import read_table, write_table
 
     spec = _method_spec(args)
     if args.run is not None:
@@ -86,13 +88,19 @@ def run(args: argparse.Namespace) -> int:
     options = registry.EstimateOptions(sigma_px=args.sigma_px, refine=spec.refine,
                                        posterior_mean=spec.posterior_mean)
     camera = read_camera_info(args.camera)
-    frames = read_detections(args.detections, layout)
+    table = read_table(args.detections, "detections")
+    frames = detections_from_frame(table, layout, str(args.detections))
+    # detections of your own without ids (beacon_id -1): identified here, as detect does
+    frames, unidentified = identify_unassigned(table, frames, layout, camera)
     ids = list(frames)
     with tqdm(total=len(ids), desc=f"estimate ({spec.label})", unit="frame", disable=None,
               leave=False) as bar:
         results = _estimate_in_chunks(spec.name, [frames[i] for i in ids], camera, layout, options,
                                       None, bar)
     df = estimates_frame(ids, results).assign(method=spec.label)
+    if unidentified:  # the frame failed for want of ids: say so, not "0 usable"
+        miss = df["frame_id"].isin(list(unidentified)) & ~df["ok"].astype(bool)
+        df.loc[miss, "reason"] = df.loc[miss, "frame_id"].map(unidentified)
     write_table(df, args.output, "estimates")
     n_ok = int(df["ok"].sum()) if len(df) else 0
     print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {args.output}{_mean_note(df)}")

@@ -220,3 +220,36 @@ def test_help_of_every_subcommand(capsys):
             main([name, "--help"])
         assert exc.value.code == 0
         assert "usage: deckpose " + name in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("bow_column", ["is_bow", "flux", None])
+def test_unidentified_detections_are_identified_or_the_reason_says_what_is_needed(
+        setup, capsys, bow_column):
+    # The README says beacon_id -1 = unidentified; estimate used to fail every such frame
+    # with "0 usable". Shuffled rows, all ids -1: estimate identifies them from positions,
+    # the bow from an is_bow column or per-channel flux, and the pose is the truth.
+    tmp, cam_path, df, truth = setup
+    d = df.sample(frac=1.0, random_state=1).reset_index(drop=True)
+    bow = d.beacon_id == DeckLayout().bow_id
+    if bow_column == "is_bow":
+        d["is_bow"] = bow
+    elif bow_column == "flux":
+        d["flux_r"] = 100.0
+        d["flux_g"] = np.where(bow, 8.0, 100.0)
+        d["flux_b"] = np.where(bow, 5.0, 90.0)
+    d["beacon_id"] = -1
+    det, out = tmp / "unid.csv", tmp / "unid_est.csv"
+    d.to_csv(det, index=False)
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(out),
+                 "--method", "pnp"]) == 0
+    res = pd.read_csv(out).sort_values("frame_id").reset_index(drop=True)
+    if bow_column is None:
+        assert not res["ok"].any()
+        assert res["reason"].str.contains("is_bow").all(), res["reason"].tolist()
+        return
+    assert res["ok"].all(), res["reason"].tolist()
+    for (pose, D), (_, row) in zip(truth, res.iterrows()):
+        assert row.roll_deg == pytest.approx(np.degrees(pose.roll_rad), abs=1e-6)
+        assert row.pitch_deg == pytest.approx(np.degrees(pose.pitch_rad), abs=1e-6)
+        assert row.yaw_deg == pytest.approx(np.degrees(pose.yaw_rad), abs=1e-6)
+        assert row.height_m == pytest.approx(D, rel=1e-6)
