@@ -11,6 +11,7 @@ import importlib
 import sys
 from collections.abc import Sequence
 
+from deckpose.cli import exit_codes
 from deckpose.errors import DeckposeError
 
 #: Modules that register a subcommand, in the order ``--help`` lists them.
@@ -41,6 +42,11 @@ def build_parser() -> argparse.ArgumentParser:
         ),
     )
     parser.add_argument("--version", action="version", version=f"deckpose {__version__}")
+    parser.add_argument(
+        "--debug",
+        action="store_true",
+        help="show the Python traceback of an unexpected error (otherwise one line)",
+    )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in SUBCOMMAND_MODULES:
         importlib.import_module(name).register(sub)
@@ -58,10 +64,19 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except DeckposeError as exc:
         print(f"deckpose {args.command}: error: {exc}", file=sys.stderr)
-        return 2
+        return exit_codes.USAGE
     except KeyboardInterrupt:
         print(f"deckpose {args.command}: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # noqa: BLE001 - the one place that turns any error into a line
+        if getattr(args, "debug", False):
+            raise
+        text = " ".join(str(exc).split())
+        if len(text) > 300:
+            text = text[:300] + " ..."
+        print(f"deckpose {args.command}: unexpected error: {type(exc).__name__}: {text} "
+              "(run 'deckpose --debug ...' for the traceback)", file=sys.stderr)
+        return exit_codes.UNEXPECTED
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -43,6 +43,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     )
     add_detector_arguments(p)
     p.add_argument("--list", action="store_true", help="list the detectors and exit")
+    p.add_argument(
+        "--strict",
+        action="store_true",
+        help="exit 4 when any frame failed (default: 0 when some succeeded, 3 when none did)",
+    )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
 
@@ -90,6 +95,7 @@ def add_detector_arguments(p: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
 
+    from deckpose.cli.exit_codes import frames_exit_code
     from deckpose.detect import registry
     from deckpose.detect.identify import IdentifyOptions
     from deckpose.detect.registry import DetectorOptions
@@ -142,4 +148,4 @@ def run(args: argparse.Namespace) -> int:
     for r in frames.itertuples():
         if not r.ok:
             print(f"  frame {r.frame_id}: {r.reason}")
-    return 0
+    return frames_exit_code(len(frames), n_ok, strict=args.strict)

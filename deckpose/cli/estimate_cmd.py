@@ -8,6 +8,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from deckpose.cli.exit_codes import frames_exit_code
+
 if TYPE_CHECKING:
     import pandas as pd
     from tqdm import tqdm
@@ -59,6 +61,8 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
                    "ring's size in the image, the same pose when it is small; ml_* columns keep the ML pose, which "
                    "stays the pose (posterior_mean = 0) where the posterior cannot be sampled")
     p.add_argument("--sigma-px", type=float, default=1.0, help="pixel sigma when detections carry no covariance")
+    p.add_argument("--strict", action="store_true",
+                   help="exit 4 when any frame failed (default: 0 when some succeeded, 3 when none did)")
     p.set_defaults(func=run)
 
 
@@ -104,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
     write_table(df, args.output, "estimates")
     n_ok = int(df["ok"].sum()) if len(df) else 0
     print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {args.output}{_mean_note(df)}")
-    return 0
+    return frames_exit_code(len(df), n_ok, strict=args.strict)
 
 
 def _mean_note(df: pd.DataFrame) -> str:
@@ -200,4 +204,4 @@ def _run_folder(args: argparse.Namespace, spec: registry.MethodSpec) -> int:
     write_table(df, out, "estimates")
     n_ok = int(df["ok"].sum()) if len(df) else 0
     print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {out}{_mean_note(df)}")
-    return 0
+    return frames_exit_code(len(df), n_ok, strict=args.strict)

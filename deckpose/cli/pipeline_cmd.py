@@ -193,7 +193,7 @@ def run_pipeline(config: object, options: PipelineOptions, config_label: str = "
         ``report``, ``tables``, ``errors`` and (when written) ``mcap`` and ``published``.
     """
     from deckpose import __version__
-    from deckpose.cli import main
+    from deckpose.cli import exit_codes, main
     from deckpose.evaluate.run_layout import run_paths
     from deckpose.render.dataset import render_dataset
 
@@ -206,7 +206,8 @@ def run_pipeline(config: object, options: PipelineOptions, config_label: str = "
 
     def sub(argv: Sequence[str]) -> None:
         code = main(list(argv))
-        if code != 0:
+        # a stage whose every frame failed still ran: the later stages report it
+        if code not in (exit_codes.OK, exit_codes.NO_FRAME_OK):
             raise DeckposeError(f"step 'deckpose {' '.join(argv)}' failed (exit {code}); see the message above")
 
     first = STAGES.index(options.from_stage)

@@ -240,8 +240,9 @@ def test_unidentified_detections_are_identified_or_the_reason_says_what_is_neede
     d["beacon_id"] = -1
     det, out = tmp / "unid.csv", tmp / "unid_est.csv"
     d.to_csv(det, index=False)
-    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(out),
-                 "--method", "pnp"]) == 0
+    code = main(["estimate", str(det), "--camera", str(cam_path), "-o", str(out),
+                 "--method", "pnp"])
+    assert code == (3 if bow_column is None else 0)  # 3: no frame succeeded
     res = pd.read_csv(out).sort_values("frame_id").reset_index(drop=True)
     if bow_column is None:
         assert not res["ok"].any()
@@ -253,3 +254,40 @@ def test_unidentified_detections_are_identified_or_the_reason_says_what_is_neede
         assert row.pitch_deg == pytest.approx(np.degrees(pose.pitch_rad), abs=1e-6)
         assert row.yaw_deg == pytest.approx(np.degrees(pose.yaw_rad), abs=1e-6)
         assert row.height_m == pytest.approx(D, rel=1e-6)
+
+
+def test_exit_codes(setup, tmp_path, capsys, monkeypatch):
+    # 0 the job ran; 3 no frame succeeded; 4 with --strict when any failed; 2 bad input;
+    # 1 an unexpected error, one line (the traceback with --debug)
+    tmp, cam_path, df, truth = setup
+    good, out = tmp / "good.csv", tmp / "o.csv"
+    df.to_csv(good, index=False)
+    base = ["estimate", str(good), "--camera", str(cam_path), "-o", str(out), "--method", "pnp"]
+    assert main(base) == 0
+    assert main([*base, "--strict"]) == 0
+    part = tmp / "part.csv"
+    d = df.copy()
+    d = d[(d.frame_id != 0) | (d.beacon_id < 2)]  # frame 0: two beacons, unsolvable
+    d.to_csv(part, index=False)
+    pbase = ["estimate", str(part), "--camera", str(cam_path), "-o", str(out), "--method", "pnp"]
+    assert main(pbase) == 0
+    assert main([*pbase, "--strict"]) == 4
+    none = tmp / "none.csv"
+    df[df.beacon_id < 2].to_csv(none, index=False)
+    assert main(["estimate", str(none), "--camera", str(cam_path), "-o", str(out)]) == 3
+    assert main(["estimate", str(tmp / "missing.csv"), "--camera", str(cam_path),
+                 "-o", str(out)]) == 2
+    capsys.readouterr()
+
+    import deckpose.cli.estimate_cmd as cmd
+
+    def boom(*a, **k):
+        raise RuntimeError("an internal failure\nover two lines")
+
+    monkeypatch.setattr(cmd, "_estimate_in_chunks", boom)
+    assert main(base) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "RuntimeError: an internal failure over two lines" in err
+    assert "Traceback" not in err and "--debug" in err
+    with pytest.raises(RuntimeError):
+        main(["--debug", *base])

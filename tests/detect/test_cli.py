@@ -221,3 +221,25 @@ def test_bench_detectors_splits_centroid_error_by_lighting(tiny_dataset, tmp_pat
         assert g.beacons.sum() == p.beacons * p.recall
         pooled_rms = np.sqrt((g.beacons * g.rms_px**2).sum() / g.beacons.sum())
         assert pooled_rms == pytest.approx(p.rms_px, rel=1e-5)  # CSVs keep 6 digits
+
+
+def test_detect_exit_status_when_no_frame_succeeds(tmp_path, tiny_dataset, capsys):
+    # detect used to exit 0 with 0 of 12 frames ok; now 3 (none ok), and --strict gives 4
+    # when some failed
+    import cv2
+
+    from deckpose.camera import preset
+    from deckpose.camera_info import write_camera_info
+
+    imgs = tmp_path / "imgs"
+    imgs.mkdir()
+    for k in range(3):
+        cv2.imwrite(str(imgs / f"{k:03d}.png"), np.zeros((36, 64), np.uint8))
+    write_camera_info(preset("8mp").with_size(64, 36), tmp_path / "cam.yaml")
+    argv = ["detect", str(imgs), "--camera-info", str(tmp_path / "cam.yaml"), "--out",
+            str(tmp_path / "out"), "--no-progress"]
+    assert main(argv) == 3
+    assert "0 ok" in capsys.readouterr().out
+    ok = ["detect", str(tiny_dataset), "--out", str(tmp_path / "ok"), "--no-progress"]
+    assert main(ok) == 0
+    assert main([*ok, "--strict"]) == 0  # every tiny frame identifies
