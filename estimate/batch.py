@@ -29,6 +29,7 @@ from deckpose.estimate.refine import refine_estimate, refine_estimates_batch
 from deckpose.estimate.registry import EstimateOptions
 from deckpose.estimate.solution_batch import finish_batch
 from deckpose.estimate.thesis import estimate_thesis_frames
+from deckpose.estimate.thesis_assumptions import flag_off_centre
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -46,12 +47,24 @@ def run_estimator(
     """Estimate one frame with estimator ``name`` (refined when ``options.refine``)."""
     fn = registry.get(name)
     est = fn(detections, camera, layout, options)
+    if _checks_centring(name, options) and est.ok:
+        ref = run_estimator("pnp", detections, camera, layout, options)
+        est = flag_off_centre([est], [detections], [ref], camera, layout, options)[0]
     if options.refine and est.ok and not est.extras.get("refined", 0.0):
         est = refine_estimate(est, detections, camera, layout, options)
     if options.posterior_mean:
         est = apply_posterior_mean([est], [detections], camera, layout, options,
                                    np.asarray(options.R_world_from_cam)[None])[0]
     return est
+
+
+def _checks_centring(name: str, options: EstimateOptions) -> bool:
+    """Whether ``name``'s results get the off-centre check (:mod:`~.thesis_assumptions`).
+
+    The faithful ``thesis`` method assumes the deck centre on the optical axis; its
+    refinement (and posterior mean) fits surge and sway, so those need no check.
+    """
+    return name == "thesis" and not options.refine and not options.posterior_mean
 
 
 def _check_rotations(R: np.ndarray) -> None:
@@ -150,6 +163,16 @@ def estimate_batch(
         for i in todo:  # the single-frame path for what the batch left open
             got[i] = run_estimator(name, chunk[i], camera, layout, _frame_options(options, R_chunk[i]))
         ests: list[PoseEstimate] = got  # type: ignore[assignment]
+        if _checks_centring(name, options):  # the single-frame results in ``todo`` have it
+            single = set(todo)
+            fresh = [i for i in range(len(ests)) if i not in single and ests[i].ok]
+            if fresh:
+                refs = estimate_batch("pnp", [chunk[i] for i in fresh], camera, layout, options,
+                                      R_world_from_cam=R_chunk[fresh])
+                flagged = flag_off_centre([ests[i] for i in fresh], [chunk[i] for i in fresh],
+                                          refs, camera, layout, options)
+                for i, e in zip(fresh, flagged):
+                    ests[i] = e
         if options.refine and name not in ("conic", "pnp"):
             ests = refine_estimates_batch(ests, chunk, camera, layout, options, R_chunk,
                                           skip=set(todo))

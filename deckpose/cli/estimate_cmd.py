@@ -48,9 +48,11 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
                    help="with --run: which detector's detections to use (default: the run's only detector)")
     from deckpose.estimate import registry
 
-    p.add_argument("--method", default="thesis",
-                   help=f"estimator ({', '.join(registry.names())}), optionally with a variant suffix: "
-                   "+refine (= --refine) or +mean (= --posterior-mean), e.g. pnp+mean")
+    p.add_argument("--method", default="pnp",
+                   help=f"estimator ({', '.join(registry.names())}; default pnp), optionally with a "
+                   "variant suffix: +refine (= --refine) or +mean (= --posterior-mean), e.g. "
+                   "pnp+mean. thesis is the thesis's method, faithfully: it assumes the deck centre "
+                   "on the optical axis and marks frames where that biases it beyond its noise")
     p.add_argument("--layout", type=Path, default=argparse.SUPPRESS,
                    help="deck layout YAML (default: 12 ring beacons, radius 10, centre beacon)")
     p.add_argument("--radius", type=float, help="ring radius, overrides the layout's radius_m")

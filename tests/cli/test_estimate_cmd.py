@@ -64,7 +64,8 @@ def test_unsolvable_frame_becomes_a_failed_row(setup):
     det = tmp / "det.csv"
     df.to_csv(det, index=False)
     out = tmp / "est.csv"
-    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(out)]) == 0
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(out),
+                 "--method", "thesis"]) == 0
     res = pd.read_csv(out, keep_default_na=False).set_index("frame_id")
     assert not res.loc[2, "ok"] and "bow" in res.loc[2, "reason"]
     assert not res.loc[4, "ok"] and "fewer than 5" in res.loc[4, "reason"]
@@ -291,3 +292,35 @@ def test_exit_codes(setup, tmp_path, capsys, monkeypatch):
     assert "Traceback" not in err and "--debug" in err
     with pytest.raises(RuntimeError):
         main(["--debug", *base])
+
+
+def test_default_method_is_pnp_and_thesis_flags_an_off_centre_deck(tmp_path, capsys):
+    # The case: exact projections at 40 m, roll = pitch = 3 deg; thesis returned
+    # pitch 1.85 deg at 0.05 m surge, -19.4 deg at 1 m and roll 9.9 deg at 0.3 m sway, all ok.
+    cam = preset("8mp")
+    cam_path = tmp_path / "cam.yaml"
+    write_camera_info(cam, cam_path)
+    offsets = [(0.0, 0.0), (0.05, 0.0), (0.3, 0.0), (1.0, 0.0), (0.0, 0.3)]
+    rows = []
+    for f, (s, w) in enumerate(offsets):
+        pose = ShipPose(np.radians(3.0), np.radians(3.0), 0.0, surge_m=s, sway_m=w)
+        proj = project_layout(DeckLayout(), pose, CameraPose.nadir(40.0), cam)
+        for b in np.flatnonzero(proj.visible):
+            rows.append(dict(frame_id=f, beacon_id=int(b), u_px=proj.points_px[b, 0],
+                             v_px=proj.points_px[b, 1]))
+    det = tmp_path / "det.csv"
+    pd.DataFrame(rows).to_csv(det, index=False)
+    out = tmp_path / "pnp.csv"
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(out)]) == 0
+    res = pd.read_csv(out)
+    assert (res["method"] == "pnp").all() and res["ok"].all()
+    np.testing.assert_allclose(res["pitch_deg"], 3.0, atol=1e-6)
+    np.testing.assert_allclose(res["surge_m"], [s for s, _ in offsets], atol=1e-6)
+    out_t = tmp_path / "thesis.csv"
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(out_t),
+                 "--method", "thesis"]) == 0
+    t = pd.read_csv(out_t, keep_default_na=False).set_index("frame_id")
+    assert t.loc[0, "ok"]  # centred: the assumption holds
+    for f in range(1, len(offsets)):
+        assert not t.loc[f, "ok"] and t.loc[f, "reason"].startswith("off-centre deck"), f
+        assert t.loc[f, "thesis_pitch_deg"] != ""  # the faithful outputs stay in their columns

@@ -144,7 +144,13 @@ def test_batch_matches_single_frames_on_noisy_frames(method, refine, sigma_px):
     rng = np.random.default_rng(11 + int(10 * sigma_px))
     frames = _random_frames(rng, 60, preset("4mp"), sigma_px)
     got = _compare(method, frames, preset("4mp"), EstimateOptions(sigma_px=sigma_px, refine=refine))
-    assert sum(e.ok for e in got) >= 55
+    if method == "thesis" and not refine:
+        # surge and sway of ~1 m: the faithful method's centring assumption biases it beyond
+        # its noise in nearly every frame, which it now says (thesis_assumptions)
+        assert all(e.ok or e.reason.startswith("off-centre deck") for e in got)
+        assert sum(not e.ok for e in got) >= 40
+    else:
+        assert sum(e.ok for e in got) >= 55
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -238,3 +244,26 @@ def test_batch_matches_single_frames_when_detections_understate_their_covariance
     scales = [e.extras["covariance_scale"] for e in got]
     # the median of 13 chi-square(2) values is within a factor ~2 of its expectation
     assert 100 / 3 < np.median(scales) < 100 * 3
+
+
+def test_thesis_off_centre_flag_is_the_same_alone_and_batched():
+    # the check's rule (pnp's offset significant and the thesis bias there beyond its noise)
+    # gives the same answer for a frame alone and in a batch
+    from deckpose.estimate.batch import estimate_batch, run_estimator
+
+    rng = np.random.default_rng(5)
+    frames = []
+    for s in (0.0, 0.0, 0.02, 0.2, 1.0):
+        ship = ShipPose(0.05, 0.05, rng.uniform(-3, 3), surge_m=s)
+        frames.append(detections_for(LAYOUT, ship, CameraPose.nadir(40.0), preset("8mp"),
+                                     sigma_px=0.3, rng=rng))
+    opts = EstimateOptions(sigma_px=0.3)
+    batch = estimate_batch("thesis", frames, preset("8mp"), LAYOUT, opts)
+    alone = [run_estimator("thesis", d, preset("8mp"), LAYOUT, opts) for d in frames]
+    assert [e.ok for e in batch] == [e.ok for e in alone]
+    assert batch[0].ok and batch[1].ok and not batch[3].ok and not batch[4].ok
+    assert batch[4].reason.startswith("off-centre deck")
+    # refined, the method fits surge and sway: no flag
+    refined = estimate_batch("thesis", frames, preset("8mp"), LAYOUT,
+                             EstimateOptions(sigma_px=0.3, refine=True))
+    assert all(e.ok for e in refined)
