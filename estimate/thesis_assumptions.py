@@ -29,12 +29,12 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-
-from deckpose.camera import CameraModel
 from deckpose.estimate.observations import pixel_covariances
 from deckpose.estimate.registry import EstimateOptions
 from deckpose.estimate.thesis import thesis_inputs
 from deckpose.estimate.thesis_batch import estimate_thesis_batch
+
+from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.projection import project_layout
