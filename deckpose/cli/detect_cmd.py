@@ -11,7 +11,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         help="detect and identify beacons in a dataset or a folder of images",
         description=(
             "Detect the deck beacons in every frame of DATASET (a deckpose dataset folder) or of "
-            "a folder of images (then --camera-info and --out are required) and write a detections "
+            "a folder of images (then --camera and -o are required) and write a detections "
             "table (one row per frame x detection; beacon_id -1 = unassigned) and a frames table "
             "(one row per frame, with ok/reason). The output feeds 'deckpose estimate'. Bad "
             "frames are reported and skipped."
@@ -25,13 +25,23 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     )
     p.add_argument("--detector", default="cog", help="detector name (see --list); default cog")
     p.add_argument(
+        "-o",
+        "--output",
         "--out",
+        dest="out",
+        metavar="DIR",
         help="self-contained output folder (detections.parquet, detect_frames.parquet, cameras/, "
         "detect_run.json); default for a dataset: DATASET/detections/<detector>.parquet and "
         "<detector>.frames.parquet, where 'deckpose estimate --run DATASET' reads them; "
         "required for a folder of images",
     )
-    p.add_argument("--camera-info", help="ROS camera_info YAML for a folder of images")
+    p.add_argument(
+        "--camera",
+        "--camera-info",
+        dest="camera_info",
+        metavar="CAMERA.yaml",
+        help="ROS camera_info YAML for a folder of images (also --camera-info)",
+    )
     p.add_argument(
         "--layout", help="layout YAML for a folder of images (default: the standard layout)"
     )
@@ -122,10 +132,10 @@ def run(args: argparse.Namespace) -> int:
         if not args.camera_info:
             raise ConfigError(
                 f"{args.dataset} is not a deckpose dataset (no manifest.json); for a folder of "
-                "images pass --camera-info CAMERA.yaml (and optionally --layout)"
+                "images pass --camera CAMERA.yaml (and optionally --layout)"
             )
         if not args.out:
-            raise ConfigError("a folder of images needs an output folder: add --out DIR")
+            raise ConfigError("a folder of images needs an output folder: add -o DIR")
         frameset = open_image_folder(args.dataset, args.camera_info, args.layout)
     options = DetectorOptions(
         threshold_sigma=args.threshold_sigma,

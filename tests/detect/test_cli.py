@@ -61,11 +61,16 @@ def test_detect_folder_of_images_with_camera_info(tiny_dataset, tmp_path, capsys
     )
     frames = pd.read_parquet(out / "detect_frames.parquet")
     assert len(frames) == 4 and frames.ok.all()
+    # the spelling every other command uses: --camera and -o
+    out2 = tmp_path / "out2"
+    assert main(["detect", str(folder), "--camera", str(cam), "-o", str(out2), "--no-progress"]) == 0
+    pd.testing.assert_frame_equal(pd.read_parquet(out2 / "detections.parquet"),
+                                  pd.read_parquet(out / "detections.parquet"))
 
 
 def test_detect_folder_without_camera_info_is_a_clear_error(tmp_path, capsys):
     assert main(["detect", str(tmp_path), "--no-progress"]) == 2
-    assert "--camera-info" in capsys.readouterr().err
+    assert "--camera CAMERA.yaml" in capsys.readouterr().err
 
 
 def test_unknown_detector_lists_the_known_ones(tiny_dataset, capsys):
