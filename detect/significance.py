@@ -47,8 +47,6 @@ RING_SPACING_PX = 1.5
 #: 0.74 to 0.97, but it also found broad sea-texture bumps on rendered frames (9 of 78
 #: frames instead of 3) and cost 50 % more: one smoothing, for now.
 SMOOTH_PX: tuple[float, ...] = (1.5,)
-#: Spots kept per smoothing before the frame's max_spots applies.
-MAX_KEPT = 10_000
 #: A spot is round: on the ring inside the one it passed on, the highest sample rises
 #: at most this fraction of the way from the ring's median to the centre's level.
 MAX_RING_ASYMMETRY = 0.5
@@ -180,11 +178,18 @@ def significant_spots(
     """
     f = search_factor(image.shape[:2])
     S = block_sum(image, f)
-    noise_S = max(clipped_difference_noise(S), MIN_NOISE_DN)
+    # On an integer image the noise is taken as at least 1 DN per channel and pixel (as the
+    # bright-spot search's thresholds do, background.noise_floor_dn): on a dark frame whose
+    # background is a fraction of a DN the few pixels at 1 DN are rare events, not Gaussian
+    # noise, and clusters of them would count as spots (8-bit RGB with a 0.6 DN background
+    # gave over 200 "spots").
+    n_ch = image.shape[2] if image.ndim == 3 else 1
+    floor = f * math.sqrt(n_ch) if np.issubdtype(image.dtype, np.integer) else MIN_NOISE_DN
+    noise_S = max(clipped_difference_noise(S), floor)
     pts_all, rad_all = [], []
     for n_scale, smooth_px in enumerate(SMOOTH_PX):
         found = _spots_at_scale(S, max(0.5, smooth_px / f), noise_S, significance_sigma,
-                                RING_RADII[n_scale:])
+                                RING_RADII[n_scale:], max_spots + 1)
         if isinstance(found, str):
             return np.zeros((0, 2)), np.zeros(0), found
         pts, rad = found
@@ -206,12 +211,12 @@ def significant_spots(
 
 def _spots_at_scale(
     S: np.ndarray, sigma_c: float, noise_S: float, significance_sigma: float,
-    radii: tuple[float, ...],
+    radii: tuple[float, ...], max_kept: int,
 ) -> tuple[np.ndarray, np.ndarray] | str:
     """The significant spots of block sums ``S`` smoothed by a Gaussian of ``sigma_c`` px.
 
     Returns coarse ``(x, y)`` per spot (n, 2) and the radius of the ring it passed on
-    (n,), brightest first; or why the frame fails.
+    (n,), brightest first, at most ``max_kept`` of them; or why the frame fails.
     """
     k, norm = _gaussian_norm(sigma_c)
     G = cv2.GaussianBlur(S, (k, k), sigma_c, borderType=cv2.BORDER_REFLECT)
@@ -291,10 +296,14 @@ def _spots_at_scale(
     rad, val = radius[ok], gp[ok]
     order = np.argsort(-val)
     kept: list[int] = []
+    taken = np.zeros((h + 4, w + 4), bool)  # coarse pixels within 2 of a kept spot
     for i in order:
-        if all(abs(pts[i, 0] - pts[j, 0]) > 2 or abs(pts[i, 1] - pts[j, 1]) > 2 for j in kept):
-            kept.append(int(i))
-        if len(kept) > MAX_KEPT:
+        x, y = int(pts[i, 0]), int(pts[i, 1])
+        if taken[y + 2, x + 2]:
+            continue
+        kept.append(int(i))
+        taken[y : y + 5, x : x + 5] = True
+        if len(kept) >= max_kept:
             break
     kept_a = np.array(kept, np.intp)
     return pts[kept_a], rad[kept_a]

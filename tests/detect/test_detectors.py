@@ -287,3 +287,18 @@ def test_cog_measures_an_unclipped_spot_above_its_housing_floor():
     )
     d = np.hypot(*(blobs.points_px[:, None] - pts[None]).transpose(2, 0, 1)).min(axis=1)
     assert len(d) == len(pts) and d.max() < 0.01
+
+
+def test_a_dark_heavily_quantised_frame_gives_no_noise_spots():
+    # 8-bit RGB whose background is 0.6 DN: the rare 1-DN pixels are no Gaussian noise, and
+    # clusters of them counted as >200 significant spots (the frame failed); the search's
+    # noise is at least 1 DN per channel and pixel, as the bright-spot search's is.
+    rng = np.random.default_rng(4)
+    cam = preset("8mp").with_size(960, 540)
+    pts = grid_points(rng, (540, 960), 4, 3)
+    img = render_spots((540, 960), pts, 2.0, 2e5, SENSOR, rng)
+    rgb8 = np.repeat(np.clip(img // 32, 0, 255).astype(np.uint8)[:, :, None], 3, axis=2)
+    assert (rgb8[..., 0] == 1).mean() > 0.01  # the rare quanta are there
+    for name in ("cog", "gauss"):
+        b = registry.get(name)(Frame(rgb8, cam), DetectorOptions())
+        assert b.ok and len(b) == len(pts), (name, b.reason, len(b))
