@@ -434,7 +434,11 @@ def find_candidates(
                 # half the core's height above the background, peak-channel DN
                 thr_box = plane[0] + 0.5 * (float(wpix[mask].max()) - plane[0])
             raw.append((wpix, mask, wsat, wb[0], wb[1], plane, thr_box, noise_box, search is not None))
-    if search is not None and options.significance_sigma > 0:
+    # A frame whose median pixel is 0 DN (a dark, heavily quantised or noise-free frame)
+    # has no Gaussian noise to judge significance by: its rare 1-DN pixels cluster into
+    # "spots" by chance (a 64 MP 8-bit frame with a 0.02 DN background gave 105). The
+    # bright-spot search alone runs there.
+    if search is not None and options.significance_sigma > 0 and st.background_dn >= 0.5:
         raw, reason = _significant_windows(image, options, st, sat_dn, raw)
         if reason:
             return [], reason

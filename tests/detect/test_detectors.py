@@ -290,9 +290,9 @@ def test_cog_measures_an_unclipped_spot_above_its_housing_floor():
 
 
 def test_a_dark_heavily_quantised_frame_gives_no_noise_spots():
-    # 8-bit RGB whose background is 0.6 DN: the rare 1-DN pixels are no Gaussian noise, and
-    # clusters of them counted as >200 significant spots (the frame failed); the search's
-    # noise is at least 1 DN per channel and pixel, as the bright-spot search's is.
+    # 8-bit RGB whose background is 0.6 DN (median 0): the rare 1-DN pixels are no Gaussian
+    # noise, and clusters of them counted as >200 significant spots (the frame failed). A
+    # frame whose median is 0 DN gets the bright-spot search alone.
     rng = np.random.default_rng(4)
     cam = preset("8mp").with_size(960, 540)
     pts = grid_points(rng, (540, 960), 4, 3)
