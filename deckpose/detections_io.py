@@ -23,6 +23,53 @@ from deckpose.tables import read_table
 REQUIRED = ("frame_id", "beacon_id", "u_px", "v_px")
 
 
+#: Largest integer a float64 holds exactly.
+_FLOAT_EXACT = 2**53
+
+
+def integer_column(df: pd.DataFrame, col: str, source: str) -> np.ndarray:
+    """A column of 64-bit integer ids, never passed through float64, (n,) int64.
+
+    An integer column is taken as it is; a text column (CSV ids too long for pandas's
+    int64 come as text) is parsed digit by digit; a float column must hold whole
+    numbers within +-2^53, beyond which a float has already rounded the id.
+
+    Raises
+    ------
+    InputDataError
+        Naming the first bad row.
+    """
+    s = df[col]
+    if pd.api.types.is_integer_dtype(s.dtype) and not pd.api.types.is_bool_dtype(s.dtype):
+        if s.dtype == np.uint64 and len(s) and int(s.max()) >= 2**63:
+            row = int(np.flatnonzero(s.to_numpy() >= np.uint64(2**63))[0])
+            raise InputDataError(
+                f"{source}: row {row + 1}: {col} {s.iloc[row]} does not fit a 64-bit integer")
+        return s.to_numpy(np.int64)
+    if pd.api.types.is_float_dtype(s.dtype):
+        v = s.to_numpy(float)
+        bad = (v != np.round(v)) | (np.abs(v) > _FLOAT_EXACT)
+        if bad.any():
+            row = int(np.flatnonzero(bad)[0])
+            why = ("must be an integer" if v[row] == v[row] and v[row] != np.round(v[row])
+                   else "is beyond 2^53 in a float column, where digits are lost; store ids as "
+                   "integers")
+            raise InputDataError(f"{source}: row {row + 1}: {col} {why}, got {v[row]!r}")
+        return v.astype(np.int64)
+    out = np.empty(len(s), np.int64)
+    for row, x in enumerate(s.tolist()):
+        try:
+            n = int(str(x).strip())
+        except ValueError:
+            raise InputDataError(
+                f"{source}: row {row + 1}: {col} must be an integer, got {str(x)[:40]!r}") from None
+        if not -(2**63) <= n < 2**63:
+            raise InputDataError(
+                f"{source}: row {row + 1}: {col} {n} does not fit a 64-bit integer")
+        out[row] = n
+    return out
+
+
 def detections_from_frame(df: pd.DataFrame, layout: DeckLayout, source: str = "detections") -> dict[int, Detections]:
     """Validate a detections table and split it into one :class:`Detections` per frame.
 
@@ -42,13 +89,7 @@ def detections_from_frame(df: pd.DataFrame, layout: DeckLayout, source: str = "d
         if bad.any():
             row = int(np.flatnonzero(bad.to_numpy())[0])
             raise InputDataError(f"{source}: row {row + 1} has a missing or non-numeric {col} ({df[col].iloc[row]!r})")
-    for col in ("frame_id", "beacon_id"):
-        v = df[col].to_numpy(float)
-        frac = v != np.round(v)
-        if frac.any():
-            row = int(np.flatnonzero(frac)[0])
-            raise InputDataError(f"{source}: row {row + 1}: {col} must be an integer, got {v[row]}")
-    ids = df["beacon_id"].to_numpy(float).astype(np.int64)
+    ids = integer_column(df, "beacon_id", source)
     unknown = (ids != UNASSIGNED) & ((ids < 0) | (ids >= layout.n_beacons))
     if unknown.any():
         row = int(np.flatnonzero(unknown)[0])
@@ -57,7 +98,7 @@ def detections_from_frame(df: pd.DataFrame, layout: DeckLayout, source: str = "d
             f"0..{layout.n_beacons - 1} (use -1 for an unassigned detection, or --layout/--radius "
             "to describe your deck)"
         )
-    frames = df["frame_id"].to_numpy(float).astype(np.int64)
+    frames = integer_column(df, "frame_id", source)
     assigned = ids != UNASSIGNED
     key = pd.DataFrame({"f": frames[assigned], "b": ids[assigned]})
     dup = key.duplicated(keep=False).to_numpy()
@@ -127,7 +168,7 @@ def identify_unassigned(
     """
     from deckpose.detect.identify import identify_beacons
 
-    frame_col = df["frame_id"].to_numpy(float).astype(np.int64)
+    frame_col = integer_column(df, "frame_id", "detections")
     has_bow = BOW_COLUMN in df.columns
     has_rgb = all(c in df.columns for c in COLOUR_COLUMNS)
     if has_bow:

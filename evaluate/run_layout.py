@@ -83,7 +83,10 @@ class RunPaths:
     def detectors(self) -> list[str]:
         """Detectors with outputs in this run."""
         d = self.root / "detections"
-        return sorted(p.stem for p in d.glob("*.parquet") if not p.name.endswith(".frames.parquet")) if d.is_dir() else []
+        # a hidden name is a writer's temporary file (atomic_io), never a stage output
+        return sorted(p.stem for p in d.glob("*.parquet")
+                      if not p.name.endswith(".frames.parquet") and not p.name.startswith(".")
+                      ) if d.is_dir() else []
 
     def estimate_pairs(self) -> list[tuple[str, str]]:
         """``(detector, method)`` pairs with estimates in this run."""
@@ -92,6 +95,8 @@ class RunPaths:
             return []
         pairs = []
         for p in sorted(d.glob(f"*{SEPARATOR}*.parquet")):
+            if p.name.startswith("."):  # a writer's temporary file
+                continue
             det, _, method = p.stem.partition(SEPARATOR)
             pairs.append((det, method))
         return pairs

@@ -324,3 +324,31 @@ def test_default_method_is_pnp_and_thesis_flags_an_off_centre_deck(tmp_path, cap
     for f in range(1, len(offsets)):
         assert not t.loc[f, "ok"] and t.loc[f, "reason"].startswith("off-centre deck"), f
         assert t.loc[f, "thesis_pitch_deg"] != ""  # the faithful outputs stay in their columns
+
+
+def test_frame_ids_stay_64_bit_integers(setup, tmp_path, capsys):
+    # Ids went through float64: nanosecond-stamp ids were rounded (…001 -> …000), 1e19
+    # became -2^63, and 2^62 + k collapsed into one frame with a false duplicate-id error.
+    _tmp, cam_path, df, _ = setup
+    big = {f: 1_700_000_000_000_000_001 + f for f in df.frame_id.unique()}
+    d = df.assign(frame_id=df.frame_id.map(big))
+    det, out = tmp_path / "ids.csv", tmp_path / "ids_out.parquet"
+    d.to_csv(det, index=False)
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(out)]) == 0
+    res = pd.read_parquet(out)
+    assert res["frame_id"].dtype == np.int64
+    assert sorted(res["frame_id"].tolist()) == sorted(big.values())
+    two = df.assign(frame_id=df.frame_id.map(lambda f: 2**62 + int(f)))
+    two.to_parquet(tmp_path / "two.parquet", index=False)
+    assert main(["estimate", str(tmp_path / "two.parquet"), "--camera", str(cam_path),
+                 "-o", str(out)]) == 0
+    assert pd.read_parquet(out)["frame_id"].nunique() == df.frame_id.nunique()
+    # beyond 64 bits, or a float column beyond 2^53: one line naming the row
+    capsys.readouterr()
+    d.assign(frame_id="10000000000000000000").to_csv(det, index=False)
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(out)]) == 2
+    assert "row 1: frame_id" in capsys.readouterr().err
+    d.assign(frame_id=float(2**60)).to_parquet(tmp_path / "f.parquet", index=False)
+    assert main(["estimate", str(tmp_path / "f.parquet"), "--camera", str(cam_path),
+                 "-o", str(out)]) == 2
+    assert "beyond 2^53" in capsys.readouterr().err

@@ -183,3 +183,19 @@ def test_example_frame_hands_matplotlib_at_most_max_px(run, tmp_path, monkeypatc
     assert max(seen["shape"][:2]) == 800
     assert seen["extent"] == (-0.5, 3999.5, 2999.5, -0.5)
     assert (tmp_path / "ex.png").stat().st_size > 1000
+
+
+def test_listings_ignore_a_killed_writers_temp_files(run):
+    # a detect killed between its two writes left .cog.parquet.XXXX.tmp.parquet, which the
+    # listing returned as a detector and evaluate then failed to read
+    from deckpose.evaluate import run_layout as rl
+
+    paths = rl.run_paths(run)
+    before_d, before_e = paths.detectors(), paths.estimate_pairs()
+    (run / "detections" / ".fake.parquet.abc123.tmp.parquet").write_bytes(b"partial")
+    (run / "estimates" / ".fake--thesis.parquet.x.tmp.parquet").write_bytes(b"partial")
+    try:
+        assert paths.detectors() == before_d and paths.estimate_pairs() == before_e
+    finally:
+        (run / "detections" / ".fake.parquet.abc123.tmp.parquet").unlink()
+        (run / "estimates" / ".fake--thesis.parquet.x.tmp.parquet").unlink()
