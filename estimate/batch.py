@@ -24,6 +24,7 @@ from deckpose.estimate import registry
 from deckpose.estimate.conic_batch import conic_candidates_batch
 from deckpose.estimate.observations_batch import group_observations, stack_detections
 from deckpose.estimate.pnp_batch import pnp_candidates_batch
+from deckpose.estimate.pose_checks import check_poses
 from deckpose.estimate.posterior_mean import apply_posterior_mean
 from deckpose.estimate.refine import refine_estimate, refine_estimates_batch
 from deckpose.estimate.registry import EstimateOptions
@@ -55,7 +56,7 @@ def run_estimator(
     if options.posterior_mean:
         est = apply_posterior_mean([est], [detections], camera, layout, options,
                                    np.asarray(options.R_world_from_cam)[None])[0]
-    return est
+    return check_poses([est])[0]
 
 
 def _checks_centring(name: str, options: EstimateOptions) -> bool:
@@ -183,7 +184,7 @@ def estimate_batch(
                                          layout, options, R_chunk[fresh])
             for i, e in zip(fresh, means):
                 ests[i] = e
-        out.extend(ests)
+        out.extend(check_poses(ests))
     return out
 
 

@@ -267,3 +267,47 @@ def test_thesis_off_centre_flag_is_the_same_alone_and_batched():
     refined = estimate_batch("thesis", frames, preset("8mp"), LAYOUT,
                              EstimateOptions(sigma_px=0.3, refine=True))
     assert all(e.ok for e in refined)
+
+
+@pytest.mark.parametrize("method", ["pnp", "conic", "thesis+refine"])
+def test_a_mirrored_ring_is_not_an_upside_down_deck_called_ok(method):
+    # pnp and thesis+refine returned ok for 200/200 mirrored frames, roll 174-180 deg (the
+    # camera looking at the deck's unlit underside); thesis+refine also gave pitch 359.75.
+    from deckpose.estimate.batch import estimate_batch, run_estimator
+    from deckpose.estimate.pose_checks import lit_side_towards_camera
+
+    name, _, variant = method.partition("+")
+    opts = EstimateOptions(sigma_px=0.3, refine=variant == "refine")
+    rng = np.random.default_rng(21)
+    frames = []
+    for _ in range(20):
+        ship = ShipPose(rng.normal(0, 0.05), rng.normal(0, 0.05), rng.uniform(-3, 3))
+        d = detections_for(LAYOUT, ship, CameraPose.nadir(rng.uniform(20, 60)), preset("8mp"),
+                           sigma_px=0.3, rng=rng)
+        ring = d.beacon_ids < LAYOUT.n_ring
+        ids = d.beacon_ids.copy()
+        ids[ring] = (-ids[ring]) % LAYOUT.n_ring  # the ring's order mirrored, bow kept
+        frames.append(Detections(d.points_px, ids, d.covariance_px2))
+    batch = estimate_batch(name, frames, preset("8mp"), LAYOUT, opts)
+    alone = [run_estimator(name, d, preset("8mp"), LAYOUT, opts) for d in frames]
+    for b, a in zip(batch, alone):
+        assert b.ok == a.ok
+        assert not b.ok or lit_side_towards_camera(b)
+        if b.ok:
+            assert -np.pi <= b.pitch_rad < np.pi and -np.pi <= b.roll_rad < np.pi
+    assert sum(not b.ok for b in batch) >= 10, [b.reason for b in batch]
+
+
+def test_the_lit_side_test_against_the_deck_normal():
+    from deckpose.estimate.pose_checks import check_poses, lit_side_towards_camera
+
+    up = PoseEstimate(method="x", ok=True, roll_rad=0.1, pitch_rad=-0.05, yaw_rad=3.0,
+                      height_m=30.0, surge_m=1.0, sway_m=-2.0)
+    down = PoseEstimate(method="x", ok=True, roll_rad=np.pi - 0.05, pitch_rad=0.0, yaw_rad=0.0,
+                        height_m=30.0, surge_m=0.0, sway_m=0.0)
+    assert lit_side_towards_camera(up) and not lit_side_towards_camera(down)
+    wrapped, flagged = check_poses([
+        PoseEstimate(method="x", ok=True, roll_rad=0.0, pitch_rad=2 * np.pi - 0.004,
+                     yaw_rad=0.0, height_m=30.0, surge_m=0.0, sway_m=0.0), down])
+    assert wrapped.ok and wrapped.pitch_rad == pytest.approx(-0.004)
+    assert not flagged.ok and flagged.reason.startswith("upside-down deck")
