@@ -170,9 +170,21 @@ def group_observations(
     L[fast] = K22[None] / sigma_iso[fidx[fast], None, None]
     if np.any(general):
         gi = np.flatnonzero(general)
-        A = np.linalg.inv(D[gi])
-        cov_n = A @ cov[index[gi]] @ np.swapaxes(A, 1, 2)
-        ok = np.isfinite(cov_n).all(axis=(1, 2)) & np.isfinite(xy[gi]).all(axis=1)
+        # 2x2 inverses where they exist: a point far outside the image (-8e170 px) makes a
+        # distortion Jacobian singular, and one LinAlgError ended every frame of a batch
+        Dg = np.asarray(D)[gi]
+        det = Dg[:, 0, 0] * Dg[:, 1, 1] - Dg[:, 0, 1] * Dg[:, 1, 0]
+        scale = np.abs(Dg).reshape(-1, 4).max(axis=1)
+        with np.errstate(all="ignore"):
+            invertible = np.isfinite(det) & (np.abs(det) > 1e-12 * scale**2)
+            A = np.zeros_like(Dg)
+            A[:, 0, 0], A[:, 1, 1] = Dg[:, 1, 1], Dg[:, 0, 0]
+            A[:, 0, 1], A[:, 1, 0] = -Dg[:, 0, 1], -Dg[:, 1, 0]
+            A /= np.where(invertible, det, 1.0)[:, None, None]
+            cov_n = A @ cov[index[gi]] @ np.swapaxes(A, 1, 2)
+            cn_det = cov_n[:, 0, 0] * cov_n[:, 1, 1] - cov_n[:, 0, 1] * cov_n[:, 1, 0]
+        ok = (invertible & np.isfinite(cov_n).all(axis=(1, 2)) & np.isfinite(xy[gi]).all(axis=1)
+              & (cov_n[:, 0, 0] > 0) & (cn_det > 0))
         drop = gi[~ok]
         gi, cov_n = gi[ok], cov_n[ok]
         if gi.size:
