@@ -107,6 +107,16 @@ def detections_from_frame(df: pd.DataFrame, layout: DeckLayout, source: str = "d
         raise InputDataError(
             f"{source}: beacon_id {key['b'].iloc[i]} appears more than once in frame {key['f'].iloc[i]}"
         )
+    for col in ("cov_uu", "cov_uv", "cov_vv", "score"):  # optional, but numeric when given
+        if col in df.columns:
+            num = pd.to_numeric(df[col], errors="coerce")
+            bad = num.isna() & df[col].notna()
+            if bad.any():
+                row = int(np.flatnonzero(bad.to_numpy())[0])
+                raise InputDataError(
+                    f"{source}: row {row + 1}: {col} must be a number (or empty), got "
+                    f"{str(df[col].iloc[row])[:40]!r}")
+            df = df.assign(**{col: num})
     uv = df[["u_px", "v_px"]].to_numpy(float)
     has_cov = all(c in df.columns for c in ("cov_uu", "cov_uv", "cov_vv"))
     cov = None
