@@ -68,14 +68,27 @@ def read_camera_info(path: str | os.PathLike[str]) -> CameraModel:
     """
     p = Path(path)
     try:
-        text = p.read_text()
+        text = p.read_text(encoding="utf-8")
     except OSError as exc:
         raise CameraFileError(f"cannot read camera file {p}: {exc.strerror}") from exc
+    except UnicodeDecodeError as exc:
+        raise CameraFileError(
+            f"{p}: not a text file (byte {exc.start} is not UTF-8); a camera_info YAML is text"
+        ) from exc
     try:
         doc = yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise CameraFileError(f"{p}: not valid YAML ({exc})") from exc
-    return camera_from_dict(doc, str(p))
+    try:
+        return camera_from_dict(doc, str(p))
+    except DeckposeError:
+        raise
+    except (ValueError, TypeError, KeyError, AttributeError) as exc:
+        # a field of the wrong type (rows: three, data: a string) the checks above miss
+        raise CameraFileError(
+            f"{p}: a field has the wrong type ({type(exc).__name__}: {exc}); numbers must be "
+            "numbers, matrices {rows, cols, data: [...]}"
+        ) from exc
 
 
 def camera_to_dict(camera: CameraModel) -> dict[str, Any]:

@@ -363,3 +363,15 @@ def test_a_string_in_an_optional_numeric_column_names_the_row(setup, capsys, col
     d.loc[3, col] = "high"
     err = _run_bad(tmp, cam_path, d, capsys)
     assert f"row 4: {col} must be a number" in err and "Traceback" not in err
+
+
+@pytest.mark.parametrize("content", [b"\xff\xfe\x00not text",
+                                     b"image_width: 64\nimage_height: 36\ncamera_matrix:\n"
+                                     b"  rows: three\n  cols: 3\n  data: [1,0,0,0,1,0,0,0,1]\n"])
+def test_a_broken_camera_file_is_one_line(setup, capsys, content):
+    # non-UTF-8 bytes and `rows: three` were tracebacks
+    tmp, cam_path, df, _ = setup
+    bad = tmp / "bad_cam.yaml"
+    bad.write_bytes(content)
+    err = _run_bad(tmp, cam_path, df, capsys, camera=bad)
+    assert str(bad) in err and "Traceback" not in err and err.count("\n") == 1
