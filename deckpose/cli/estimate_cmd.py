@@ -90,6 +90,10 @@ def run(args: argparse.Namespace) -> int:
     if args.radius is not None:
         if not args.radius > 0:
             raise ConfigError(f"--radius must be positive, got {args.radius}")
+        if not args.radius > layout.beacon_radius_m:
+            raise ConfigError(
+                f"--radius {args.radius:g} m is not larger than a beacon ({layout.beacon_radius_m:g} m); "
+                "give the ring's radius in metres, or a --layout file")
         layout = dataclasses.replace(layout, radius_m=float(args.radius))
     options = registry.EstimateOptions(sigma_px=args.sigma_px, refine=spec.refine,
                                        posterior_mean=spec.posterior_mean)
@@ -170,6 +174,7 @@ def _run_folder(args: argparse.Namespace, spec: registry.MethodSpec) -> int:
     from deckpose.tables import write_table
 
     run = rl.run_paths(args.run)
+    rl.require_dataset(run)  # a missing folder says so, not "no detections"
     detectors = run.detectors()
     if getattr(args, "detector", None) is None:
         if len(detectors) != 1:

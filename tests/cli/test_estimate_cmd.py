@@ -375,3 +375,16 @@ def test_a_broken_camera_file_is_one_line(setup, capsys, content):
     bad.write_bytes(content)
     err = _run_bad(tmp, cam_path, df, capsys, camera=bad)
     assert str(bad) in err and "Traceback" not in err and err.count("\n") == 1
+
+
+def test_messages_name_the_real_problem(setup, tmp_path, capsys):
+    # `--run /nonexistent` said "needs --detector (... none)"; `--radius 1e-300` was
+    # blamed on beacon_radius_m
+    tmp, cam_path, df, _ = setup
+    assert main(["estimate", "--run", str(tmp_path / "nope")]) == 2
+    assert "does not exist" in capsys.readouterr().err
+    det = tmp / "r.csv"
+    df.to_csv(det, index=False)
+    assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(tmp / "o.csv"),
+                 "--radius", "1e-300"]) == 2
+    assert "--radius 1e-300" in capsys.readouterr().err
