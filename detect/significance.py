@@ -74,7 +74,6 @@ def block_sum(image: np.ndarray, factor: int) -> np.ndarray:
     a = np.asarray(image)
     if a.dtype.type not in (np.uint8, np.uint16, np.float32):
         a = a.astype(np.float32)
-    H, W = a.shape[:2]
     f = 1
     while f < factor:  # halve at a time: OpenCV's 2x area path is the fast one
         h, w = a.shape[0] // 2, a.shape[1] // 2
@@ -85,7 +84,6 @@ def block_sum(image: np.ndarray, factor: int) -> np.ndarray:
         s = cv2.transform(a.astype(np.float32, copy=False), np.ones((1, 3), np.float32))
     else:
         s = a.astype(np.float32)
-    del H, W
     return np.asarray(s, np.float32).reshape(a.shape[:2]) * float(factor * factor)
 
 
