@@ -3,8 +3,9 @@
 1. Speed: every detector on one 8 MP and one 64 MP synthetic frame (16-bit
    mono, and the same as 8-bit RGB) with the 13 beacons of the standard layout,
    image already decoded, OpenCV restricted to one thread; median of
-   ``--repeat`` runs (detection only; identification is timed by the
-   ``bench-detectors`` report). Both wall time and the thread's CPU time are
+   ``--repeat`` runs, detection alone and detection + identification (what
+   ``deckpose detect`` runs per frame); with ``--rendered DATASET`` also on some
+   decoded frames of a rendered dataset. Both wall time and the thread's CPU time are
    printed: on a shared machine the CPU time is the one-core figure (wall time
    also counts the time other processes hold the core), and the 1-minute load
    average is printed with them.
@@ -36,6 +37,7 @@ import numpy as np  # noqa: E402
 from deckpose.camera import preset  # noqa: E402
 from deckpose.detect import registry  # noqa: E402
 from deckpose.detect.crb import centroid_crb_px2  # noqa: E402
+from deckpose.detect.pipeline import detect_frame  # noqa: E402
 from deckpose.detect.registry import DetectorOptions  # noqa: E402
 from deckpose.detect.synthetic import SensorModel, render_spots  # noqa: E402
 from deckpose.layout import DeckLayout  # noqa: E402
@@ -44,14 +46,43 @@ from deckpose.projection import project_layout  # noqa: E402
 from deckpose.records import Frame  # noqa: E402
 
 
-def speed(repeat: int, detectors: list[str]) -> None:
+def _time_frame(frame: Frame, detectors: list[str], repeat: int, layout: DeckLayout) -> None:
+    """Print each detector's CPU and wall time on one decoded frame, median of ``repeat``.
+
+    Two figures per detector: detection alone, and detection + identification
+    (:func:`deckpose.detect.pipeline.detect_frame`, what ``deckpose detect`` runs per
+    frame), the latter interleaved with the former run by run.
+    """
+    for name in detectors:
+        fn = registry.get(name)
+        det_cpu, full_cpu, full_wall = [], [], []
+        res = None
+        for _ in range(repeat):
+            c0 = time.thread_time()
+            blobs = fn(frame, DetectorOptions())
+            det_cpu.append(time.thread_time() - c0)
+            t0, c0 = time.perf_counter(), time.thread_time()
+            res = detect_frame(frame, name, layout)
+            full_cpu.append(time.thread_time() - c0)
+            full_wall.append(time.perf_counter() - t0)
+        assert res is not None
+        print(
+            f"  {name:12s} detect CPU {1000 * np.median(det_cpu):7.1f} ms   detect + identify CPU "
+            f"{1000 * np.median(full_cpu):7.1f} ms (min {1000 * np.min(full_cpu):.1f}, wall "
+            f"{1000 * np.median(full_wall):.1f})  {len(blobs)} blobs, "
+            f"{'ok' if res.ok else 'FAILED: ' + res.reason}"
+        )
+
+
+def speed(repeat: int, detectors: list[str], rendered: str | None, n_rendered: int) -> None:
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"speed: 1-minute load average {load:.2f} on {os.cpu_count()} cores at the start")
     sensor = SensorModel(gain_dn_per_e=1.0, read_noise_e=3.0, background_e=20.0, bit_depth=16)
     rng = np.random.default_rng(0)
+    layout = DeckLayout()
     for cam_name, height in (("8mp", 30.0), ("64mp", 60.0)):
         cam = preset(cam_name)
-        pr = project_layout(DeckLayout(), ShipPose(0.03, -0.02, 0.4), CameraPose.nadir(height), cam)
+        pr = project_layout(layout, ShipPose(0.03, -0.02, 0.4), CameraPose.nadir(height), cam)
         sigma = np.sqrt(pr.apparent_radius_px**2 / 4 + 0.7**2)
         flux = 3000.0 * np.pi * pr.apparent_radius_px**2
         img = render_spots((cam.height_px, cam.width_px), pr.points_px, sigma, flux, sensor, rng)
@@ -59,23 +90,27 @@ def speed(repeat: int, detectors: list[str]) -> None:
         rgb8 = np.repeat(np.clip(img // 32, 0, 255).astype(np.uint8)[:, :, None], 3, axis=2)
         for label, frame in (("uint16 mono", Frame(img, cam)), ("uint8 RGB", Frame(rgb8, cam))):
             print(
-                f"\n{cam_name} frame {cam.width_px}x{cam.height_px} {label}, 13 spots of radius "
-                f"{pr.apparent_radius_px.mean():.1f} px; one OpenCV thread; median of {repeat}"
+                f"\n{cam_name} synthetic frame {cam.width_px}x{cam.height_px} {label}, 13 spots of "
+                f"radius {pr.apparent_radius_px.mean():.1f} px; one OpenCV thread; median of {repeat}"
             )
-            for name in detectors:
-                fn = registry.get(name)
-                wall, cpu = [], []
-                for _ in range(repeat):
-                    t0, c0 = time.perf_counter(), time.thread_time()
-                    blobs = fn(frame, DetectorOptions())
-                    wall.append(time.perf_counter() - t0)
-                    cpu.append(time.thread_time() - c0)
-                print(
-                    f"  {name:12s} CPU {1000 * np.median(cpu):8.1f} ms/frame "
-                    f"(min {1000 * np.min(cpu):.1f})  wall {1000 * np.median(wall):8.1f} ms "
-                    f"({len(blobs)} blobs)"
-                )
+            _time_frame(frame, detectors, repeat, layout)
         del img, frame, rgb8
+    if rendered:
+        from deckpose.detect.sources import load_frame, open_dataset
+
+        fs = open_dataset(rendered)
+        step = max(1, len(fs.sources) // max(1, n_rendered))
+        for src in fs.sources[::step][:n_rendered]:
+            fr = load_frame(src, fs.cameras[src.camera_name])
+            if isinstance(fr, str):
+                print(f"\nrendered frame {src.frame_id}: {fr}")
+                continue
+            print(
+                f"\nrendered frame {src.image_path.name} of {rendered} "
+                f"({fr.image.shape[1]}x{fr.image.shape[0]} {fr.image.dtype} "
+                f"{'RGB' if fr.image.ndim == 3 else 'mono'}), decoded; median of {repeat}"
+            )
+            _time_frame(fr, detectors, repeat, fs.layout)
 
 
 def accuracy(trials: int, detectors: list[str]) -> None:
@@ -213,6 +248,10 @@ def main() -> None:
     ap.add_argument("--trials", type=int, default=100)
     ap.add_argument("--detectors", default=",".join(registry.names()))
     ap.add_argument("--skip-speed", action="store_true")
+    ap.add_argument("--rendered", metavar="DATASET",
+                    help="also time the detectors on frames of this rendered dataset")
+    ap.add_argument("--rendered-frames", type=int, default=4,
+                    help="how many frames of --rendered to time (spread over the dataset)")
     ap.add_argument("--skip-accuracy", action="store_true")
     ap.add_argument("--skip-identification", action="store_true")
     ap.add_argument("--dataset", help="also run the bench-detectors report on this dataset")
@@ -235,7 +274,7 @@ def main() -> None:
     cv2.setNumThreads(1)
     dets = args.detectors.split(",")
     if not args.skip_speed:
-        speed(args.repeat, dets)
+        speed(args.repeat, dets, args.rendered, args.rendered_frames)
     if not args.skip_accuracy:
         accuracy(args.trials, dets)
         saturated_accuracy(max(1, args.trials // 5), dets)

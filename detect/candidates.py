@@ -275,12 +275,20 @@ def border_plane(pixels: np.ndarray) -> tuple[float, float, float]:
     3 robust sigmas off it (a neighbouring blob touching the border).
     """
     h, w = pixels.shape
-    vv, uu = np.mgrid[0:h, 0:w]
-    border = np.zeros((h, w), bool)
-    border[[0, -1], :] = True
-    border[:, [0, -1]] = True
-    A = np.column_stack([np.ones(border.sum()), uu[border] - (w - 1) / 2, vv[border] - (h - 1) / 2])
-    z = pixels[border]
+    # the border clockwise from the top-left corner: top row, right column, bottom row,
+    # left column (each corner once)
+    cu, cv = (w - 1) / 2, (h - 1) / 2
+    cols, rows = np.arange(w, dtype=float) - cu, np.arange(h, dtype=float) - cv
+    if h < 2 or w < 2:
+        z = np.asarray(pixels, float).ravel()
+        uu_b, vv_b = np.broadcast_to(cols[None, :], (h, w)).ravel(), np.broadcast_to(
+            rows[:, None], (h, w)).ravel()
+    else:
+        z = np.concatenate([pixels[0], pixels[1:, -1], pixels[-1, -2::-1], pixels[-2:0:-1, 0]])
+        uu_b = np.concatenate([cols, np.full(h - 1, cols[-1]), cols[-2::-1], np.full(h - 2, cols[0])])
+        vv_b = np.concatenate([np.full(w, rows[0]), rows[1:], np.full(w - 1, rows[-1]), rows[-2:0:-1]])
+    z = np.asarray(z, float)
+    A = np.column_stack([np.ones(z.size), uu_b, vv_b])
     keep = np.ones(z.size, bool)
     coef = np.array([float(np.median(z)), 0.0, 0.0])
     for _ in range(2):

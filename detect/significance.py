@@ -115,6 +115,15 @@ def clipped_difference_noise(S: np.ndarray, samples: int = 60_000) -> float:
     return sd / math.sqrt(2.0)
 
 
+def _tiles_of(ys: np.ndarray, xs: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray]:
+    """The :data:`TEXTURE_TILE_PX` tiles holding some points: (n, 2) tile rows and columns,
+    and each point's index among them, (m,)."""
+    n_cols = -(-w // TEXTURE_TILE_PX)
+    keys, of = np.unique((ys // TEXTURE_TILE_PX) * n_cols + xs // TEXTURE_TILE_PX,
+                         return_inverse=True)
+    return np.column_stack([keys // n_cols, keys % n_cols]), of.ravel()
+
+
 def _gaussian_norm(sigma: float) -> tuple[int, float]:
     k = 2 * math.ceil(3.0 * sigma) + 1
     g = cv2.getGaussianKernel(k, sigma).ravel()
@@ -150,6 +159,27 @@ def texture_noise(G: np.ndarray, step_px: int, tiles: np.ndarray) -> np.ndarray:
     med = np.median(d, axis=1)
     mad = np.median(np.abs(d - med[:, None]), axis=1)
     return 1.4826 * mad / math.sqrt(2.0)
+
+
+def box_means(G: np.ndarray, ys: np.ndarray, xs: np.ndarray, half: int) -> np.ndarray:
+    """Mean of ``G`` over the ``(2 half + 1)``-square box around each point, (n,).
+
+    A box that would cross the frame's edge is shifted inside it. For a few points
+    the boxes are summed directly; for many, from the integral image (whose 8-byte
+    copy of the frame costs more than a thousand boxes).
+    """
+    h, w = G.shape
+    k = 2 * half + 1
+    if k > h or k > w:
+        return np.full(ys.size, float(np.mean(G)))
+    y0 = np.clip(ys - half, 0, h - k)
+    x0 = np.clip(xs - half, 0, w - k)
+    if ys.size <= 1000:
+        win = np.lib.stride_tricks.sliding_window_view(G, (k, k))[y0, x0]
+        return win.sum(axis=(1, 2), dtype=np.float64) / (k * k)
+    integ = cv2.integral(G, sdepth=cv2.CV_64F)
+    y1, x1 = y0 + k, x0 + k
+    return (integ[y1, x1] - integ[y0, x1] - integ[y1, x0] + integ[y0, x0]) / (k * k)
 
 
 def significant_spots(
@@ -222,22 +252,37 @@ def _spots_at_scale(
     h, w = G.shape
     step = max(1, int(math.sqrt(h * w / 30_000)))
     bg = float(np.median(G[::step, ::step]))
-    dil = cv2.dilate(G, np.ones((3, 3), np.uint8))
-    # Prefilter (cheap, whole image): above the frame's background and above the local mean
-    # of a box as wide as the largest ring, by PREFILTER_FRACTION of the threshold in the
-    # frame's noise; then in its tile's small-scale texture noise. A lit deck's noise peaks
-    # fail here instead of in the ring test, which costs per peak.
+    # Prefilter (cheap): above the frame's background; a local maximum; above the local
+    # mean of a box as wide as the largest ring by PREFILTER_FRACTION of the threshold in
+    # the frame's noise, then in its tile's small-scale texture noise. A lit deck's noise
+    # peaks fail here instead of in the ring test, which costs per peak. Each test after
+    # the first runs on the pixels that passed the ones before (a flat index, np.nonzero
+    # on a whole 2-D mask costs 10x more).
     thr = PREFILTER_FRACTION * significance_sigma
-    box = 2 * int(radii[-1]) + 1
-    local = cv2.boxFilter(G, -1, (box, box), borderType=cv2.BORDER_REFLECT)
-    peaks = (G >= dil) & (G > bg + significance_sigma * sigma_G) & (G - local > thr * sigma_G)
-    ys, xs = np.nonzero(peaks)
+    flat_g = G.ravel()
+    idx = np.flatnonzero(flat_g > bg + significance_sigma * sigma_G)
+    if idx.size > h * w // 16:  # a bright frame: one dilation beats the gathers
+        idx = idx[flat_g[idx] >= cv2.dilate(G, np.ones((3, 3), np.uint8)).ravel()[idx]]
+    else:
+        ys, xs = np.divmod(idx, w)
+        top = np.full(idx.size, -np.inf, np.float32)
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                if dy or dx:
+                    yy = np.clip(ys + dy, 0, h - 1)
+                    xx = np.clip(xs + dx, 0, w - 1)
+                    np.maximum(top, G[yy, xx], out=top)
+        idx = idx[flat_g[idx] >= top]
+    ys, xs = np.divmod(idx, w)
     if ys.size:
-        all_tiles = np.column_stack(np.nonzero(np.ones(
-            (-(-h // TEXTURE_TILE_PX), -(-w // TEXTURE_TILE_PX)), bool)))
-        tex2 = texture_noise(G, 2, all_tiles).reshape(-(-h // TEXTURE_TILE_PX), -1)
-        keep = (G[ys, xs] - local[ys, xs]) > thr * np.maximum(
-            sigma_G, tex2[ys // TEXTURE_TILE_PX, xs // TEXTURE_TILE_PX])
+        local = box_means(G, ys, xs, int(radii[-1]))
+        rise = G[ys, xs] - local
+        keep = rise > thr * sigma_G
+        ys, xs, rise = ys[keep], xs[keep], rise[keep]
+    if ys.size:
+        pre_tiles, pre_of = _tiles_of(ys, xs, w)
+        tex2 = texture_noise(G, 2, pre_tiles)[pre_of]
+        keep = rise > thr * np.maximum(sigma_G, tex2)
         ys, xs = ys[keep], xs[keep]
     if ys.size > MAX_PEAKS:
         return (
@@ -247,27 +292,37 @@ def _spots_at_scale(
     if ys.size == 0:
         return np.zeros((0, 2)), np.zeros(0)
     gp = G[ys, xs].astype(np.float64)
-    tiles, tile_of = np.unique(
-        np.column_stack([ys // TEXTURE_TILE_PX, xs // TEXTURE_TILE_PX]), axis=0,
-        return_inverse=True,
-    )
-    tile_of = tile_of.ravel()
     # Pass 1, every peak: each ring's highest sample (a necessary condition: the spread of
-    # the ring's samples only raises the noise it is judged by).
-    rings, tops, floors = [], [], []
-    possible = np.zeros(ys.size, bool)
+    # the ring's samples only raises the noise it is judged by), first against the pixel
+    # noise alone, then, for the peaks that pass that, against the tile's texture too.
+    # Samples are gathered from a copy of G with a replicated border (the same samples as
+    # clipped coordinates) by flat offsets.
+    pad = int(math.ceil(max(radii))) + 1
+    Gp = cv2.copyMakeBorder(G, pad, pad, pad, pad, cv2.BORDER_REPLICATE).ravel()
+    wp = w + 2 * pad
+    base = (ys + pad) * wp + (xs + pad)
+    rings, tops = [], []
+    maybe = np.zeros(ys.size, bool)
     for r in radii:
         n_s = max(RING_SAMPLES, math.ceil(2 * math.pi * r / RING_SPACING_PX))
         ang = 2 * np.pi * np.arange(n_s) / n_s
-        sx = np.clip(np.rint(xs[:, None] + r * np.cos(ang)[None]).astype(np.intp), 0, w - 1)
-        sy = np.clip(np.rint(ys[:, None] + r * np.sin(ang)[None]).astype(np.intp), 0, h - 1)
-        ring = G[sy, sx]
+        off = np.rint(r * np.sin(ang)).astype(np.intp) * wp + np.rint(r * np.cos(ang)).astype(np.intp)
+        ring = Gp[base[:, None] + off[None, :]]
         top = ring.max(axis=1).astype(np.float64)
+        maybe |= (gp - top) > significance_sigma * sigma_G
+        rings.append(ring)
+        tops.append(top)
+    sel = np.flatnonzero(maybe)
+    ys, xs, gp = ys[sel], xs[sel], gp[sel]
+    rings = [ring[sel] for ring in rings]
+    tops = [top[sel] for top in tops]
+    tiles, tile_of = _tiles_of(ys, xs, w)
+    floors = []
+    possible = np.zeros(ys.size, bool)
+    for r, top in zip(radii, tops):
         # texture on this ring's scale: pixel pairs r apart
         floor = np.maximum(sigma_G, texture_noise(G, max(2, round(r)), tiles)[tile_of])
         possible |= (gp - top) / floor > significance_sigma
-        rings.append(ring)
-        tops.append(top)
         floors.append(floor)
     # Pass 2, the few that may pass: median and spread of RING_SAMPLES of each ring's samples,
     # and the roundness of the ring inside the one passed.
