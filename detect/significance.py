@@ -54,6 +54,8 @@ MAX_RING_ASYMMETRY = 0.5
 TEXTURE_TILE_PX = 64
 #: The whole-image prefilter asks this fraction of the ring test's threshold.
 PREFILTER_FRACTION = 0.8
+#: Samples per ring (about) of the ring test's first, cheap pass.
+PASS0_SAMPLES = 8
 #: More local maxima above the prefilter than this fail the frame (a flat noise field).
 MAX_PEAKS = 200_000
 
@@ -260,10 +262,12 @@ def _spots_at_scale(
     # on a whole 2-D mask costs 10x more).
     thr = PREFILTER_FRACTION * significance_sigma
     flat_g = G.ravel()
-    idx = np.flatnonzero(flat_g > bg + significance_sigma * sigma_G)
-    if idx.size > h * w // 16:  # a bright frame: one dilation beats the gathers
-        idx = idx[flat_g[idx] >= cv2.dilate(G, np.ones((3, 3), np.uint8)).ravel()[idx]]
+    above = flat_g > bg + significance_sigma * sigma_G
+    if np.count_nonzero(above) > h * w // 16:  # a bright frame: one dilation beats gathers
+        is_max = cv2.compare(G, cv2.dilate(G, np.ones((3, 3), np.uint8)), cv2.CMP_GE)
+        idx = np.flatnonzero(above & (is_max.ravel() != 0))
     else:
+        idx = np.flatnonzero(above)
         ys, xs = np.divmod(idx, w)
         top = np.full(idx.size, -np.inf, np.float32)
         for dy in (-1, 0, 1):
@@ -300,28 +304,38 @@ def _spots_at_scale(
     pad = int(math.ceil(max(radii))) + 1
     Gp = cv2.copyMakeBorder(G, pad, pad, pad, pad, cv2.BORDER_REPLICATE).ravel()
     wp = w + 2 * pad
-    base = (ys + pad) * wp + (xs + pad)
-    rings, tops = [], []
-    maybe = np.zeros(ys.size, bool)
+    offsets = []
     for r in radii:
         n_s = max(RING_SAMPLES, math.ceil(2 * math.pi * r / RING_SPACING_PX))
         ang = 2 * np.pi * np.arange(n_s) / n_s
-        off = np.rint(r * np.sin(ang)).astype(np.intp) * wp + np.rint(r * np.cos(ang)).astype(np.intp)
+        offsets.append(np.rint(r * np.sin(ang)).astype(np.intp) * wp
+                       + np.rint(r * np.cos(ang)).astype(np.intp))
+    # Pass 0, on a few samples of each ring (their highest is at most the whole ring's, so
+    # a peak that fails here fails the full ring too): the sea's broad bumps go here.
+    base = (ys + pad) * wp + (xs + pad)
+    maybe = np.zeros(ys.size, bool)
+    for off in offsets:
+        few = off[:: max(1, off.size // PASS0_SAMPLES)]
+        maybe |= (gp - Gp[base[:, None] + few[None, :]].max(axis=1)) > significance_sigma * sigma_G
+    sel = np.flatnonzero(maybe)
+    ys, xs, gp, base = ys[sel], xs[sel], gp[sel], base[sel]
+    rings, tops = [], []
+    can_pass = []
+    for off in offsets:
         ring = Gp[base[:, None] + off[None, :]]
         top = ring.max(axis=1).astype(np.float64)
-        maybe |= (gp - top) > significance_sigma * sigma_G
+        can_pass.append((gp - top) > significance_sigma * sigma_G)
         rings.append(ring)
         tops.append(top)
-    sel = np.flatnonzero(maybe)
-    ys, xs, gp = ys[sel], xs[sel], gp[sel]
-    rings = [ring[sel] for ring in rings]
-    tops = [top[sel] for top in tops]
-    tiles, tile_of = _tiles_of(ys, xs, w)
     floors = []
     possible = np.zeros(ys.size, bool)
-    for r, top in zip(radii, tops):
-        # texture on this ring's scale: pixel pairs r apart
-        floor = np.maximum(sigma_G, texture_noise(G, max(2, round(r)), tiles)[tile_of])
+    for r, top, can in zip(radii, tops, can_pass):
+        # texture on this ring's scale (pixel pairs r apart), in the tiles of the peaks that
+        # can pass this ring
+        floor = np.full(ys.size, np.inf)
+        if can.any():
+            tiles, tile_of = _tiles_of(ys[can], xs[can], w)
+            floor[can] = np.maximum(sigma_G, texture_noise(G, max(2, round(r)), tiles)[tile_of])
         possible |= (gp - top) / floor > significance_sigma
         floors.append(floor)
     # Pass 2, the few that may pass: median and spread of RING_SAMPLES of each ring's samples,
