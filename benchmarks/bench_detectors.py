@@ -86,8 +86,14 @@ def speed(repeat: int, detectors: list[str], rendered: str | None, n_rendered: i
         sigma = np.sqrt(pr.apparent_radius_px**2 / 4 + 0.7**2)
         flux = 3000.0 * np.pi * pr.apparent_radius_px**2
         img = render_spots((cam.height_px, cam.width_px), pr.points_px, sigma, flux, sensor, rng)
-        # The same content as 8-bit RGB (white spots), for the colour path.
-        rgb8 = np.repeat(np.clip(img // 32, 0, 255).astype(np.uint8)[:, :, None], 3, axis=2)
+        # The same spots as 8-bit RGB, the bow red, so that identification runs to the end
+        # there (on mono frames it stops at the bow, which only its colour tells).
+        colour = np.ones((len(pr.points_px), 3))
+        colour[layout.bow_id] = layout.bow_rgb
+        rgb = render_spots((cam.height_px, cam.width_px), pr.points_px, sigma, flux, sensor, rng,
+                           rgb=colour)
+        rgb8 = np.clip(rgb // 32, 0, 255).astype(np.uint8)
+        del rgb
         for label, frame in (("uint16 mono", Frame(img, cam)), ("uint8 RGB", Frame(rgb8, cam))):
             print(
                 f"\n{cam_name} synthetic frame {cam.width_px}x{cam.height_px} {label}, 13 spots of "
