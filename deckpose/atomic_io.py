@@ -14,6 +14,28 @@ from pathlib import Path
 from typing import IO, Any
 
 
+def is_temp_name(name: str) -> bool:
+    """Whether ``name`` is one of :func:`atomic_path`'s temporary names (``.NAME.XXXX.tmp.EXT``)."""
+    return name.startswith(".") and ".tmp" in name and name.count(".") >= 3
+
+
+def remove_stale_temps(root: str | os.PathLike[str]) -> int:
+    """Remove the temporary files a killed writer left under ``root``; returns how many.
+
+    Only for a folder no other process is writing (one this process has claimed,
+    :func:`deckpose.output_folder.claim_output`): a live writer's temporary file
+    looks the same.
+    """
+    n = 0
+    for folder, _dirs, files in os.walk(root):
+        for name in files:
+            if is_temp_name(name):
+                with contextlib.suppress(FileNotFoundError):
+                    os.unlink(os.path.join(folder, name))
+                    n += 1
+    return n
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; on success rename it onto ``path``.

@@ -10,8 +10,9 @@ import numpy as np
 import yaml
 
 from deckpose.atomic_io import atomic_open
-from deckpose.camera import CameraModel
+from deckpose.camera import DISTORTION_MODELS, CameraModel
 from deckpose.errors import CameraFileError, DeckposeError
+from deckpose.typed_config import parse_yaml
 
 
 def _matrix(doc: dict[str, Any], key: str, rows: int, cols: int | None, source: str) -> np.ndarray:
@@ -52,6 +53,14 @@ def camera_from_dict(doc: object, source: str = "camera_info") -> CameraModel:
         raise CameraFileError(
             f"{source}: distortion_model {model!r} is not supported; use plumb_bob or rational_polynomial"
         )
+    counts = DISTORTION_MODELS.get(model)
+    if counts is not None and dist.size and np.any(dist != 0) and dist.size not in counts:
+        fits = [m for m, c in DISTORTION_MODELS.items() if dist.size in c]
+        raise CameraFileError(
+            f"{source}: distortion_model {model} takes {' or '.join(map(str, counts))} "
+            f"coefficients but distortion_coefficients has {dist.size}"
+            + (f"; for {dist.size} write distortion_model: {fits[0]}" if fits else "")
+        )
     try:
         return CameraModel(width, height, K, dist, str(doc.get("camera_name", "")))
     except DeckposeError as exc:
@@ -75,10 +84,7 @@ def read_camera_info(path: str | os.PathLike[str]) -> CameraModel:
         raise CameraFileError(
             f"{p}: not a text file (byte {exc.start} is not UTF-8); a camera_info YAML is text"
         ) from exc
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise CameraFileError(f"{p}: not valid YAML ({exc})") from exc
+    doc = parse_yaml(text, str(p), CameraFileError)
     try:
         return camera_from_dict(doc, str(p))
     except DeckposeError:

@@ -10,13 +10,12 @@ from __future__ import annotations
 import math
 import os
 from dataclasses import asdict, dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from deckpose.errors import ConfigError
+from deckpose.typed_config import from_mapping, load_yaml
 
 FloatArray = np.ndarray
 
@@ -117,38 +116,22 @@ def thesis_layout() -> DeckLayout:
     return DeckLayout(n_ring=12, radius_m=10.0, has_centre=False)
 
 
-_FIELDS = set(DeckLayout.__dataclass_fields__)
-
-
 def layout_from_dict(doc: object, source: str = "layout") -> DeckLayout:
-    """Build a :class:`DeckLayout` from a mapping, rejecting unknown keys."""
-    if doc is None:
-        return DeckLayout()
-    if not isinstance(doc, dict):
-        raise ConfigError(f"{source}: expected a mapping of layout fields, got {type(doc).__name__}")
-    unknown = set(doc) - _FIELDS
-    if unknown:
-        raise ConfigError(
-            f"{source}: unknown layout key(s) {sorted(unknown)}; valid keys are {sorted(_FIELDS)}"
-        )
+    """Build a :class:`DeckLayout` from a mapping (``None``: the default), typed exactly."""
     try:
-        return DeckLayout(**doc)
-    except TypeError as exc:
+        return from_mapping(DeckLayout, doc, source)
+    except ConfigError:
+        raise
+    except (TypeError, ValueError) as exc:
         raise ConfigError(f"{source}: {exc}") from exc
 
 
 def read_layout(path: str | os.PathLike[str]) -> DeckLayout:
     """Read a layout YAML file (keys as :class:`DeckLayout` fields, or under ``layout:``)."""
-    p = Path(path)
-    try:
-        doc = yaml.safe_load(p.read_text())
-    except OSError as exc:
-        raise ConfigError(f"cannot read layout file {p}: {exc.strerror}") from exc
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{p}: not valid YAML ({exc})") from exc
+    doc = load_yaml(path, "layout file")
     if isinstance(doc, dict) and set(doc) == {"layout"}:
         doc = doc["layout"]
-    return layout_from_dict(doc, str(p))
+    return layout_from_dict(doc, f"{path}:")
 
 
 def layout_to_dict(layout: DeckLayout) -> dict[str, Any]:

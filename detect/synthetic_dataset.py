@@ -24,17 +24,17 @@ from typing import Any
 import cv2
 import numpy as np
 import pandas as pd
-import yaml
+from deckpose.detect.sources import DATASET_FORMAT
+from deckpose.detect.synthetic import SensorModel, disc_spot_sigma_px, render_spots
 
 from deckpose.atomic_io import atomic_open, atomic_path
 from deckpose.camera import CameraModel, preset
 from deckpose.camera_info import write_camera_info
-from deckpose.detect.synthetic import SensorModel, disc_spot_sigma_px, render_spots
 from deckpose.errors import ConfigError
 from deckpose.layout import DeckLayout, layout_from_dict, layout_to_dict
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.projection import project_layout
-from deckpose.detect.sources import DATASET_FORMAT
+from deckpose.typed_config import from_mapping, load_yaml
 
 
 @dataclass(frozen=True)
@@ -90,35 +90,15 @@ class SyntheticDatasetConfig:
             raise ConfigError("psf_sigma_px and radiance_e_per_px must be positive")
 
 
-def config_from_dict(doc: dict[str, Any], source: str = "config") -> SyntheticDatasetConfig:
-    """Parse a mapping (e.g. YAML) into a validated config; unknown keys are errors."""
-    known = {f.name for f in dataclasses.fields(SyntheticDatasetConfig)}
-    unknown = set(doc) - known
-    if unknown:
-        raise ConfigError(
-            f"{source}: unknown key(s) {sorted(unknown)}; valid keys are {sorted(known)}"
-        )
-    kw = dict(doc)
-    try:
-        if "sensor" in kw:
-            kw["sensor"] = SensorModel(**kw["sensor"])
-        if "layout" in kw:
-            kw["layout"] = layout_from_dict(kw["layout"], f"{source}: layout")
-        for k in ("cameras", "heights_m"):
-            if k in kw:
-                kw[k] = tuple(kw[k])
-        return SyntheticDatasetConfig(**kw)
-    except TypeError as exc:
-        raise ConfigError(f"{source}: {exc}") from exc
+def config_from_dict(doc: object, source: str = "config") -> SyntheticDatasetConfig:
+    """Parse a mapping (e.g. YAML) into a validated config, typed exactly; unknown keys are errors."""
+    return from_mapping(SyntheticDatasetConfig, doc, f"{source}:",
+                        convert={"layout": layout_from_dict})
 
 
 def read_config(path: str | os.PathLike[str]) -> SyntheticDatasetConfig:
     """Read a synthetic-dataset YAML config."""
-    try:
-        doc = yaml.safe_load(Path(path).read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f"cannot read config {path}: {exc}") from exc
-    return config_from_dict(doc or {}, str(path))
+    return config_from_dict(load_yaml(path, "synthetic-dataset config"), str(path))
 
 
 def _camera(name: str) -> CameraModel:

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass
 
 import numpy as np
+from deckpose.render.config_checks import parse_enum
 
 from deckpose.camera import CameraModel, PixelForm, from_focal_angle, preset
 from deckpose.errors import ConfigError
-from deckpose.render.config_checks import check_keys, parse_enum
+from deckpose.typed_config import coerce, from_mapping
 
 
 @dataclass(frozen=True)
@@ -57,22 +59,73 @@ class CameraSpec:
         return f"{base}-{w}x{h}" + ("-dist" if any(self.dist_coeffs) else "")
 
 
+#: Longest frame side the renderer takes, pixels: OpenGL's framebuffer limit on Mesa
+#: (``GL_MAX_RENDERBUFFER_SIZE``; llvmpipe and most GPUs give 16384). The renderer draws
+#: a frame in horizontal tiles, so the width must fit and tall frames get more tiles.
+MAX_SIDE_PX = 16384
+#: Memory one rendered frame needs while the sensor model runs on it, bytes per pixel
+#: (float64 RGB planes and their temporaries; 64 MP frames take about 3 GiB).
+BYTES_PER_PX = 48
+
+
+def _physical_memory_bytes() -> int | None:
+    try:
+        return int(os.sysconf("SC_PAGE_SIZE")) * int(os.sysconf("SC_PHYS_PAGES"))
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def _k_matrix(value: object, where: str) -> tuple[float, ...]:
+    flat = value
+    if isinstance(value, list) and value and all(isinstance(r, list) for r in value):
+        flat = [x for r in value for x in r]
+    k = coerce(tuple[float, ...], flat, where)
+    if len(k) != 9:
+        raise ConfigError(f"{where}: expected 9 numbers (3x3 row-major), got {len(k)}")
+    return k
+
+
+def _size(value: object, where: str) -> tuple[int, int] | None:
+    if value is None:
+        return None
+    if not (isinstance(value, list) and len(value) == 2):
+        raise ConfigError(f"{where}: expected [width_px, height_px] integers, got {value!r}")
+    w, h = coerce(tuple[int, int], value, where)
+    if min(w, h) < 16:
+        raise ConfigError(f"{where}: each side must be at least 16 px, got {[w, h]}")
+    if w > MAX_SIDE_PX or h > 64 * MAX_SIDE_PX:
+        raise ConfigError(
+            f"{where}: {w}x{h} px is beyond what OpenGL renders here (at most {MAX_SIDE_PX} px "
+            f"wide); use a smaller size"
+        )
+    mem = _physical_memory_bytes()
+    need = BYTES_PER_PX * w * h
+    if mem is not None and need > mem:
+        raise ConfigError(
+            f"{where}: a {w}x{h} frame needs about {need / 2**30:.0f} GiB while it is rendered, "
+            f"more than this machine's {mem / 2**30:.0f} GiB; use a smaller size"
+        )
+    return w, h
+
+
+def _dist(value: object, where: str) -> tuple[float, ...]:
+    # how many coefficients: CameraModel's rule, checked by spec.model() below
+    return coerce(tuple[float, ...], value if value is not None else [], where)
+
+
 def camera_spec(doc: object, where: str) -> CameraSpec:
     if isinstance(doc, str):
         doc = {"preset": doc}
-    d = check_keys(doc, CameraSpec, where)
-    if "size" in d and d["size"] is not None:
-        size = d["size"]
-        if not (isinstance(size, (list, tuple)) and len(size) == 2 and all(isinstance(s, int) for s in size)):
-            raise ConfigError(f"{where}.size: expected [width_px, height_px] integers, got {size!r}")
-        if min(size) < 16:
-            raise ConfigError(f"{where}.size: each side must be at least 16 px, got {size}")
-        d["size"] = (int(size[0]), int(size[1]))
-    if d.get("K") is not None:
-        d["K"] = tuple(float(x) for x in np.ravel(d["K"]))
-        if len(d["K"]) != 9:
-            raise ConfigError(f"{where}.K: expected 9 numbers (3x3 row-major)")
-    d["dist_coeffs"] = tuple(float(x) for x in d.get("dist_coeffs") or ())
-    spec = CameraSpec(**d)
-    spec.model()  # validate now, not in a worker
+    spec = from_mapping(CameraSpec, doc, where,
+                        convert={"K": lambda v, w: None if v is None else _k_matrix(v, w),
+                                 "size": _size, "dist_coeffs": _dist})
+    if spec.preset is not None and spec.size is None:
+        cam = preset(spec.preset)
+        _size([cam.width_px, cam.height_px], f"{where}.preset")
+    try:
+        spec.model()  # validate now, not in a worker
+    except ConfigError as exc:
+        if str(exc).startswith(where):
+            raise
+        raise ConfigError(f"{where}: {exc}") from None
     return spec

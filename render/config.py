@@ -20,19 +20,16 @@ A config looks like ``configs/smoke.yaml``::
 from __future__ import annotations
 
 import enum
-import math
 import os
 from dataclasses import asdict, dataclass, fields
-from pathlib import Path
 from typing import Any
 
-import yaml
+from deckpose.render.camera_spec import CameraSpec, camera_spec
 
 from deckpose.camera import CameraModel
 from deckpose.errors import ConfigError
 from deckpose.layout import DeckLayout, layout_from_dict, layout_to_dict
-from deckpose.render.camera_spec import CameraSpec, camera_spec
-from deckpose.render.config_checks import check_keys, parse_enum
+from deckpose.typed_config import check_range, coerce, from_mapping, load_yaml
 
 
 class Backend(enum.Enum):
@@ -67,16 +64,6 @@ class MotionSource(enum.Enum):
 #: The thesis motion series shipped with the project (THESIS-convention angles).
 
 
-def _positive(value: object, where: str, *, allow_zero: bool = False) -> float:
-    try:
-        v = float(value)  # type: ignore[arg-type]
-    except (TypeError, ValueError):
-        raise ConfigError(f"{where}: expected a number, got {value!r}") from None
-    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
-        raise ConfigError(f"{where}: must be {'>= 0' if allow_zero else '> 0'}, got {value!r}")
-    return v
-
-
 @dataclass(frozen=True)
 class MotionSpec:
     """Where the ship poses come from.
@@ -105,36 +92,28 @@ class MotionSpec:
     blur_steps: int = 7
 
 
-def _motion_spec(doc: object) -> MotionSpec:
-    d = check_keys(doc, MotionSpec, "motion")
-    if "source" in d:
-        d["source"] = parse_enum(MotionSource, d["source"], "motion.source")
-    if "attitudes_deg" in d:
-        att = d["attitudes_deg"]
-        if not isinstance(att, list) or not att or not all(
-            isinstance(a, list) and len(a) in (3, 6) for a in att
-        ):
-            raise ConfigError("motion.attitudes_deg: expected a non-empty list of [roll, pitch, yaw] "
-                              "or [roll, pitch, yaw, heave_m, surge_m, sway_m] (degrees, metres)")
-        d["attitudes_deg"] = tuple(tuple(float(x) for x in a) for a in att)
-    if "params" in d:
-        if not isinstance(d["params"], dict):
-            raise ConfigError("motion.params: expected a mapping of keyword arguments")
-        d["params"] = tuple(sorted(d["params"].items()))
-    for key in ("start", "every", "blur_steps"):
-        if key in d and (not isinstance(d[key], int) or d[key] < (0 if key == "start" else 1)):
-            raise ConfigError(f"motion.{key}: expected an integer >= {0 if key == 'start' else 1}")
-    if d.get("max_samples") is not None and (not isinstance(d["max_samples"], int) or d["max_samples"] < 1):
-        raise ConfigError("motion.max_samples: expected a positive integer or null")
-    if "dt_s" in d:
-        d["dt_s"] = _positive(d["dt_s"], "motion.dt_s")
-    if "exposure_s" in d:
-        d["exposure_s"] = _positive(d["exposure_s"], "motion.exposure_s", allow_zero=True)
-    spec = MotionSpec(**d)
+def _params(value: object, where: str) -> tuple[tuple[str, Any], ...]:
+    if not isinstance(value, dict):
+        raise ConfigError(f"{where}: expected a mapping of keyword arguments")
+    return tuple(sorted((str(k), v) for k, v in value.items()))
+
+
+def _motion_spec(doc: object, where: str = "motion") -> MotionSpec:
+    spec = from_mapping(MotionSpec, doc, where, convert={"params": _params})
+    if not spec.attitudes_deg or not all(len(a) in (3, 6) for a in spec.attitudes_deg):
+        raise ConfigError(f"{where}.attitudes_deg: expected a non-empty list of [roll, pitch, yaw] "
+                          "or [roll, pitch, yaw, heave_m, surge_m, sway_m] (degrees, metres)")
+    check_range(spec.start, f"{where}.start", low=0)
+    check_range(spec.every, f"{where}.every", low=1)
+    check_range(spec.blur_steps, f"{where}.blur_steps", low=1)
+    if spec.max_samples is not None:
+        check_range(spec.max_samples, f"{where}.max_samples", low=1)
+    check_range(spec.dt_s, f"{where}.dt_s", low=0, low_open=True)
+    check_range(spec.exposure_s, f"{where}.exposure_s", low=0)
     if spec.source is MotionSource.FILE and not spec.path:
-        raise ConfigError("motion.source 'file' needs motion.path (a .csv or .parquet motion table)")
+        raise ConfigError(f"{where}.source 'file' needs motion.path (a .csv or .parquet motion table)")
     if spec.angles not in ("deg", "rad"):
-        raise ConfigError(f"motion.angles: 'deg' or 'rad', got {spec.angles!r}")
+        raise ConfigError(f"{where}.angles: 'deg' or 'rad', got {spec.angles!r}")
     return spec
 
 
@@ -160,19 +139,19 @@ class SensorSpec:
     halo_scale: float = 4.0
 
 
-def _sensor_spec(doc: object) -> SensorSpec:
-    d = check_keys(doc, SensorSpec, "sensor")
-    spec = SensorSpec(**d)
+def _sensor_spec(doc: object, where: str = "sensor") -> SensorSpec:
+    spec = from_mapping(SensorSpec, doc, where)
     if spec.bit_depth not in (8, 12, 16):
-        raise ConfigError(f"sensor.bit_depth: 8, 12 or 16, got {spec.bit_depth!r}")
+        raise ConfigError(f"{where}.bit_depth: 8, 12 or 16, got {spec.bit_depth!r}")
     if spec.color not in ("rgb", "mono"):
-        raise ConfigError(f"sensor.color: 'rgb' or 'mono', got {spec.color!r}")
+        raise ConfigError(f"{where}.color: 'rgb' or 'mono', got {spec.color!r}")
     for key in ("exposure", "full_well_e", "psf_sigma_px", "beacon_peak", "halo_scale"):
-        _positive(getattr(spec, key), f"sensor.{key}")
-    for key in ("read_noise_e", "halo_fraction"):
-        _positive(getattr(spec, key), f"sensor.{key}", allow_zero=True)
+        check_range(getattr(spec, key), f"{where}.{key}", low=0, low_open=True)
+    check_range(spec.read_noise_e, f"{where}.read_noise_e", low=0)
+    # the halo is a fraction of the beacon's light spread around it
+    check_range(spec.halo_fraction, f"{where}.halo_fraction", low=0, high=1, high_open=True)
     if spec.psf_sigma_px < 0.5:
-        raise ConfigError("sensor.psf_sigma_px: must be >= 0.5 px so beacon centroids are not aliased")
+        raise ConfigError(f"{where}.psf_sigma_px: must be >= 0.5 px so beacon centroids are not aliased")
     return spec
 
 
@@ -188,17 +167,14 @@ class SceneSpec:
     texture_px: int = 2048
 
 
-def _scene_spec(doc: object) -> SceneSpec:
-    d = check_keys(doc, SceneSpec, "scene")
-    if "shading" in d:
-        d["shading"] = parse_enum(Shading, d["shading"], "scene.shading")
-    spec = SceneSpec(**d)
-    _positive(spec.freeboard_m, "scene.freeboard_m")
-    _positive(spec.sea_half_size_m, "scene.sea_half_size_m")
+def _scene_spec(doc: object, where: str = "scene") -> SceneSpec:
+    spec = from_mapping(SceneSpec, doc, where)
+    check_range(spec.freeboard_m, f"{where}.freeboard_m", low=0, low_open=True)
+    check_range(spec.sea_half_size_m, f"{where}.sea_half_size_m", low=0, low_open=True)
+    check_range(spec.sea_drift_m_per_s, f"{where}.sea_drift_m_per_s", low=0)
     if spec.deck_half_size_m is not None:
-        _positive(spec.deck_half_size_m, "scene.deck_half_size_m")
-    if not isinstance(spec.texture_px, int) or not 64 <= spec.texture_px <= 8192:
-        raise ConfigError("scene.texture_px: an integer in 64..8192")
+        check_range(spec.deck_half_size_m, f"{where}.deck_half_size_m", low=0, low_open=True)
+    check_range(spec.texture_px, f"{where}.texture_px", low=64, high=8192)
     return spec
 
 
@@ -228,50 +204,60 @@ class RenderConfig:
         return {m.name: m for m in models}
 
 
-_TOP = {f.name for f in fields(RenderConfig)}
+def _cameras(value: object, where: str) -> tuple[CameraSpec, ...]:
+    if not isinstance(value, list) or not value:
+        raise ConfigError(f"{where}: must be a non-empty list (e.g. [{{preset: 8mp}}])")
+    cameras = tuple(camera_spec(c, f"{where}[{i}]") for i, c in enumerate(value))
+    names = [c.model().name for c in cameras]
+    if len(set(names)) != len(names):
+        raise ConfigError(f"{where}: camera names must be unique, got {names}; set 'name:' per camera")
+    return cameras
+
+
+def _heights(value: object, where: str) -> tuple[float, ...]:
+    if not isinstance(value, list) or not value:
+        raise ConfigError(f"{where}: must be a non-empty list of camera heights, metres")
+    heights = coerce(tuple[float, ...], value, where)
+    for i, h in enumerate(heights):
+        check_range(h, f"{where}[{i}]", low=0, low_open=True)
+    return heights
+
+
+def _lighting(value: object, where: str) -> tuple[Lighting, ...]:
+    light = [value] if isinstance(value, str) else value
+    if not isinstance(light, list) or not light:
+        raise ConfigError(f"{where}: must be a non-empty list of {[e.value for e in Lighting]}")
+    return coerce(tuple[Lighting, ...], light, where)
+
+
+def _layout(value: object, where: str) -> DeckLayout:
+    if isinstance(value, dict) and value.get("n_ring") == 0:
+        raise ConfigError(f"{where}: n_ring is 0 - a deck needs beacons (at least 3)")
+    return layout_from_dict(value, where)
+
+
+_SECTIONS: dict[str, Any] = {
+    "cameras": _cameras,
+    "heights_m": _heights,
+    "lighting": _lighting,
+    "motion": _motion_spec,
+    "sensor": _sensor_spec,
+    "scene": _scene_spec,
+    "layout": _layout,
+}
 
 
 def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
     """Validate a parsed YAML mapping into a :class:`RenderConfig`."""
     if not isinstance(doc, dict):
         raise ConfigError(f"{source}: expected a YAML mapping at the top level")
-    unknown = set(doc) - _TOP
-    if unknown:
-        raise ConfigError(f"{source}: unknown key(s) {sorted(unknown)}; valid keys are {sorted(_TOP)}")
-    cams = doc.get("cameras")
-    if not isinstance(cams, list) or not cams:
-        raise ConfigError(f"{source}: 'cameras' must be a non-empty list (e.g. [{{preset: 8mp}}])")
-    cameras = tuple(camera_spec(c, f"cameras[{i}]") for i, c in enumerate(cams))
-    names = [c.model().name for c in cameras]
-    if len(set(names)) != len(names):
-        raise ConfigError(f"{source}: camera names must be unique, got {names}; set 'name:' per camera")
-    heights = doc.get("heights_m")
-    if not isinstance(heights, list) or not heights:
-        raise ConfigError(f"{source}: 'heights_m' must be a non-empty list of camera heights, metres")
-    heights_m = tuple(_positive(h, "heights_m") for h in heights)
-    layout = doc.get("layout")
-    if isinstance(layout, dict) and layout.get("n_ring") == 0:
-        raise ConfigError(f"{source}: layout.n_ring is 0 - a deck needs beacons (at least 3)")
-    layout_obj = layout_from_dict(layout, f"{source}: layout")
-    light = doc.get("lighting", ["night"])
-    light = [light] if isinstance(light, str) else light
-    if not isinstance(light, list) or not light:
-        raise ConfigError(f"{source}: 'lighting' must be a non-empty list of {[e.value for e in Lighting]}")
-    seed = doc.get("seed", 0)
-    if not isinstance(seed, int) or seed < 0:
-        raise ConfigError(f"{source}: seed must be a non-negative integer, got {seed!r}")
-    cfg = RenderConfig(
-        cameras=cameras,
-        heights_m=heights_m,
-        lighting=tuple(parse_enum(Lighting, x, "lighting") for x in light),
-        motion=_motion_spec(doc.get("motion")),
-        sensor=_sensor_spec(doc.get("sensor")),
-        scene=_scene_spec(doc.get("scene")),
-        layout=layout_obj,
-        seed=seed,
-        backend=parse_enum(Backend, doc.get("backend", "egl"), "backend"),
-        name=str(doc.get("name", "dataset")),
-    )
+    for key in ("cameras", "heights_m"):
+        if key not in doc:
+            raise ConfigError(f"{source}: {key!r} is missing: "
+                              + ("a list of cameras (e.g. [{preset: 8mp}])" if key == "cameras"
+                                 else "a list of camera heights, metres"))
+    cfg = from_mapping(RenderConfig, doc, f"{source}:", convert=_SECTIONS)
+    check_range(cfg.seed, f"{source}: seed", low=0)
     half = cfg.deck_half_size_m()
     if half <= cfg.layout.radius_m + cfg.layout.beacon_radius_m:
         raise ConfigError(f"scene.deck_half_size_m={half} must exceed the ring radius "
@@ -303,14 +289,7 @@ def default_config() -> RenderConfig:
 
 def load_config(path: str | os.PathLike[str]) -> RenderConfig:
     """Read and validate a render config YAML file."""
-    p = Path(path)
-    try:
-        doc = yaml.safe_load(p.read_text())
-    except OSError as exc:
-        raise ConfigError(f"cannot read render config {p}: {exc.strerror}") from exc
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{p}: not valid YAML ({exc})") from exc
-    return config_from_dict(doc, str(p))
+    return config_from_dict(load_yaml(path, "render config"), str(path))
 
 
 def _plain(x: Any) -> Any:

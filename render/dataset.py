@@ -18,9 +18,11 @@ the output does not depend on the number of workers or where they run.
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 import platform
+import shutil
 import threading
 from concurrent.futures import ProcessPoolExecutor, as_completed
 from importlib import metadata
@@ -31,10 +33,11 @@ from typing import Any, Iterable
 import cv2
 import pandas as pd
 
-from deckpose.atomic_io import atomic_open, atomic_path
+from deckpose.atomic_io import atomic_open, atomic_path, remove_stale_temps
 from deckpose.camera_info import camera_to_dict, write_camera_info
 from deckpose.errors import ConfigError
 from deckpose.layout import layout_to_dict
+from deckpose.output_folder import LOCK_NAME
 from deckpose.render.config import RenderConfig, config_to_dict, load_config
 from deckpose.render.plan import FrameSpec, plan_frames
 
@@ -84,6 +87,9 @@ def render_one(cfg: RenderConfig, spec: FrameSpec, out_dir: str) -> int:
     img = rf.frame.image
     with atomic_path(out / rel) as tmp:
         if not cv2.imwrite(str(tmp), img if img.ndim == 2 else img[..., ::-1], PNG_PARAMS):
+            # OpenCV says only that it failed: a full disk is the usual reason, so say so
+            if shutil.disk_usage(tmp.parent).free < img.nbytes:
+                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(out / rel))
             raise OSError(f"OpenCV could not write {tmp}")
     part = {"frame": frame_row(rf, rel), "beacons": beacon_rows(rf)}
     with atomic_open(_part_path(out, spec.frame_id), "w") as fh:
@@ -128,13 +134,6 @@ def _write_json(path: Path, doc: dict[str, Any]) -> None:
         json.dump(doc, fh, indent=2, sort_keys=False)
 
 
-def _clean_temporaries(out_dir: Path) -> None:
-    for sub in (out_dir, out_dir / "images", out_dir / ".parts", out_dir / "cameras"):
-        if sub.is_dir():
-            for p in sub.glob(".*.tmp*"):
-                p.unlink(missing_ok=True)
-
-
 def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool) -> None:
     manifest = out / "manifest.json"
     if manifest.exists():
@@ -146,10 +145,10 @@ def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool) 
             raise ConfigError(f"{out} already holds a dataset; pass --resume to finish it or pick a new folder")
         if old.get("config") != json.loads(json.dumps(config_to_dict(cfg))):
             raise ConfigError(f"{out} was rendered from another config; resume needs the same config and seed")
-    elif out.exists() and any(out.iterdir()) and not resume:
+    elif out.exists() and any(p.name != LOCK_NAME for p in out.iterdir()) and not resume:
         raise ConfigError(f"output folder {out} is not empty; choose a new or empty folder")
     out.mkdir(parents=True, exist_ok=True)
-    _clean_temporaries(out)
+    remove_stale_temps(out)
     for name, cam in cfg.cameras_by_name().items():
         write_camera_info(cam, out / "cameras" / f"{name}.yaml")
     (out / "images").mkdir(exist_ok=True)

@@ -40,13 +40,14 @@ from typing import Any
 
 import cv2
 import numpy as np
+from deckpose.render.camera_spec import MAX_SIDE_PX
+from deckpose.render.config import Backend, Lighting, SceneSpec, Shading
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
 from deckpose.errors import ConfigError
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose
-from deckpose.render.config import Backend, Lighting, SceneSpec, Shading
 
 #: OpenCV camera frame to OpenGL camera frame (y and z flipped).
 _CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
@@ -190,7 +191,7 @@ class DeckRenderer:
 
     def _build(self) -> None:
         use_backend(self.backend)
-        import pyrender  # noqa: PLC0415 - only in the rendering process
+        import pyrender
 
         self._pr = pyrender
         pbr = self.spec.shading is Shading.PBR
@@ -259,7 +260,8 @@ class DeckRenderer:
         s.set_pose(sun, T_sun)
         flags = 0 if pbr else pr.RenderFlags.FLAT
         W, H = camera.width_px, camera.height_px
-        n_tiles = max(1, math.ceil(W * H / MAX_TILE_PX))
+        # tiles small enough for the MSAA buffers and no taller than OpenGL's side limit
+        n_tiles = max(1, math.ceil(W * H / MAX_TILE_PX), math.ceil(H / MAX_SIDE_PX))
         tile_h = math.ceil(H / n_tiles)
         out = np.empty((H, W, 3), np.uint8)
         T_cam = gl_camera_pose(camera_pose)

@@ -23,7 +23,7 @@ def test_layout_ids_and_positions():
 
 
 @pytest.mark.parametrize("doc,match", [({"n_ring": 0}, "at least 3"), ({"radius_m": -1}, "positive"),
-                                       ({"colour": 1}, "unknown layout key"), ({"bow_id": 3}, "bow_id must be 0")])
+                                       ({"colour": 1}, r"layout: unknown key\(s\) \[.colour.\]"), ({"bow_id": 3}, "bow_id must be 0")])
 def test_layout_validation(doc, match):
     with pytest.raises(ConfigError, match=match):
         layout_from_dict(doc)

@@ -53,10 +53,34 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def os_error_line(exc: OSError) -> tuple[str, int]:
+    """One line and an exit status for an error of the file system.
+
+    A read-only folder or a missing permission is the user's to fix (status 2); a
+    full disk stops the job (status 1), and every writer wrote atomically, so the
+    same command resumes or redoes only what was not finished.
+    """
+    import errno
+
+    name = f" {exc.filename}" if exc.filename else ""
+    if exc.errno == errno.ENOSPC:
+        return (f"the disk is full (writing{name}); free some space and run the same command again "
+                "(finished files are kept, none is left half-written)", exit_codes.UNEXPECTED)
+    if exc.errno in (errno.EROFS, errno.EACCES, errno.EPERM):
+        return (f"cannot write{name}: {exc.strerror}; choose a folder you can write to (-o DIR)",
+                exit_codes.USAGE)
+    return (f"{type(exc).__name__}: {exc.strerror or exc}{name} (run 'deckpose --debug ...' for the "
+            "traceback)", exit_codes.UNEXPECTED)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``deckpose`` console script; returns the exit code."""
     parser = build_parser()
-    args = parser.parse_args(argv)
+    args, extra = parser.parse_known_args(argv)
+    if extra:  # said by the command's own parser, with its usage, not the top level's
+        subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+        own = subs[0].choices.get(getattr(args, "command", None) or "") if subs else None
+        (own or parser).error(f"unrecognized arguments: {' '.join(extra)}")
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
@@ -68,6 +92,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"deckpose {args.command}: interrupted", file=sys.stderr)
         return 130
+    except OSError as exc:
+        if getattr(args, "debug", False):
+            raise
+        line, code = os_error_line(exc)
+        print(f"deckpose {args.command}: error: {line}", file=sys.stderr)
+        return code
     except Exception as exc:  # noqa: BLE001 - the one place that turns any error into a line
         if getattr(args, "debug", False):
             raise

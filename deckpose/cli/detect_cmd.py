@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+from pathlib import Path
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -145,6 +146,11 @@ def run(args: argparse.Namespace) -> int:
         significance_sigma=args.significance_sigma,
     )
     ident = IdentifyOptions()
+    from deckpose.output_folder import claim_output
+
+    # before any frame is detected: the output folder can be written and is no other job's
+    # (a dataset's own folder when detections go into it: a render still writing it is refused)
+    claim_output(Path(args.out) if args.out else frameset.root, what="detect")
     dets, frames = detect_frames(
         frameset,
         args.detector,

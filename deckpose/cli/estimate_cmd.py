@@ -98,6 +98,9 @@ def run(args: argparse.Namespace) -> int:
     options = registry.EstimateOptions(sigma_px=args.sigma_px, refine=spec.refine,
                                        posterior_mean=spec.posterior_mean)
     camera = read_camera_info(args.camera)
+    from deckpose.output_folder import ensure_writable
+
+    ensure_writable(Path(args.output).parent)  # before the work, not after it
     table = read_table(args.detections, "detections")
     frames = detections_from_frame(table, layout, str(args.detections))
     # detections of your own without ids (beacon_id -1): identified here, as detect does
@@ -175,6 +178,9 @@ def _run_folder(args: argparse.Namespace, spec: registry.MethodSpec) -> int:
 
     run = rl.run_paths(args.run)
     rl.require_dataset(run)  # a missing folder says so, not "no detections"
+    from deckpose.output_folder import claim_output
+
+    claim_output(run.root, what="estimate")
     detectors = run.detectors()
     if getattr(args, "detector", None) is None:
         if len(detectors) != 1:

@@ -36,7 +36,12 @@ def run_evaluate(args: argparse.Namespace) -> int:
     from deckpose.evaluate.pipeline import evaluate_run
     from deckpose.evaluate.run_layout import run_paths
 
-    paths = evaluate_run(run_paths(args.run), mcap=not args.no_mcap, preview_px=args.preview_px)
+    from deckpose.output_folder import claim_output
+
+    run = run_paths(args.run)
+    if run.root.is_dir():
+        claim_output(run.root, what="evaluate")
+    paths = evaluate_run(run, mcap=not args.no_mcap, preview_px=args.preview_px)
     for k, v in paths.items():
         print(f"{k}: {v}")
     return 0
@@ -46,5 +51,10 @@ def run_report(args: argparse.Namespace) -> int:
     from deckpose.evaluate.report import write_report
     from deckpose.evaluate.run_layout import run_paths
 
-    print(f"report: {write_report(run_paths(args.run))}")
+    from deckpose.output_folder import claim_output
+
+    run = run_paths(args.run)
+    if run.root.is_dir():
+        claim_output(run.root, what="report")
+    print(f"report: {write_report(run)}")
     return 0

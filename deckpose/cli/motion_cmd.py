@@ -72,16 +72,11 @@ def register(subparsers: Any) -> None:
 
 def _sea_mapping(args: argparse.Namespace) -> dict[str, Any]:
     """The configuration file (if any) with the flags given on the command line on top."""
-    import yaml
+    from deckpose.typed_config import load_yaml
 
     mapping: dict[str, Any] = {}
     if args.config:
-        try:
-            loaded = yaml.safe_load(Path(args.config).read_text())
-        except FileNotFoundError:
-            raise ConfigError(f"configuration file {args.config} does not exist") from None
-        except yaml.YAMLError as exc:
-            raise ConfigError(f"{args.config}: not valid YAML ({exc})") from None
+        loaded = load_yaml(args.config, "motion configuration")
         if not isinstance(loaded, dict):
             raise ConfigError(f"{args.config}: expected a mapping at the top level")
         mapping = {k: v for k, v in loaded.items() if k not in _METADATA_KEYS}
@@ -158,6 +153,11 @@ def run(args: argparse.Namespace) -> int:
 
     if not args.output and not args.plot:
         raise ConfigError("nothing to do: give -o/--output FILE (.csv/.parquet) and/or --plot FILE.png")
+    from deckpose.output_folder import ensure_writable
+
+    for target in (args.output, args.plot):  # before the work
+        if target:
+            ensure_writable(Path(target).parent)
     if args.thesis_table:
         if args.source != "thesis" or not args.output:
             raise ConfigError("--thesis-table goes with 'thesis' and -o FILE.csv")

@@ -219,6 +219,9 @@ def run_pipeline(config: object, options: PipelineOptions, config_label: str = "
     if first > 0 and not paths.manifest.exists():
         raise DeckposeError(f"--from-stage {options.from_stage} needs a rendered dataset in {run_dir}; "
                             f"run the pipeline from the render stage first")
+    from deckpose.output_folder import claim_output
+
+    claim_output(run_dir, what="pipeline")  # the stages run in this process and claim it again
     t_all = time.perf_counter()
     t = time.perf_counter()
     if runs("render"):

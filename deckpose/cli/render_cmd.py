@@ -19,7 +19,9 @@ def register(subparsers: Any) -> None:
     p.add_argument("config", type=Path, nargs="?", default=None,
                    help="render config YAML (see configs/); default: the embedded smoke config")
     p.add_argument("out", type=Path, nargs="?", default=None,
-                   help="dataset folder (default: datasets/<config name>)")
+                   help="dataset folder (default: datasets/<config name>); or give it with -o")
+    p.add_argument("-o", "--output", type=Path, default=None, metavar="DIR",
+                   help="dataset folder, as on every command that writes (the same as OUT)")
     p.add_argument("--workers", type=int, default=1,
                    help="local worker processes (default 1; 0 renders in this process)")
     p.add_argument("--backend", choices=["egl", "osmesa"], default=None,
@@ -38,12 +40,21 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.render.config import Backend, default_config, load_config
     from deckpose.render.dataset import render_dataset
 
+    from deckpose.errors import ConfigError
+
+    if args.output is not None and args.out is not None and args.output != args.out:
+        raise ConfigError(f"two output folders given ({args.out} and -o {args.output}); give one")
     cfg = default_config() if args.config is None else load_config(args.config)
     if args.backend:
         cfg = dataclasses.replace(cfg, backend=Backend(args.backend))
     if args.seed is not None:
         cfg = dataclasses.replace(cfg, seed=args.seed)
-    out = args.out or Path("datasets") / cfg.name
+    out = args.output or args.out or Path("datasets") / cfg.name
+    from deckpose.output_folder import claim_output
+
+    # room for at least the largest frame (uncompressed), checked before anything is written
+    biggest = max(c.model().width_px * c.model().height_px for c in cfg.cameras)
+    claim_output(out, need_bytes=biggest * 3 * (2 if cfg.sensor.bit_depth > 8 else 1), what="render")
     path = render_dataset(cfg, out, workers=args.workers, resume=args.resume, scheduler=args.scheduler,
                           progress=not args.no_progress)
     print(f"dataset written to {path}")

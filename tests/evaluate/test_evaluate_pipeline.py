@@ -129,7 +129,7 @@ def test_missing_stage_names_the_command(tmp_path, capsys):
     assert f"make it with: deckpose render CONFIG.yaml {tmp_path / 'nope'}" in err
     with pytest.raises(SystemExit):
         main(["render", "--help"])
-    assert " -o " not in capsys.readouterr().out
+    assert "-o DIR, --output DIR" in capsys.readouterr().out
 
 
 def test_frames_that_do_not_match_are_rejected(run):

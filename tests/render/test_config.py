@@ -22,7 +22,7 @@ REPO = Path(__file__).resolve().parents[2]
     [
         ({"colour": "red"}, r"unknown key\(s\) \['colour'\]"),
         ({"sensor": {"bitdepth": 8}}, r"sensor: unknown key"),
-        ({"heights_m": [30, -5]}, r"heights_m: must be > 0"),
+        ({"heights_m": [30, -5]}, r"heights_m\[1\]: must be > 0, got -5"),
         ({"heights_m": []}, r"non-empty list"),
         ({"layout": {"n_ring": 0}}, r"n_ring is 0"),
         ({"layout": {"n_ring": 2}}, r"at least 3 ring beacons"),
