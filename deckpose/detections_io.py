@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 
 from deckpose.camera import CameraModel
-from deckpose.errors import InputDataError
+from deckpose.errors import InputDataError, short_repr
 from deckpose.layout import DeckLayout
 from deckpose.records import UNASSIGNED, Detections
 from deckpose.tables import read_table
@@ -54,7 +54,7 @@ def integer_column(df: pd.DataFrame, col: str, source: str) -> np.ndarray:
             why = ("must be an integer" if v[row] == v[row] and v[row] != np.round(v[row])
                    else "is beyond 2^53 in a float column, where digits are lost; store ids as "
                    "integers")
-            raise InputDataError(f"{source}: row {row + 1}: {col} {why}, got {v[row]!r}")
+            raise InputDataError(f"{source}: row {row + 1}: {col} {why}, got {short_repr(v[row])}")
         return v.astype(np.int64)
     out = np.empty(len(s), np.int64)
     for row, x in enumerate(s.tolist()):
@@ -88,7 +88,7 @@ def detections_from_frame(df: pd.DataFrame, layout: DeckLayout, source: str = "d
         bad = df[col].isna() | ~np.isfinite(pd.to_numeric(df[col], errors="coerce").astype(float))
         if bad.any():
             row = int(np.flatnonzero(bad.to_numpy())[0])
-            raise InputDataError(f"{source}: row {row + 1} has a missing or non-numeric {col} ({df[col].iloc[row]!r})")
+            raise InputDataError(f"{source}: row {row + 1} has a missing or non-numeric {col} ({short_repr(df[col].iloc[row])})")
     ids = integer_column(df, "beacon_id", source)
     unknown = (ids != UNASSIGNED) & ((ids < 0) | (ids >= layout.n_beacons))
     if unknown.any():

@@ -28,6 +28,13 @@ class InputDataError(DeckposeError, ValueError):
     """A table of detections, motion or ground truth is malformed."""
 
 
+def short_repr(value: object, limit: int = 60) -> str:
+    """``repr(value)`` cut to ``limit`` characters, for messages (a 5-million-character
+    cell must not become a 5 MB error)."""
+    s = repr(value)
+    return s if len(s) <= limit else s[: limit - 3] + "..."
+
+
 def check_shape(name: str, array: object, shape: tuple[int | None, ...]) -> None:
     """Raise :class:`ShapeError` unless ``array`` has ``shape`` (``None`` = any size).
 

@@ -32,7 +32,7 @@ from typing import Any, TypeVar
 
 import yaml
 
-from deckpose.errors import ConfigError
+from deckpose.errors import ConfigError, short_repr
 
 T = TypeVar("T")
 
@@ -119,13 +119,8 @@ def _describe(value: object) -> str:
     if isinstance(value, bool):
         return f"{str(value).lower()} (a boolean)"
     if isinstance(value, (dict, list)):
-        return f"a {'mapping' if isinstance(value, dict) else 'list'} ({_short(value)})"
-    return _short(value)
-
-
-def _short(value: object, limit: int = 60) -> str:
-    s = repr(value)
-    return s if len(s) <= limit else s[: limit - 3] + "..."
+        return f"a {'mapping' if isinstance(value, dict) else 'list'} ({short_repr(value)})"
+    return short_repr(value)
 
 
 def coerce(hint: Any, value: object, where: str) -> Any:
@@ -186,7 +181,7 @@ def coerce(hint: Any, value: object, where: str) -> Any:
                 return hint(value.lower())
             except ValueError:
                 pass
-        raise ConfigError(f"{where}: {_short(value)} is not one of {valid}")
+        raise ConfigError(f"{where}: {short_repr(value)} is not one of {valid}")
     if origin is tuple:
         args = typing.get_args(hint)
         if not isinstance(value, (list, tuple)):

@@ -180,6 +180,10 @@ class Candidate:
         return (float(u_px), float(v_px), np.asarray(cov_px2, float), float(flux_dn), size, score)
 
 
+#: A frame narrower than this has no room for a beacon and its background (and no noise
+#: estimate: a 1x1 frame gave "noise nan DN").
+MIN_FRAME_SIDE_PX = 8
+
 #: A blob covering more than this fraction of the frame is no beacon: the 13 beacons of a
 #: deck in view are each far smaller (a 64 MP frame at 20 m: 0.01 %).
 MAX_SPOT_AREA_FRACTION = 0.01
@@ -335,6 +339,9 @@ def find_candidates(
         (``None`` when the bright-spot search is off); default :func:`coarse_boxes`.
     """
     image = frame.image
+    if min(image.shape[:2]) < MIN_FRAME_SIDE_PX:
+        return [], (f"image is {image.shape[1]}x{image.shape[0]} px: too small to find beacons in "
+                    f"(each side at least {MIN_FRAME_SIDE_PX} px)")
     st = frame_stats(image)
     problem = frame_problem(st)
     if problem:
@@ -453,7 +460,7 @@ def find_candidates(
     if not raw:
         return [], (
             f"dark frame: no blob above {thr:.1f} DN (background {st.background_dn:.1f} DN, "
-            f"noise {st.noise_dn:.2f} DN, brightest sample {st.max_dn:.0f} DN)"
+            f"noise {st.noise_dn:.2f} DN, brightest pixel {float(np.max(image)):.0f} DN)"
         )
     gain0 = options.gain_dn_per_e or 1.0
     cands = [

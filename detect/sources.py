@@ -115,6 +115,12 @@ def open_dataset(path: str | os.PathLike[str]) -> FrameSet:
         raise InputDataError(
             f"{root}/manifest.json: format is {fmt!r}, expected {DATASET_FORMAT!r}"
         )
+    if manifest.get("complete") is False:
+        done = len(list((root / ".parts").glob("*.json"))) if (root / ".parts").is_dir() else 0
+        raise InputDataError(
+            f"{root} is an unfinished dataset ({done} of {manifest.get('n_frames', '?')} frames "
+            f"rendered); finish it with: deckpose render CONFIG.yaml {root} --resume"
+        )
     layout = layout_from_dict(manifest.get("layout"), f"{root}/manifest.json: layout")
     try:
         frames = pd.read_parquet(

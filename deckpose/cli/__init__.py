@@ -87,7 +87,10 @@ def main(argv: Sequence[str] | None = None) -> int:
     try:
         return int(args.func(args) or 0)
     except DeckposeError as exc:
-        print(f"deckpose {args.command}: error: {exc}", file=sys.stderr)
+        text = " ".join(str(exc).split())  # one line, however the message was built
+        if len(text) > 1000:
+            text = text[:1000] + " ..."
+        print(f"deckpose {args.command}: error: {text}", file=sys.stderr)
         return exit_codes.USAGE
     except KeyboardInterrupt:
         print(f"deckpose {args.command}: interrupted", file=sys.stderr)

@@ -1,0 +1,56 @@
+"""The reliability issue's smaller findings, each from its own input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+
+from deckpose.camera import CameraModel
+from deckpose.camera_info import write_camera_info
+from deckpose.cli import main
+from deckpose.detect import registry
+from deckpose.detect.registry import DetectorOptions
+from deckpose.records import Frame
+
+
+def _camera(w: int, h: int) -> CameraModel:
+    return CameraModel(w, h, np.array([[100.0, 0, w / 2], [0, 100.0, h / 2], [0, 0, 1]]))
+
+
+def test_a_one_pixel_frame_says_it_is_too_small():
+    # log gave "no blob above nan DN (noise nan DN)"
+    for name in ("log", "cog", "gauss"):
+        b = registry.get(name)(Frame(np.zeros((1, 1), np.uint8), _camera(1, 1)), DetectorOptions())
+        assert len(b) == 0 and "1x1 px: too small" in b.reason and "nan" not in b.reason
+
+
+def test_a_dark_frame_names_its_brightest_pixel_not_a_sample():
+    img = np.zeros((64, 64), np.uint8)
+    img[33, 35] = 3  # off the strided sample grid
+    b = registry.get("cog")(Frame(img, _camera(64, 64)), DetectorOptions(spot_level=0,
+                                                                         threshold_sigma=50))
+    assert len(b) == 0 and "brightest pixel 3 DN" in b.reason, b.reason
+
+
+def test_detect_on_an_unfinished_dataset_says_so(tmp_path, capsys):
+    root = tmp_path / "ds"
+    (root / ".parts").mkdir(parents=True)
+    (root / ".parts" / "000000.json").write_text("{}")
+    (root / "manifest.json").write_text(json.dumps(
+        {"format": "deckpose-dataset/1", "complete": False, "n_frames": 12}))
+    assert main(["detect", str(root), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "unfinished dataset (1 of 12 frames rendered)" in err and "--resume" in err
+
+
+def test_a_huge_cell_gives_a_short_message(tmp_path, capsys):
+    cam = tmp_path / "cam.yaml"
+    write_camera_info(_camera(640, 480), cam)
+    det = tmp_path / "d.csv"
+    pd.DataFrame({"frame_id": [0, 0], "beacon_id": [0, 1], "u_px": [1.0, 2.0],
+                  "v_px": ["x" * 5_000_000, "3"]}).to_csv(det, index=False)
+    code = main(["estimate", str(det), "--camera", str(cam), "-o", str(tmp_path / "o.csv")])
+    err = capsys.readouterr().err
+    assert code == 2 and "v_px" in err and len(err) < 1200 and err.count("\n") == 1
