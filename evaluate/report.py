@@ -49,8 +49,19 @@ def _save(fig: plt.Figure, path: Path) -> None:
         fh.write(buf.getvalue())
 
 
-def resolution_of(camera_name: str) -> str | None:
-    """The thesis preset a camera name refers to (``"8mp-..."`` -> ``"8mp"``), if any."""
+def resolution_of(camera_name: str, size_px: tuple[int, int] | None = None) -> str | None:
+    """The thesis resolution a camera has (``"8mp"``), if any.
+
+    From its size (``(width_px, height_px)``) when given: a camera is the thesis's 4 MP
+    camera only at 2312x1734, whatever it is called (the demo's ``4mp-640x480`` is a
+    640x480 camera with the 4 MP preset's field of view, not a 4 MP one). Without a
+    size, from a name of the form ``"8mp-..."``.
+    """
+    if size_px is not None:
+        for res, wh in THESIS_RESOLUTIONS.items():
+            if tuple(size_px) == wh:
+                return res
+        return None
     key = camera_name.lower().split("-")[0].split("_")[0]
     return key if key in THESIS_RESOLUTIONS else None
 
@@ -156,13 +167,17 @@ def example_frame(run: rl.RunPaths, frame: pd.Series, beacons: pd.DataFrame,
     _save(fig, path)
 
 
-def thesis_comparison(table: pd.DataFrame) -> list[str]:
-    """Our measured maxima beside the thesis's (Tables 4.2-4.13, 4 px noise) where they correspond."""
+def thesis_comparison(table: pd.DataFrame, sizes_px: dict[str, tuple[int, int]] | None = None) -> list[str]:
+    """Our measured maxima beside the thesis's (Tables 4.2-4.13, 4 px noise) where they correspond.
+
+    ``sizes_px`` maps camera names to ``(width_px, height_px)``; a camera is set beside a
+    thesis resolution only when its size is that resolution (:func:`resolution_of`).
+    """
     lines = ["| detector + method | resolution | height | roll max ours / thesis [deg] | pitch | yaw | "
              "height [m] | centroid RMS ours / thesis image RMS [px] |", "|---|---|---|---|---|---|---|---|"]
     n = 0
     for _, r in table.iterrows():
-        res = resolution_of(str(r.camera))
+        res = resolution_of(str(r.camera), None if sizes_px is None else sizes_px.get(str(r.camera), (0, 0)))
         h = int(round(r.table_height_m))
         if res is None or h not in ref.MAX_ERROR[(res, 4)]:
             continue
@@ -172,8 +187,12 @@ def thesis_comparison(table: pd.DataFrame) -> list[str]:
                      f"{r.centroid_rms_mean_px:.3f} / {t[4]:.2f} |")
         n += 1
     if not n:
-        return ["No cell of this run matches a thesis resolution preset at a thesis height "
-                "(4/8/16/64 MP at 20/30/40/50/80 m), so there is nothing to set beside the thesis."]
+        sizes = "" if not sizes_px else " (this run's cameras: " + ", ".join(
+            f"{n} {w}x{h}" for n, (w, h) in sorted(sizes_px.items())) + ")"
+        known = ", ".join(f"{r[:-2]} MP {w}x{h}" for r, (w, h) in THESIS_RESOLUTIONS.items())
+        return [f"No cell of this run has a thesis resolution ({known}) at a thesis height "
+                "(20/30/40/50/80 m)" + sizes
+                + ", so there is nothing to set beside the thesis's tables."]
     return lines
 
 
@@ -264,7 +283,8 @@ def write_report(run: rl.RunPaths) -> Path:
              "The thesis simulated eq. 4.1 noise on ideal pixel coordinates; here the errors come from "
              "rendered frames and real detectors. Its smallest noise level (4 px, Tables 4.4, 4.7, 4.10, 4.13) "
              "is shown.", ""]
-    lines += thesis_comparison(table)
+    cams = rl.read_cameras(run, sorted(frames["camera"].astype(str).unique()))
+    lines += thesis_comparison(table, {n: (c.width_px, c.height_px) for n, c in cams.items()})
     lines += ["", "## Example frames", ""]
     lines += [f"![{cam}](figures/{name})" for cam, name in examples]
     lines += ["", resolution_markdown(table).replace("# Resolution tables", "## Resolution tables", 1)]

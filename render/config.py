@@ -271,7 +271,9 @@ DEFAULT_CONFIG: dict[str, Any] = {
     "name": "smoke",
     "seed": 7,
     "backend": "egl",
-    "cameras": [{"preset": "4mp", "size": [640, 480]}, {"preset": "8mp", "size": [960, 540]}],
+    # small frames, named for their size (not 4 MP and 8 MP cameras), square pixels
+    "cameras": [{"preset": "4mp-square", "size": [640, 480], "name": "640x480"},
+                {"preset": "8mp-square", "size": [960, 540], "name": "960x540"}],
     "heights_m": [30, 50],
     "lighting": ["night", "day"],
     "motion": {"source": "fixed",

@@ -114,7 +114,21 @@ def test_report(run):
     for fig in ("error_vs_height.png", "error_distributions.png", "centroid_vs_size.png", "example_4mp-small.png"):
         assert f"figures/{fig}" in md
         assert (run / "report" / "figures" / fig).stat().st_size > 1000
-    assert "## Beside the thesis" in md and "| fake+thesis | 4mp | 20 |" in md
+    # the fake run's cameras are 578x434 and 960x540: named 4mp/8mp, but not the thesis's
+    # 4 MP and 8 MP cameras, so nothing is set beside the thesis's rows (it used to be)
+    assert "## Beside the thesis" in md and "| fake+thesis | 4mp |" not in md
+    assert "No cell of this run has a thesis resolution" in md and "4mp-small 578x434" in md
+
+
+def test_thesis_comparison_needs_the_thesis_resolution():
+    from deckpose.evaluate.report import thesis_comparison
+
+    row = dict(detector="cog", method="pnp", table_height_m=20.0, max_roll=0.1, max_pitch=0.1,
+               max_yaw=0.1, max_height=0.01, centroid_rms_mean_px=0.05)
+    table = pd.DataFrame([dict(row, camera="4mp-thesis"), dict(row, camera="4mp-640x480")])
+    lines = thesis_comparison(table, {"4mp-thesis": (2312, 1734), "4mp-640x480": (640, 480)})
+    rows = [ln for ln in lines if ln.startswith("| cog+pnp")]
+    assert len(rows) == 1 and rows[0].startswith("| cog+pnp | 4mp | 20 |")
 
 
 def test_missing_stage_names_the_command(tmp_path, capsys):
