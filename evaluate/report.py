@@ -40,9 +40,10 @@ def _legend(ax: plt.Axes, **kw) -> None:
         ax.text(0.5, 0.5, "no finite values", transform=ax.transAxes, ha="center", va="center")
 
 
-def _save(fig: plt.Figure, path: Path) -> None:
+def _save(fig: plt.Figure, path: Path, *, layout: bool = True) -> None:
     buf = io.BytesIO()
-    fig.tight_layout()
+    if layout:
+        fig.tight_layout()
     fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
     plt.close(fig)
     with atomic_open(path, "wb") as fh:
@@ -64,6 +65,92 @@ def resolution_of(camera_name: str, size_px: tuple[int, int] | None = None) -> s
         return None
     key = camera_name.lower().split("-")[0].split("_")[0]
     return key if key in THESIS_RESOLUTIONS else None
+
+
+def saturated_cells(frames: pd.DataFrame, beacons: pd.DataFrame, full_well_e: float | None) -> set[tuple[str, float]]:
+    """``(camera, table height)`` cells where some visible beacon's core clips.
+
+    A beacon clips when the electrons of its brightest channel at the peak
+    (``spot_peak_e`` of ``beacons.parquet``) reach the sensor's full well (the manifest's
+    ``sensor.full_well_e``). Empty when either is unknown.
+    """
+    if full_well_e is None or "spot_peak_e" not in beacons:
+        return set()
+    b = beacons[beacons["visible"].astype(bool)][["frame_id", "spot_peak_e"]]
+    m = b.merge(frames[["frame_id", "camera", "camera_height_m"]], on="frame_id")
+    hit = m[m["spot_peak_e"] >= full_well_e]
+    return {(str(c), float(h)) for c, h in zip(hit["camera"], hit["camera_height_m"])}
+
+
+def plot_error_vs_resolution(table: pd.DataFrame, sizes_px: dict[str, tuple[int, int]], path: Path,
+                             saturated: set[tuple[str, float]] = frozenset()) -> None:  # type: ignore[assignment]
+    """Error sigma against megapixels: the question "which resolution?" answered first.
+
+    One column per detector + estimator (so estimators that agree cannot hide each other),
+    one row per quantity, one line per camera height (colour); each point's error bar is the
+    standard error of its sigma (``sigma / sqrt(2 (n - 1))`` over its ``n`` frames, written
+    beside it); the Cramér–Rao bound of the same frames dashed in the same colour; points
+    whose beacons clip are drawn hollow.
+    """
+    t = table.copy()
+    t["megapixels"] = [sizes_px.get(str(c), (0, 0))[0] * sizes_px.get(str(c), (0, 0))[1] / 1e6
+                       for c in t.camera]
+    t = t[t.megapixels > 0]
+    combos = sorted({(d, m) for d, m in zip(t.detector, t.method)})
+    heights = sorted(t.table_height_m.unique())
+    cmap = plt.get_cmap("viridis")
+    colour = {h: cmap(i / max(1, len(heights) - 1) * 0.9) for i, h in enumerate(heights)}
+    quantities = (("roll", "roll [deg]"), ("pitch", "pitch [deg]"), ("yaw", "yaw [deg]"), ("height", "height [m]"))
+    fig, axes = plt.subplots(len(quantities), max(1, len(combos)),
+                             figsize=(3.4 * max(1, len(combos)) + 1.5, 2.5 * len(quantities)),
+                             sharex=True, sharey="row", squeeze=False)
+    for col, (det, method) in enumerate(combos):
+        sub = t[(t.detector == det) & (t.method == method)]
+        for row, (q, label) in enumerate(quantities):
+            ax = axes[row, col]
+            for h in heights:
+                g = sub[sub.table_height_m == h].sort_values("megapixels")
+                if g.empty:
+                    continue
+                n = g.n_frames.to_numpy(float) * (1.0 - g.failure_rate.to_numpy(float))
+                y = g[f"sigma_{q}"].to_numpy(float)
+                se = y / np.sqrt(2.0 * np.maximum(n - 1.0, 1.0))
+                ax.errorbar(g.megapixels, y, yerr=se, fmt="-", color=colour[h], lw=1.2, capsize=2,
+                            label=f"{h:g} m")
+                clip = np.array([(str(c), float(h)) in saturated for c in g.camera])
+                ax.scatter(g.megapixels[~clip], y[~clip], s=18, color=colour[h], zorder=3)
+                if clip.any():
+                    ax.scatter(g.megapixels[clip], y[clip], s=30, facecolors="white",
+                               edgecolors=colour[h], zorder=3, label="beacons clip" if h == heights[0] else None)
+                if f"crb_{q}" in g and g[f"crb_{q}"].notna().any():
+                    ax.plot(g.megapixels, g[f"crb_{q}"], "--", color=colour[h], alpha=0.7, lw=1)
+                if row == 0:
+                    for x_, y_, n_ in zip(g.megapixels, y, n):
+                        ax.annotate(f"{n_:.0f}", (x_, y_), xytext=(3, 3), textcoords="offset points",
+                                    fontsize=6, color=colour[h])
+            ax.set_xscale("log")
+            ax.set_yscale("log")
+            mps = sorted(t.megapixels.unique())
+            ax.set_xticks(mps, [f"{m:.2g}" for m in mps], minor=False)
+            ax.set_xticks([], minor=True)
+            ax.grid(alpha=0.3, which="both")
+            if row == 0:
+                ax.set_title(f"{det} + {method}", fontsize=9)
+            if col == 0:
+                ax.set_ylabel(f"sigma {label}")
+            if row == len(quantities) - 1:
+                ax.set_xlabel("megapixels")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    from matplotlib.lines import Line2D
+
+    handles.append(Line2D([], [], ls="--", color="grey"))
+    labels.append("Cramér–Rao bound")
+    fig.suptitle("Error sigma against resolution (numbers: frames per point; bars: standard error "
+                 "of sigma; hollow: beacon cores clip)", fontsize=9)
+    fig.tight_layout(rect=(0, 0.05, 1, 1))
+    fig.legend(handles, labels, loc="lower center", ncol=len(labels), fontsize=7,
+               title="camera height", title_fontsize=7, frameon=False)
+    _save(fig, path, layout=False)
 
 
 def plot_error_vs_height(table: pd.DataFrame, path: Path) -> None:
@@ -112,9 +199,21 @@ def plot_distributions(errors: pd.DataFrame, path: Path) -> None:
     _save(fig, path)
 
 
-def plot_centroid_vs_size(ce_by_det: dict[str, pd.DataFrame], path: Path) -> None:
+def plot_centroid_vs_size(ce_by_det: dict[str, pd.DataFrame], path: Path,
+                          camera_of: dict[int, str] | None = None) -> None:
+    """Centroid RMS error against apparent beacon radius, one line per detector and, with
+    ``camera_of`` (frame id -> camera), per camera (line style)."""
     fig, ax = plt.subplots(figsize=(6.5, 4))
+    styles = ("o-", "s--", "^:", "d-.")
+    series = []
     for det, ce in ce_by_det.items():
+        if camera_of is None:
+            series.append((det, ce, "o-"))
+            continue
+        cams = ce.frame_id.map(camera_of)
+        for k, cam in enumerate(sorted(cams.dropna().unique())):
+            series.append((f"{det}, {cam}", ce[cams == cam], styles[k % len(styles)]))
+    for det, ce, style in series:
         if ce.empty:
             continue
         bins = np.unique(np.quantile(ce.apparent_radius_px, np.linspace(0, 1, 11)))
@@ -125,7 +224,7 @@ def plot_centroid_vs_size(ce_by_det: dict[str, pd.DataFrame], path: Path) -> Non
             if len(sel):
                 x.append(ce.apparent_radius_px[idx == b].mean())
                 y.append(np.sqrt(np.mean(sel ** 2)))
-        ax.plot(x, y, "o-", label=det)
+        ax.plot(x, y, style, label=det)
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("apparent beacon radius [px]")
@@ -145,6 +244,16 @@ def example_frame(run: rl.RunPaths, frame: pd.Series, beacons: pd.DataFrame,
     if img.ndim == 3:
         img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
     H, W = img.shape[:2]
+    b = beacons[(beacons.frame_id == frame.frame_id) & beacons.visible.astype(bool)]
+    inset = None
+    if len(b):
+        # a zoomed inset around one beacon, at native pixels, where the sub-pixel offsets
+        # between the truth and the detections show (cut before the frame is shrunk)
+        c = b.iloc[0]
+        half = max(4.0, 4.0 * float(c.get("apparent_radius_px", 2.0)))
+        x0, x1 = int(max(0, c.u_px - half)), int(min(W, c.u_px + half + 1))
+        y0, y1 = int(max(0, c.v_px - half)), int(min(H, c.v_px + half + 1))
+        inset = (c, img[y0:y1, x0:x1].copy(), (x0, x1, y0, y1))
     # matplotlib gets at most max_px on the long side (a 64 MP frame handed over whole made
     # `deckpose report` peak at 4.6 GiB); the axes keep full-resolution pixel coordinates
     scale = min(1.0, max_px / max(H, W))
@@ -153,7 +262,6 @@ def example_frame(run: rl.RunPaths, frame: pd.Series, beacons: pd.DataFrame,
                          interpolation=cv2.INTER_AREA)
     fig, ax = plt.subplots(figsize=(8, 8 * H / W))
     ax.imshow(img, cmap="gray", interpolation="nearest", extent=(-0.5, W - 0.5, H - 0.5, -0.5))
-    b = beacons[(beacons.frame_id == frame.frame_id) & beacons.visible.astype(bool)]
     ax.scatter(b.u_px, b.v_px, s=80, facecolors="none", edgecolors="lime", label="truth")
     for det, d in dets.items():
         s = d[d.frame_id == frame.frame_id]
@@ -161,6 +269,19 @@ def example_frame(run: rl.RunPaths, frame: pd.Series, beacons: pd.DataFrame,
         for _, r in s.iterrows():
             ax.annotate(str(int(r.beacon_id)), (r.u_px, r.v_px), color="yellow", fontsize=7,
                         xytext=(4, -4), textcoords="offset points")
+    if inset is not None:
+        c, crop, (x0, x1, y0, y1) = inset
+        ins = ax.inset_axes((0.02, 0.02, 0.3, 0.3))
+        ins.imshow(crop, cmap="gray", interpolation="nearest", extent=(x0 - 0.5, x1 - 0.5, y1 - 0.5, y0 - 0.5))
+        ins.scatter([c.u_px], [c.v_px], s=60, facecolors="none", edgecolors="lime")
+        for det, d in dets.items():
+            s = d[(d.frame_id == frame.frame_id) & (d.beacon_id == c.beacon_id)]
+            ins.scatter(s.u_px, s.v_px, s=30, marker="x")
+        ins.set_xlim(x0 - 0.5, x1 - 0.5)
+        ins.set_ylim(y1 - 0.5, y0 - 0.5)
+        ins.set_xticks([])
+        ins.set_yticks([])
+        ins.set_title(f"beacon {int(c.beacon_id)}, native pixels", fontsize=6, color="white")
     ax.set_title(f"frame {frame.frame_id}: {frame.camera}, {frame.camera_height_m:g} m, {frame.get('lighting', '')}")
     _legend(ax, fontsize=7, loc="lower right")
     ax.set_axis_off()
@@ -260,9 +381,19 @@ def write_report(run: rl.RunPaths) -> Path:
     table = resolution_table(errors)
     fig_dir = run.report_dir / "figures"
     fig_dir.mkdir(parents=True, exist_ok=True)
+    cams = rl.read_cameras(run, sorted(frames["camera"].astype(str).unique()))
+    sizes = {n: (c.width_px, c.height_px) for n, c in cams.items()}
+    import json
+
+    manifest = json.loads(run.manifest.read_text()) if run.manifest.exists() else {}
+    full_well = (manifest.get("sensor") or {}).get("full_well_e")
+    clipped = saturated_cells(frames, beacons, full_well)
+    plot_error_vs_resolution(table, sizes, fig_dir / "error_vs_resolution.png", clipped)
     plot_error_vs_height(table, fig_dir / "error_vs_height.png")
     plot_distributions(errors, fig_dir / "error_distributions.png")
-    plot_centroid_vs_size({d: centroid_errors(beacons, df) for d, df in dets.items()}, fig_dir / "centroid_vs_size.png")
+    camera_of = dict(zip(frames.frame_id.astype(int), frames.camera.astype(str)))
+    plot_centroid_vs_size({d: centroid_errors(beacons, df) for d, df in dets.items()},
+                          fig_dir / "centroid_vs_size.png", camera_of)
     examples = []
     for cam, g in frames.groupby("camera"):
         row = g.sort_values("camera_height_m").iloc[0]
@@ -276,6 +407,11 @@ def write_report(run: rl.RunPaths) -> Path:
              f"detectors {', '.join(dets) or 'none'}; estimators {', '.join(sorted(errors.method.unique()))}.", "",
              "Share of frames with an estimate flagged ok: " + ", ".join(f"{d}+{m} {v:.1%}" for (d, m), v in ok.items()) + ".", "",
              *provenance_lines(run),
+             "## Error against resolution", "",
+             "![error vs resolution](figures/error_vs_resolution.png)", "",
+             *([f"Beacon cores clip (hollow points) at: "
+                + ", ".join(f"{c} {h:g} m" for c, h in sorted(clipped)) + "."] if clipped else []),
+             "",
              "## Error vs height", "", "![error vs height](figures/error_vs_height.png)", "",
              "## Error distributions", "", "![error distributions](figures/error_distributions.png)", "",
              "## Centroid error vs apparent beacon size", "", "![centroid vs size](figures/centroid_vs_size.png)", "",
@@ -283,8 +419,7 @@ def write_report(run: rl.RunPaths) -> Path:
              "The thesis simulated eq. 4.1 noise on ideal pixel coordinates; here the errors come from "
              "rendered frames and real detectors. Its smallest noise level (4 px, Tables 4.4, 4.7, 4.10, 4.13) "
              "is shown.", ""]
-    cams = rl.read_cameras(run, sorted(frames["camera"].astype(str).unique()))
-    lines += thesis_comparison(table, {n: (c.width_px, c.height_px) for n, c in cams.items()})
+    lines += thesis_comparison(table, sizes)
     lines += ["", "## Example frames", ""]
     lines += [f"![{cam}](figures/{name})" for cam, name in examples]
     lines += ["", resolution_markdown(table).replace("# Resolution tables", "## Resolution tables", 1)]

@@ -40,6 +40,27 @@ def _step(n: int, total: int, text: str) -> None:
     print(f"[{n}/{total}] {text}", flush=True)
 
 
+def _drop_stale_demo(run_dir: Path, config: object) -> None:
+    """Remove a demo run rendered from an older embedded config (after an update), which
+    could not be resumed; a folder that holds anything but a demo run is left alone."""
+    import json
+    import shutil
+
+    from deckpose.render.config import config_to_dict
+
+    manifest = run_dir / "manifest.json"
+    if not manifest.is_file():
+        return
+    try:
+        old = json.loads(manifest.read_text())
+    except (OSError, ValueError):
+        return
+    now = json.loads(json.dumps(config_to_dict(config)))  # type: ignore[arg-type]
+    if old.get("config") != now and (old.get("config") or {}).get("name") == now.get("name"):
+        print(f"{run_dir} holds a demo of an older embedded config; rendering it anew", flush=True)
+        shutil.rmtree(run_dir)
+
+
 def run(args: argparse.Namespace) -> int:
     from tqdm import tqdm
 
@@ -50,6 +71,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     out = Path(args.output)
     run_dir = out / "run"
+    _drop_stale_demo(run_dir, default_config())
     total = 6
     options = PipelineOptions(run_dir=run_dir, detectors=(args.detector,), methods=METHODS, workers=args.workers,
                               progress=not args.no_progress, command=("deckpose", "demo", "-o", str(out)))

@@ -111,7 +111,10 @@ def test_report(run):
     assert main(["evaluate", str(run), "--no-mcap"]) == 0
     assert main(["report", str(run)]) == 0
     md = (run / "report" / "report.md").read_text()
-    for fig in ("error_vs_height.png", "error_distributions.png", "centroid_vs_size.png", "example_4mp-small.png"):
+    # the first figure answers "which resolution?"
+    assert md.index("error_vs_resolution.png") < md.index("error_vs_height.png")
+    for fig in ("error_vs_resolution.png", "error_vs_height.png", "error_distributions.png",
+                "centroid_vs_size.png", "example_4mp-small.png"):
         assert f"figures/{fig}" in md
         assert (run / "report" / "figures" / fig).stat().st_size > 1000
     # the fake run's cameras are 578x434 and 960x540: named 4mp/8mp, but not the thesis's
@@ -185,17 +188,18 @@ def test_example_frame_hands_matplotlib_at_most_max_px(run, tmp_path, monkeypatc
     big[1500, 2000] = 65535
     cv2.imwrite(str(tmp_path / "big.png"), big)
     row["image"] = str(tmp_path / "big.png")  # an absolute path joins to itself
-    seen = {}
+    seen = []
     real = matplotlib.axes.Axes.imshow
 
     def spy(self, X, *a, **k):
-        seen["shape"], seen["extent"] = np.shape(X), k.get("extent")
+        seen.append((np.shape(X), k.get("extent")))
         return real(self, X, *a, **k)
 
     monkeypatch.setattr(matplotlib.axes.Axes, "imshow", spy)
     example_frame(paths, row, beacons, {}, tmp_path / "ex.png", max_px=800)
-    assert max(seen["shape"][:2]) == 800
-    assert seen["extent"] == (-0.5, 3999.5, 2999.5, -0.5)
+    shape, extent = seen[0]  # the frame (then the zoomed inset, a few native pixels)
+    assert max(shape[:2]) == 800 and all(max(s[:2]) <= 800 for s, _ in seen)
+    assert extent == (-0.5, 3999.5, 2999.5, -0.5)
     assert (tmp_path / "ex.png").stat().st_size > 1000
 
 
