@@ -13,22 +13,25 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import logging
 import os
 import platform
 from pathlib import Path
 from typing import Any
 
 import pandas as pd
-
-from deckpose.atomic_io import atomic_open
-from deckpose.camera_info import write_camera_info
 from deckpose.detect.identify import IdentifyOptions
 from deckpose.detect.pipeline import FrameDetections, detect_frame
 from deckpose.detect.registry import DetectorOptions
 from deckpose.detect.sources import FrameSet, load_frame
-from deckpose.errors import ConfigError
 from deckpose.detect.tables import detection_rows, write_tables
+
+from deckpose.atomic_io import atomic_open
+from deckpose.camera_info import write_camera_info
+from deckpose.errors import ConfigError
 from deckpose.layout import layout_to_dict
+
+log = logging.getLogger(__name__)
 
 RUN_FORMAT = "deckpose-detections/1"
 
@@ -71,7 +74,7 @@ def detect_frames_with(
     det_parts: dict[str, list[pd.DataFrame]] = {d: [] for d in detectors}
     frame_rows: dict[str, list[dict[str, Any]]] = {d: [] for d in detectors}
     desc = f"detect {','.join(detectors)}"
-    for src in tqdm(frameset.sources, desc=desc, unit="frame", disable=not progress):
+    for src in tqdm(frameset.sources, desc=desc, unit="frame", disable=None if progress else True):
         frame = load_frame(src, frameset.cameras[src.camera_name])
         for detector in detectors:
             if isinstance(frame, str):
@@ -84,6 +87,8 @@ def detect_frames_with(
                     options=options,
                     identify_options=identify_options,
                 )
+            log.debug("frame %d, %s: %s", src.frame_id, detector,
+                      "ok" if fd.ok else f"failed: {fd.reason}")
             det_parts[detector].append(detection_rows(fd))
             frame_rows[detector].append(
                 {

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import errno
 import json
+import logging
 import os
 import platform
 import shutil
@@ -32,14 +33,16 @@ from typing import Any, Iterable
 
 import cv2
 import pandas as pd
+from deckpose.render.config import RenderConfig, config_to_dict, load_config
+from deckpose.render.plan import FrameSpec, plan_frames
 
 from deckpose.atomic_io import atomic_open, atomic_path, remove_stale_temps
 from deckpose.camera_info import camera_to_dict, write_camera_info
 from deckpose.errors import ConfigError
 from deckpose.layout import layout_to_dict
 from deckpose.output_folder import LOCK_NAME
-from deckpose.render.config import RenderConfig, config_to_dict, load_config
-from deckpose.render.plan import FrameSpec, plan_frames
+
+log = logging.getLogger(__name__)
 
 FORMAT = "deckpose-dataset/1"
 #: PNG settings: the SUB filter at the default zlib level (lossless; same size as OpenCV's
@@ -174,7 +177,8 @@ def _run_local(cfg: RenderConfig, todo: list[FrameSpec], out: Path, workers: int
 
 def _run_dask(cfg: RenderConfig, todo: list[FrameSpec], out: Path, address: str) -> Iterable[int]:
     try:
-        from distributed import Client, as_completed as dask_completed
+        from distributed import Client
+        from distributed import as_completed as dask_completed
     except ImportError:
         raise ConfigError("--scheduler needs dask.distributed: pip install 'deckpose[cluster]'") from None
     with Client(address) as client:
@@ -233,9 +237,11 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
     out = Path(out_dir)
     _prepare(cfg, plan, out, resume)
     todo = [s for s in plan if not _part_path(out, s.frame_id).exists()]
+    log.info("%d of %d frames to render into %s (%s)", len(todo), len(plan), out,
+             f"scheduler {scheduler}" if scheduler else f"{workers} worker processes")
     from tqdm import tqdm
 
-    bar = tqdm(total=len(plan), initial=len(plan) - len(todo), unit="frame", disable=not progress,
+    bar = tqdm(total=len(plan), initial=len(plan) - len(todo), unit="frame", disable=None if progress else True,
                desc=f"render {cfg.name}")
     runner = _run_dask(cfg, todo, out, scheduler) if scheduler else _run_local(cfg, todo, out, workers)
     for _ in runner:
@@ -247,4 +253,5 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
     with atomic_path(out / "beacons.parquet") as tmp:
         bdf.to_parquet(tmp, index=False)
     _write_json(out / "manifest.json", _manifest(cfg, plan, complete=True))
+    log.info("dataset %s complete: %d frames", out, len(plan))
     return out

@@ -12,6 +12,7 @@ import sys
 from collections.abc import Sequence
 
 from deckpose.cli import exit_codes
+from deckpose.cli.common_options import add_verbosity, configure_logging
 from deckpose.errors import DeckposeError
 
 #: Modules that register a subcommand, in the order ``--help`` lists them.
@@ -47,9 +48,15 @@ def build_parser() -> argparse.ArgumentParser:
         action="store_true",
         help="show the Python traceback of an unexpected error (otherwise one line)",
     )
+    add_verbosity(parser)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in SUBCOMMAND_MODULES:
         importlib.import_module(name).register(sub)
+    for sp in sub.choices.values():  # -v/-q after the command too (set only when given there)
+        sp.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
+                        help="log more: -v what each stage does, -vv debugging detail")
+        sp.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
+                        help="log errors only")
     return parser
 
 
@@ -84,6 +91,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     if not getattr(args, "func", None):
         parser.print_help()
         return 2
+    configure_logging(args)
     try:
         return int(args.func(args) or 0)
     except DeckposeError as exc:

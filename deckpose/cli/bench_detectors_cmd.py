@@ -21,8 +21,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     )
     p.add_argument("dataset", metavar="DATASET", help="dataset folder (deckpose-dataset/1)")
     p.add_argument("--detectors", help="comma-separated detector names (default: all registered)")
-    p.add_argument("-o", "--output", "--out", dest="out",
+    p.add_argument("-o", "--output", dest="out", metavar="DIR",
                    help="report folder (default DATASET/bench-detectors)")
+    p.add_argument("--out", dest="out", help=argparse.SUPPRESS)  # the old spelling, unlisted
     p.add_argument(
         "--threshold-sigma", type=float, default=6.0, help="detection threshold (sigmas)"
     )

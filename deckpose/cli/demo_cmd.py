@@ -13,6 +13,8 @@ import argparse
 import time
 from pathlib import Path
 
+from deckpose.cli.common_options import HelpFormatter, add_progress, add_workers, workers
+
 METHODS = ("thesis", "conic", "pnp")
 
 
@@ -25,14 +27,14 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
             "thesis, conic and pnp estimators, evaluate against the ground truth (tables, MCAP log for "
             "Foxglove) and write a report; then reproduce the thesis's tables at reduced scale."
         ),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     p.add_argument("-o", "--output", type=Path, default=Path("runs/demo"), help="output folder")
     p.add_argument("--detector", default="cog", help="beacon detector")
-    p.add_argument("--workers", type=int, default=2, help="render worker processes")
+    add_workers(p, "render")
     p.add_argument("--repetitions", type=int, default=20, help="thesis-table repetitions (500 = full scale)")
     p.add_argument("--seed", type=int, default=20221, help="seed of the thesis-table Monte Carlo")
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_progress(p)
     p.set_defaults(func=run)
 
 
@@ -73,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     run_dir = out / "run"
     _drop_stale_demo(run_dir, default_config())
     total = 6
-    options = PipelineOptions(run_dir=run_dir, detectors=(args.detector,), methods=METHODS, workers=args.workers,
+    options = PipelineOptions(run_dir=run_dir, detectors=(args.detector,), methods=METHODS, workers=workers(args),
                               progress=not args.no_progress, command=("deckpose", "demo", "-o", str(out)))
     paths = run_pipeline(default_config(), options, config_label="the embedded default (configs/smoke.yaml)",
                          step=lambda n, _total, text: _step(n, total, text))

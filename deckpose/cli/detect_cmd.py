@@ -25,10 +25,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         help="dataset folder, or a folder of images (not needed with --list)",
     )
     p.add_argument("--detector", default="cog", help="detector name (see --list); default cog")
+    p.add_argument("--out", dest="out", help=argparse.SUPPRESS)  # the old spelling, unlisted
     p.add_argument(
         "-o",
         "--output",
-        "--out",
         dest="out",
         metavar="DIR",
         help="self-contained output folder (detections.parquet, detect_frames.parquet, cameras/, "
@@ -36,12 +36,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         "<detector>.frames.parquet, where 'deckpose estimate --run DATASET' reads them; "
         "required for a folder of images",
     )
+    p.add_argument("--camera-info", dest="camera_info", help=argparse.SUPPRESS)  # old spelling
     p.add_argument(
         "--camera",
-        "--camera-info",
         dest="camera_info",
         metavar="CAMERA.yaml",
-        help="ROS camera_info YAML for a folder of images (also --camera-info)",
+        help="ROS camera_info YAML for a folder of images",
     )
     p.add_argument(
         "--layout", help="layout YAML for a folder of images (default: the standard layout)"

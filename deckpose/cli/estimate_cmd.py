@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from deckpose.cli.common_options import HelpFormatter, add_progress
 from deckpose.cli.exit_codes import frames_exit_code
 
 if TYPE_CHECKING:
@@ -36,7 +37,7 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
             "(for --method thesis: thesis_roll_deg, thesis_pitch_deg, thesis_yaw_deg, the "
             "thesis's own X-Y-Z angles). A frame that cannot be solved gets ok=false and a reason."
         ),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     p.add_argument("detections", type=Path, nargs="?", help="detections table (.csv or .parquet)")
     p.add_argument("--camera", type=Path, help="ROS camera_info YAML of the camera")
@@ -63,6 +64,7 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
                    "ring's size in the image, the same pose when it is small; ml_* columns keep the ML pose, which "
                    "stays the pose (posterior_mean = 0) where the posterior cannot be sampled")
     p.add_argument("--sigma-px", type=float, default=1.0, help="pixel sigma when detections carry no covariance")
+    add_progress(p)
     p.add_argument("--strict", action="store_true",
                    help="exit 4 when any frame failed (default: 0 when some succeeded, 3 when none did)")
     p.set_defaults(func=run)
@@ -106,7 +108,7 @@ def run(args: argparse.Namespace) -> int:
     # detections of your own without ids (beacon_id -1): identified here, as detect does
     frames, unidentified = identify_unassigned(table, frames, layout, camera)
     ids = list(frames)
-    with tqdm(total=len(ids), desc=f"estimate ({spec.label})", unit="frame", disable=None,
+    with tqdm(total=len(ids), desc=f"estimate ({spec.label})", unit="frame", disable=True if args.no_progress else None,
               leave=False) as bar:
         results = _estimate_in_chunks(spec.name, [frames[i] for i in ids], camera, layout, options,
                                       None, bar)
@@ -202,7 +204,7 @@ def _run_folder(args: argparse.Namespace, spec: registry.MethodSpec) -> int:
     ids = [int(f) for f in frames.index]
     R_all = rl.R_world_from_cam_all(frames)
     results: list[PoseEstimate | None] = [None] * len(ids)
-    with tqdm(total=len(ids), desc=f"estimate ({spec.label})", unit="frame", disable=None,
+    with tqdm(total=len(ids), desc=f"estimate ({spec.label})", unit="frame", disable=True if args.no_progress else None,
               leave=False) as bar:
         # One batch per camera, each frame with its own camera attitude.
         for cam_name, rows in frames.reset_index().groupby("camera", sort=True).indices.items():

@@ -5,6 +5,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from deckpose.cli.common_options import (
+    HelpFormatter,
+    add_output,
+    add_progress,
+    add_workers,
+    workers,
+)
+
 
 def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None:
     p = sub.add_parser(
@@ -15,13 +23,17 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
             "write the comparison into OUTPUT/estimators.md (between marker comments) and "
             "OUTPUT/estimators_thesis_tables.csv."
         ),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
-    p.add_argument("--methods", nargs="+", default=["thesis"], help="estimators to compare")
+    p.add_argument("--method", dest="methods", action="append", default=None, metavar="A,B",
+                   help="estimators to compare, comma-separated as in 'pipeline' (default: thesis)")
+    # the old spelling, a space-separated list: still parsed, not listed
+    p.add_argument("--methods", dest="methods", nargs="+", action="extend", help=argparse.SUPPRESS)
     p.add_argument("--repetitions", type=int, default=20, help="passes over the 495-sample series per cell")
-    p.add_argument("--seed", type=int, default=20221)
-    p.add_argument("--workers", type=int, default=0, help="worker processes (0 = one per core)")
-    p.add_argument("-o", "--output", type=Path, default=Path("reports"))
+    p.add_argument("--seed", type=int, default=20221, help="seed of the noise draws (recorded with the tables)")
+    add_workers(p, "Monte Carlo")
+    add_output(p, "output folder", default=Path("reports"))
+    add_progress(p)
     p.set_defaults(func=run)
 
 
@@ -32,18 +44,19 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.estimate import registry
     from deckpose.evaluate.estimator_tables import write_estimator_tables
 
+    args.methods = [m.strip() for item in (args.methods or ["thesis"]) for m in item.split(",") if m.strip()]
     unknown = [m for m in args.methods if m not in registry.names()]
     if unknown:
         raise ConfigError(f"unknown estimator(s) {unknown}; choose from {registry.names()}")
     if args.repetitions < 1:
         raise ConfigError("--repetitions must be at least 1")
-    bar = tqdm(desc="estimator tables", unit="cell", disable=None)
+    bar = tqdm(desc="estimator tables", unit="cell", disable=True if args.no_progress else None)
 
     def progress(done: int, total: int) -> None:
         bar.total = total
         bar.update(done - bar.n)
 
-    md = write_estimator_tables(args.output, args.methods, args.repetitions, args.seed, args.workers, progress)
+    md = write_estimator_tables(args.output, args.methods, args.repetitions, args.seed, workers(args), progress)
     bar.close()
     print(f"wrote {md}")
     return 0

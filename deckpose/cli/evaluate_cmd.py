@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from deckpose.cli.common_options import HelpFormatter
+
 
 def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None:
     p = sub.add_parser(
@@ -16,7 +18,7 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
             "RUN/evaluation/resolution_tables.{md,csv} (thesis-format tables per detector x estimator x "
             "resolution), RUN/log.mcap and RUN/foxglove_layout.json (open the log in Foxglove and import the layout)."
         ),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     p.add_argument("run", type=Path, help="run folder")
     p.add_argument("--no-mcap", action="store_true", help="skip the MCAP log")
@@ -26,7 +28,7 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
         "report",
         help="write a Markdown report with plots for an evaluated run",
         description="Write RUN/report/report.md with figures under RUN/report/figures (needs 'deckpose evaluate RUN' first).",
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     r.add_argument("run", type=Path, help="run folder")
     r.set_defaults(func=run_report)
@@ -35,7 +37,6 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
 def run_evaluate(args: argparse.Namespace) -> int:
     from deckpose.evaluate.pipeline import evaluate_run
     from deckpose.evaluate.run_layout import run_paths
-
     from deckpose.output_folder import claim_output
 
     run = run_paths(args.run)
@@ -50,7 +51,6 @@ def run_evaluate(args: argparse.Namespace) -> int:
 def run_report(args: argparse.Namespace) -> int:
     from deckpose.evaluate.report import write_report
     from deckpose.evaluate.run_layout import run_paths
-
     from deckpose.output_folder import claim_output
 
     run = run_paths(args.run)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import logging
 import os
 import platform
 import shutil
@@ -22,7 +23,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from deckpose.atomic_io import atomic_open
+from deckpose.cli.common_options import HelpFormatter, add_progress, add_workers, workers
 from deckpose.errors import ConfigError, DeckposeError
+
+log = logging.getLogger(__name__)
 
 DEFAULT_METHODS: tuple[str, ...] = ("thesis", "conic", "pnp")
 #: The stages, in order; ``--from-stage`` skips those before it (their outputs must exist).
@@ -95,7 +99,7 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
             "resolution tables, MCAP log) and write the report. Example: deckpose pipeline "
             "configs/thesis_sweep_reference.yaml runs/thesis_sweep --workers 2 --publish reports/thesis_sweep"
         ),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     p.add_argument("config", type=Path, help="render config YAML (see configs/)")
     p.add_argument("run", type=Path, help="run folder (the dataset; later stages add to it)")
@@ -103,7 +107,7 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
     p.add_argument("--method", type=_csv, default=",".join(DEFAULT_METHODS),
                    help="estimator name(s), comma-separated, each optionally with +refine or +mean "
                    "(posterior mean), e.g. thesis,pnp,pnp+mean")
-    p.add_argument("--workers", type=int, default=1, help="local render worker processes")
+    add_workers(p, "local render")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler for the render stage")
     p.add_argument("--no-mcap", action="store_true", help="skip the MCAP log")
     p.add_argument("--publish", type=Path, default=None, metavar="DIR",
@@ -111,7 +115,7 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
     p.add_argument("--from-stage", choices=STAGES, default="render",
                    help="start at this stage, reusing the earlier stages' outputs in RUN (e.g. 'report' "
                         "after changing only the report)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_progress(p)
     p.set_defaults(func=run)
 
 
@@ -120,7 +124,7 @@ def run(args: argparse.Namespace) -> int:
 
     config = load_config(args.config)
     options = PipelineOptions(
-        run_dir=args.run, detectors=tuple(args.detector), methods=tuple(args.method), workers=args.workers,
+        run_dir=args.run, detectors=tuple(args.detector), methods=tuple(args.method), workers=workers(args),
         scheduler=args.scheduler, mcap=not args.no_mcap, progress=not args.no_progress,
         publish_dir=args.publish, from_stage=args.from_stage, command=_canonical_command(args),
     )
@@ -133,7 +137,7 @@ def run(args: argparse.Namespace) -> int:
 def _canonical_command(args: argparse.Namespace) -> tuple[str, ...]:
     """The command line that reproduces ``args`` (recorded in ``pipeline.json``)."""
     cmd = ["deckpose", "pipeline", str(args.config), str(args.run), "--detector", ",".join(args.detector),
-           "--method", ",".join(args.method), "--workers", str(args.workers)]
+           "--method", ",".join(args.method), "--workers", str(workers(args))]
     if args.scheduler:
         cmd += ["--scheduler", args.scheduler]
     if args.no_mcap:
@@ -230,24 +234,28 @@ def run_pipeline(config: object, options: PipelineOptions, config_label: str = "
         render_dataset(config, run_dir, workers=options.workers, resume=True, scheduler=options.scheduler,
                        progress=options.progress)
         seconds["render"] = time.perf_counter() - t
+        log.info("stage render: %.1f s", seconds["render"])
     t = time.perf_counter()
     if runs("detect"):
         say(2, total, f"detect beacons ({', '.join(options.detectors)})")
         for det in options.detectors:
             sub(["detect", str(run_dir), "--detector", det, *no_progress])
         seconds["detect"] = time.perf_counter() - t
+        log.info("stage detect: %.1f s", seconds["detect"])
     t = time.perf_counter()
     if runs("estimate"):
         say(3, total, f"estimate the pose ({', '.join(options.methods)})")
         for det in options.detectors:
             for method in options.methods:
-                sub(["estimate", "--run", str(run_dir), "--detector", det, "--method", method])
+                sub(["estimate", "--run", str(run_dir), "--detector", det, "--method", method, *no_progress])
         seconds["estimate"] = time.perf_counter() - t
+        log.info("stage estimate: %.1f s", seconds["estimate"])
     t = time.perf_counter()
     if runs("evaluate"):
         say(4, total, "evaluate against the ground truth" + (", write the MCAP log" if options.mcap else ""))
         sub(["evaluate", str(run_dir), *([] if options.mcap else ["--no-mcap"])])
         seconds["evaluate"] = time.perf_counter() - t
+        log.info("stage evaluate: %.1f s", seconds["evaluate"])
     previous = _read_record(run_dir)
     stage_seconds = {k: v for k, v in previous.get("stage_seconds", {}).items()
                      if k in STAGES and not runs(k)}

@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from deckpose.cli.common_options import add_output, add_progress, add_workers, workers
+
 
 def register(subparsers: Any) -> None:
     """Add the ``render`` subcommand."""
@@ -20,27 +22,24 @@ def register(subparsers: Any) -> None:
                    help="render config YAML (see configs/); default: the embedded smoke config")
     p.add_argument("out", type=Path, nargs="?", default=None,
                    help="dataset folder (default: datasets/<config name>); or give it with -o")
-    p.add_argument("-o", "--output", type=Path, default=None, metavar="DIR",
-                   help="dataset folder, as on every command that writes (the same as OUT)")
-    p.add_argument("--workers", type=int, default=1,
-                   help="local worker processes (default 1; 0 renders in this process)")
+    add_output(p, "dataset folder, as on every command that writes (the same as OUT)", metavar="DIR")
+    add_workers(p, "local render", zero="render in this process")
     p.add_argument("--backend", choices=["egl", "osmesa"], default=None,
                    help="headless GL backend (overrides the config)")
     p.add_argument("--resume", action="store_true", help="finish an interrupted run of the same config")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="Dask scheduler address (tcp://host:8786); frames run on its workers")
     p.add_argument("--seed", type=int, default=None, help="override the config's seed")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress(p)
     p.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:
     import dataclasses
 
+    from deckpose.errors import ConfigError
     from deckpose.render.config import Backend, default_config, load_config
     from deckpose.render.dataset import render_dataset
-
-    from deckpose.errors import ConfigError
 
     if args.output is not None and args.out is not None and args.output != args.out:
         raise ConfigError(f"two output folders given ({args.out} and -o {args.output}); give one")
@@ -55,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     # room for at least the largest frame (uncompressed), checked before anything is written
     biggest = max(c.model().width_px * c.model().height_px for c in cfg.cameras)
     claim_output(out, need_bytes=biggest * 3 * (2 if cfg.sensor.bit_depth > 8 else 1), what="render")
-    path = render_dataset(cfg, out, workers=args.workers, resume=args.resume, scheduler=args.scheduler,
+    path = render_dataset(cfg, out, workers=workers(args), resume=args.resume, scheduler=args.scheduler,
                           progress=not args.no_progress)
     print(f"dataset written to {path}")
     return 0

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from deckpose.cli.common_options import HelpFormatter, add_progress, add_workers, workers
+
 
 def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None:
     p = sub.add_parser(
@@ -16,12 +18,13 @@ def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None
             "thesis_tables.md, thesis_tables.csv and a manifest, each cell as ours / thesis / ratio. "
             "Full scale (500 repetitions, ~15 million estimates) takes a few minutes on 2 cores."
         ),
-        formatter_class=argparse.ArgumentDefaultsHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     p.add_argument("-o", "--output", type=Path, default=Path("reports"), help="output folder")
     p.add_argument("--repetitions", type=int, default=500, help="passes over the 495-sample series per cell")
     p.add_argument("--seed", type=int, default=20221, help="random seed (recorded in the manifest)")
-    p.add_argument("--workers", type=int, default=0, help="worker processes (0 = one per core)")
+    add_workers(p, "Monte Carlo")
+    add_progress(p)
     p.set_defaults(func=run)
 
 
@@ -30,8 +33,9 @@ def run(args: argparse.Namespace) -> int:
 
     from deckpose.evaluate.thesis_tables import ThesisTablesConfig, cell_specs, run_thesis_tables
 
-    config = ThesisTablesConfig(repetitions=args.repetitions, seed=args.seed, workers=args.workers)
-    bar = tqdm(total=len(cell_specs()), desc="thesis tables", unit="cell", disable=None)
+    config = ThesisTablesConfig(repetitions=args.repetitions, seed=args.seed, workers=workers(args))
+    bar = tqdm(total=len(cell_specs()), desc="thesis tables", unit="cell",
+               disable=True if args.no_progress else None)
 
     def progress(done: int, total: int) -> None:
         bar.update(done - bar.n)

@@ -1,0 +1,83 @@
+"""Options that several commands share, spelled and defaulted once.
+
+* ``-o/--output``: where a command writes;
+* ``--workers N``: worker processes, by default one per CPU core on every command;
+* ``--no-progress``: no progress bars (they are off anyway when the output is not a
+  terminal: tqdm's ``disable=None``);
+* ``-v/--verbose`` and ``-q/--quiet`` (top level): the log level of the ``deckpose``
+  loggers (warnings by default, ``-v`` info, ``-vv`` debug, ``-q`` errors only).
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import os
+from pathlib import Path
+from typing import Any
+
+
+class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
+    """Shows an option's default, unless it has none worth saying (``None``, ``False``) or its
+    help already says it."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if action.default in (None, False, argparse.SUPPRESS) or "default" in text:
+            return text
+        return super()._get_help_string(action) or text
+
+
+def default_workers() -> int:
+    """The ``--workers`` default: one per CPU core."""
+    return os.cpu_count() or 1
+
+
+def add_workers(p: argparse.ArgumentParser, what: str, *, zero: str | None = None) -> None:
+    """``--workers N`` (default one per core); ``zero`` says what 0 means, if it is allowed."""
+    extra = f"; 0 = {zero}" if zero else ""
+    p.add_argument("--workers", type=int, default=None, metavar="N",
+                   help=f"{what} worker processes (default: one per CPU core, {default_workers()} "
+                        f"here{extra})")
+
+
+def workers(args: argparse.Namespace) -> int:
+    """The ``--workers`` value, the default resolved."""
+    w = getattr(args, "workers", None)
+    return default_workers() if w is None else int(w)
+
+
+def add_output(p: argparse.ArgumentParser, help: str, *, default: Path | None = None,
+               required: bool = False, metavar: str = "PATH") -> None:
+    """``-o/--output`` (the old ``--out`` spelling still parses, unlisted)."""
+    p.add_argument("-o", "--output", dest="output", type=Path, default=default,
+                   required=required, metavar=metavar,
+                   help=help + (f" (default: {default})" if default is not None else ""))
+    p.add_argument("--out", dest="output", type=Path, help=argparse.SUPPRESS)
+
+
+def add_progress(p: argparse.ArgumentParser) -> None:
+    """``--no-progress``."""
+    p.add_argument("--no-progress", action="store_true",
+                   help="no progress bars (they are off anyway when the output is not a terminal)")
+
+
+def add_verbosity(p: argparse.ArgumentParser) -> None:
+    """``-v/--verbose`` (repeatable) and ``-q/--quiet`` on the top-level parser."""
+    p.add_argument("-v", "--verbose", action="count", default=0,
+                   help="log more: -v what each stage does, -vv debugging detail")
+    p.add_argument("-q", "--quiet", action="store_true", help="log errors only")
+
+
+def configure_logging(args: Any) -> None:
+    """Set the ``deckpose`` loggers' level from ``-v``/``-q`` (stderr, one line a record)."""
+    level = logging.ERROR if getattr(args, "quiet", False) else (
+        logging.WARNING, logging.INFO, logging.DEBUG)[min(2, int(getattr(args, "verbose", 0) or 0))]
+    log = logging.getLogger("deckpose")
+    log.setLevel(level)
+    if not any(getattr(h, "_deckpose", False) for h in log.handlers):
+        handler = logging.StreamHandler()
+        handler.setFormatter(logging.Formatter("deckpose %(levelname)s %(name)s: %(message)s"))
+        handler._deckpose = True  # type: ignore[attr-defined]
+        log.addHandler(handler)
+    log.propagate = False

@@ -1,0 +1,60 @@
+"""One convention everywhere: checked on every command's parser, not a list kept by hand."""
+
+from __future__ import annotations
+
+import argparse
+
+import pytest
+
+from deckpose.cli import build_parser, main
+from deckpose.cli.common_options import default_workers
+
+PARSER = build_parser()
+COMMANDS = [a for a in PARSER._actions if isinstance(a, argparse._SubParsersAction)][0].choices
+#: Commands that write files (each takes -o/--output, or writes into the run folder it is given).
+WRITE_INTO_RUN = {"evaluate", "report", "pipeline"}
+#: Commands with a progress bar.
+LONG = {"demo", "pipeline", "render", "detect", "bench-detectors", "estimate", "thesis-tables",
+        "estimator-tables"}
+
+
+@pytest.mark.parametrize("name", sorted(COMMANDS))
+def test_every_option_has_help_and_no_default_none(name):
+    sp = COMMANDS[name]
+    for a in sp._actions:
+        if a.help == argparse.SUPPRESS or isinstance(a, argparse._HelpAction):
+            continue
+        assert a.help, f"{name}: {a.option_strings or a.dest} has no help"
+    assert "default: None" not in sp.format_help()
+
+
+@pytest.mark.parametrize("name", sorted(COMMANDS))
+def test_one_spelling_for_output_camera_and_workers(name):
+    sp = COMMANDS[name]
+    listed = {s for a in sp._actions if a.help != argparse.SUPPRESS for s in a.option_strings}
+    text = sp.format_help()
+    assert "--out " not in text and "--camera-info" not in text  # old spellings parse, unlisted
+    if name not in WRITE_INTO_RUN and name not in {"crb"}:
+        assert {"-o", "--output"} <= listed, name
+    workers = [a for a in sp._actions if "--workers" in a.option_strings]
+    if workers:
+        assert workers[0].default is None and f"{default_workers()} here" in workers[0].help
+    if name in LONG:
+        assert "--no-progress" in listed, name
+    assert {"-v", "-q"} <= listed
+
+
+def test_estimator_tables_takes_the_comma_list_as_pipeline_does(tmp_path):
+    # the comma form used to fail ("unknown estimator(s) ['thesis,pnp']")
+    assert main(["estimator-tables", "--method", "thesis,nosuch", "-o", str(tmp_path)]) == 2
+    args = PARSER.parse_args(["estimator-tables", "--method", "thesis,pnp"])
+    assert args.methods == ["thesis,pnp"]  # split in run(), as every comma list is
+    old = PARSER.parse_args(["estimator-tables", "--methods", "thesis", "pnp"])
+    assert old.methods == ["thesis", "pnp"]
+
+
+def test_verbosity_after_the_command(tmp_path, capsys):
+    args = PARSER.parse_args(["detect", "--list", "-v"])
+    assert args.verbose == 1
+    args = PARSER.parse_args(["-q", "detect", "--list"])
+    assert args.quiet is True
