@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
-from deckpose.estimate.least_squares import Fit
+from deckpose.estimate.least_squares import Fit, levenberg_marquardt
 from deckpose.estimate.observations import Observations
 from deckpose.estimate.pose_model import relative_from_params
 
@@ -146,8 +146,16 @@ def pick_candidate(
         "add beacons (the centre beacon) or set assume_level_deck"))
 
 
+#: Levenberg-Marquardt iterations of a leave-one-out trial (:func:`solve_robust`): a trial
+#: only ranks which point to drop, from the current fit's pose.
+TRIAL_ITERATIONS = 8
+
+RefitFn = Callable[[Observations, np.ndarray], float]
+
+
 def solve_robust(
-    obs: Observations, solve: SolveFn, *, min_points: int, outlier_chi2: float, max_outliers: int
+    obs: Observations, solve: SolveFn, *, min_points: int, outlier_chi2: float, max_outliers: int,
+    refit: RefitFn | None = None,
 ) -> tuple[Candidate | str, Observations, list[int]]:
     """Solve, and while a point's residual is an outlier remove the point whose removal fits best.
 
@@ -158,13 +166,19 @@ def solve_robust(
     :data:`SCALED_MAX_RMS_PX`, the search is repeated with the threshold times that scale. The plain search runs first because a least-squares fit
     smears a wrong id's residual over every point and would hide it in the scale.
 
+    ``refit(observations, params) -> chi2`` ranks the leave-one-out trials from the current
+    fit's pose (:data:`TRIAL_ITERATIONS` iterations) instead of a full ``solve`` of each;
+    the subset chosen is then solved in full. On garbage (19 points, three outliers allowed,
+    both thresholds) the full trials took 62 solves and up to 0.3 s a frame.
+
     Returns
     -------
     (Candidate or failure reason, observations used, ids removed)
     """
     first = solve(obs) if len(obs) >= min_points else _too_few(obs, min_points)
     result, used, removed, residual_failure = _remove_outliers(
-        obs, solve, first, min_points=min_points, threshold=outlier_chi2, max_outliers=max_outliers)
+        obs, solve, first, min_points=min_points, threshold=outlier_chi2, max_outliers=max_outliers,
+        refit=refit)
     if not (residual_failure and isinstance(result, Candidate)):
         return result, used, removed
     # The scale from the fit without the worst points, where a wrong point no longer smears.
@@ -173,7 +187,7 @@ def solve_robust(
     if scale <= 1.0:
         return result, used, removed
     scaled = _remove_outliers(obs, solve, first, min_points=min_points,
-                              threshold=outlier_chi2 * scale, max_outliers=max_outliers)
+                              threshold=outlier_chi2 * scale, max_outliers=max_outliers, refit=refit)
     c = scaled[0]
     if scaled[3] or not isinstance(c, Candidate) or not c.fit.rms_px <= SCALED_MAX_RMS_PX:
         return result, used, removed
@@ -182,7 +196,7 @@ def solve_robust(
 
 def _remove_outliers(
     obs: Observations, solve: SolveFn, result: Candidate | str, *, min_points: int, threshold: float,
-    max_outliers: int,
+    max_outliers: int, refit: RefitFn | None = None,
 ) -> tuple[Candidate | str, Observations, list[int], bool]:
     """The leave-one-out search of :func:`solve_robust` at one threshold; the flag says
     whether it gave up with a residual above the threshold."""
@@ -201,16 +215,24 @@ def _remove_outliers(
         for i in range(len(obs)):
             keep = np.ones(len(obs), dtype=bool)
             keep[i] = False
+            if refit is not None:
+                chi2 = refit(obs.subset(keep), result.fit.params)
+                if chi2 < best[0]:
+                    best = (chi2, i, None)
+                continue
             r = solve(obs.subset(keep))
             if isinstance(r, Candidate) and r.fit.chi2 < best[0]:
                 best = (r.fit.chi2, i, r)
-        if best[2] is None:
+        if best[1] < 0:
             return result, obs, removed, False
         keep = np.ones(len(obs), dtype=bool)
         keep[best[1]] = False
+        chosen = best[2] if best[2] is not None else solve(obs.subset(keep))
+        if not isinstance(chosen, Candidate):
+            return result, obs, removed, False
         removed.append(int(obs.ids[best[1]]))
         obs = obs.subset(keep)
-        result = best[2]
+        result = chosen
     return result, obs, removed, False
 
 
@@ -299,6 +321,12 @@ def make_estimate(
     )
 
 
+def _trial_chi2(obs: Observations, params: np.ndarray, R_wc: np.ndarray) -> float:
+    """chi2 of ``obs`` after :data:`TRIAL_ITERATIONS` LM iterations from ``params``."""
+    fit = levenberg_marquardt(params, obs, R_wc, max_iterations=TRIAL_ITERATIONS)
+    return float(fit.chi2) if math.isfinite(fit.chi2) else math.inf
+
+
 def estimate_robustly(
     method: str,
     solve: Callable[[Observations, np.ndarray], Candidate | str],
@@ -327,7 +355,8 @@ def estimate_robustly(
                                      use_detection_covariance=options.use_detection_covariance)
             result, used, removed = solve_robust(
                 obs, lambda o: solve(o, R_wc), min_points=min_points,
-                outlier_chi2=options.outlier_chi2, max_outliers=options.max_outliers)
+                outlier_chi2=options.outlier_chi2, max_outliers=options.max_outliers,
+                refit=lambda o, p: _trial_chi2(o, p, R_wc))
             return make_estimate(method, result, used, removed, R_world_from_cam=R_wc,
                                  max_reprojection_rms_px=options.max_reprojection_rms_px,
                                  refined=refined)
