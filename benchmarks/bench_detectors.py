@@ -31,19 +31,19 @@ import time
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import cv2  # noqa: E402
-import numpy as np  # noqa: E402
+import cv2
+import numpy as np
+from deckpose.detect import registry
+from deckpose.detect.crb import centroid_crb_px2
+from deckpose.detect.pipeline import detect_frame
+from deckpose.detect.registry import DetectorOptions
+from deckpose.detect.synthetic import SensorModel, render_spots
 
-from deckpose.camera import preset  # noqa: E402
-from deckpose.detect import registry  # noqa: E402
-from deckpose.detect.crb import centroid_crb_px2  # noqa: E402
-from deckpose.detect.pipeline import detect_frame  # noqa: E402
-from deckpose.detect.registry import DetectorOptions  # noqa: E402
-from deckpose.detect.synthetic import SensorModel, render_spots  # noqa: E402
-from deckpose.layout import DeckLayout  # noqa: E402
-from deckpose.pose import CameraPose, ShipPose  # noqa: E402
-from deckpose.projection import project_layout  # noqa: E402
-from deckpose.records import Frame  # noqa: E402
+from deckpose.camera import preset
+from deckpose.layout import DeckLayout
+from deckpose.pose import CameraPose, ShipPose
+from deckpose.projection import project_layout
+from deckpose.records import Frame
 
 
 def _time_frame(frame: Frame, detectors: list[str], repeat: int, layout: DeckLayout) -> None:
@@ -206,6 +206,7 @@ def saturated_accuracy(trials: int, detectors: list[str]) -> None:
 def identification(trials: int) -> None:
     """Identification on exact projections + 0.1 px noise, with hidden beacons and glints."""
     from deckpose.detect.identify import identify_beacons
+
     from deckpose.layout import thesis_layout
 
     white, red = (100.0, 100.0, 90.0), (100.0, 10.0, 5.0)

@@ -68,11 +68,17 @@ def _case_naive(size: str, frames: int, backend: str, out: Path) -> dict[str, fl
     import cv2
     import numpy as np
     import pyrender
+    from deckpose.render.scene import (
+        _plane,
+        deck_texture,
+        gl_camera_pose,
+        gl_intrinsics,
+        sea_texture,
+    )
 
     from deckpose.camera import preset
     from deckpose.layout import DeckLayout
     from deckpose.pose import CameraPose, ShipPose
-    from deckpose.render.scene import deck_texture, gl_camera_pose, gl_intrinsics, sea_texture, _plane
 
     cam = preset(size)
     layout = DeckLayout()

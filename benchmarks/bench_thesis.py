@@ -17,15 +17,15 @@ import time
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
-import numpy as np  # noqa: E402
+import numpy as np
+from deckpose.estimate.thesis import estimate_thesis
+from deckpose.estimate.thesis_batch import estimate_thesis_batch
+from deckpose.evaluate.thesis_sim import CellSpec, clean_projection, load_thesis_motion
 
-from deckpose.camera import preset  # noqa: E402
-from deckpose.estimate.thesis import estimate_thesis  # noqa: E402
-from deckpose.estimate.thesis_batch import estimate_thesis_batch  # noqa: E402
-from deckpose.evaluate.thesis_sim import CellSpec, clean_projection, load_thesis_motion  # noqa: E402
-from deckpose.layout import thesis_layout  # noqa: E402
-from deckpose.noise import thesis_uniform  # noqa: E402
-from deckpose.records import Detections  # noqa: E402
+from deckpose.camera import preset
+from deckpose.layout import thesis_layout
+from deckpose.noise import thesis_uniform
+from deckpose.records import Detections
 
 
 def main() -> None:

@@ -37,11 +37,11 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
+from deckpose.estimate.batch import estimate_many, run_estimator
+from deckpose.estimate.registry import EstimateOptions
 from scipy.spatial.transform import Rotation
 
 from deckpose.camera import CameraModel, preset
-from deckpose.estimate.batch import estimate_many, run_estimator
-from deckpose.estimate.registry import EstimateOptions
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.projection import project_layout

@@ -12,7 +12,6 @@ from collections import defaultdict
 
 import numpy as np
 import pandas as pd
-
 from deckpose.detect import registry
 from deckpose.detect.pipeline import detect_frame
 from deckpose.detect.sources import load_frame, open_dataset
@@ -43,11 +42,11 @@ def main() -> None:
                 if i >= 0 and (src.frame_id, int(i)) in gt.index:
                     g = gt.loc[(src.frame_id, int(i))]
                     err[light].append(float(np.hypot(u - g.u_px, v - g.v_px)))
-        for light in ok:
+        for light, oks in ok.items():
             e = np.asarray(err[light])
             rms = float(np.sqrt(np.mean(e**2))) if e.size else float("nan")
             mx = float(e.max()) if e.size else float("nan")
-            print(f"{det:12s} {light:6s} ok {sum(ok[light])}/{len(ok[light])}  "
+            print(f"{det:12s} {light:6s} ok {sum(oks)}/{len(oks)}  "
                   f"rms {rms:.3f} px  max {mx:.3f} px  n {e.size}")
         for f in fails[:6]:
             print("   fail", *f)

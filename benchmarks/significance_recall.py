@@ -24,10 +24,9 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-import independent_spots as gen  # noqa: E402
-
-from deckpose.detect.registry import DetectorOptions  # noqa: E402
-from deckpose.detect.significance import significant_spots  # noqa: E402
+import independent_spots as gen
+from deckpose.detect.registry import DetectorOptions
+from deckpose.detect.significance import significant_spots
 
 
 def flux_for_snr(snr: float, sigma_px: float, var_px_e2: float) -> float:

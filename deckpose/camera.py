@@ -184,7 +184,7 @@ class CameraModel:
             & (p[..., 1] <= self.height_px)
         )
 
-    def with_size(self, width_px: int, height_px: int) -> "CameraModel":
+    def with_size(self, width_px: int, height_px: int) -> CameraModel:
         """The same field of view at another resolution (K scaled per axis)."""
         sx, sy = width_px / self.width_px, height_px / self.height_px
         K = self.K.copy()

@@ -74,7 +74,7 @@ class ShipPose:
         return float(r), float(p), float(y)
 
     @classmethod
-    def from_R(cls, R_world_from_deck: FloatArray, t_world_m: FloatArray | None = None) -> "ShipPose":
+    def from_R(cls, R_world_from_deck: FloatArray, t_world_m: FloatArray | None = None) -> ShipPose:
         """Build from a rotation matrix and optional ``(surge, sway, heave)``."""
         roll, pitch, yaw = zyx_from_R(R_world_from_deck)
         t = np.zeros(3) if t_world_m is None else np.asarray(t_world_m, dtype=float)
@@ -116,7 +116,7 @@ class CameraPose:
         x_m: float = 0.0,
         y_m: float = 0.0,
         R_nadir_from_cam: FloatArray | None = None,
-    ) -> "CameraPose":
+    ) -> CameraPose:
         """A camera at ``height_m`` above the world origin looking straight down, image top to bow.
 
         ``R_nadir_from_cam`` optionally tilts the camera away from nadir

@@ -205,6 +205,6 @@ class PoseEstimate:
         return self.ok
 
     @classmethod
-    def failed(cls, method: str, reason: str, **extras: float) -> "PoseEstimate":
+    def failed(cls, method: str, reason: str, **extras: float) -> PoseEstimate:
         """A failed estimate with a reason."""
         return cls(method=method, ok=False, reason=reason, extras=extras)

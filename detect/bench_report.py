@@ -15,8 +15,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-
-from deckpose.atomic_io import atomic_open, atomic_path
 from deckpose.detect.benchmark import centroid_by_lighting, crb_per_beacon, match_run, summarise
 from deckpose.detect.identify import IdentifyOptions
 from deckpose.detect.registry import DetectorOptions
@@ -24,6 +22,8 @@ from deckpose.detect.run import detect_frames_with
 from deckpose.detect.sources import FrameSet, open_dataset
 from deckpose.detect.synthetic import SensorModel
 from deckpose.detect.synthetic_dataset import summed_channels_sensor
+
+from deckpose.atomic_io import atomic_open, atomic_path
 
 
 def dataset_sensor(frameset: FrameSet) -> SensorModel | None:
@@ -260,7 +260,7 @@ def write_report(
         "",
         markdown_table(summary),
         "",
-        "RMS = per-axis RMS centroid error against the exact projected beacon centre; "
+        ("RMS = per-axis RMS centroid error against the exact projected beacon centre; "
         "CRB = per-axis RMS of the centroid Cramér–Rao bound (unknown centre, width, flux and "
         "background; Poisson + read + quantisation noise; pixels assumed unclipped), '—' where "
         "the dataset does not declare its spot model and sensor; sat. = fraction of the cell's "
@@ -270,7 +270,7 @@ def write_report(
         "precision from one-to-one matching within max(3 px, 2 apparent radii); id acc. = matched "
         "detections with the right beacon id; ms/frame = median wall time of detection + "
         "identification (decoded image, this machine); CPU ms = median CPU time of the same "
-        "work on its one thread (the one-core cost when other jobs share the machine).",
+        "work on its one thread (the one-core cost when other jobs share the machine)."),
         "",
         *lighting_section(by_light),
         "![error vs height](error_vs_height.png)",

@@ -32,7 +32,6 @@ import math
 
 import numpy as np
 import pandas as pd
-
 from deckpose.detect.crb import centroid_crb_px2
 from deckpose.detect.synthetic import SensorModel
 

@@ -28,15 +28,14 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-
 from deckpose.detect.background import (
+    FrameStats,
     border_noise,
     difference_noise,
     frame_problem,
     frame_stats,
     mono,
     noise_floor_dn,
-    FrameStats,
     robust_stats,
     tile_stats,
 )
@@ -50,6 +49,7 @@ from deckpose.detect.spots import (
     spot_search,
     tophat_spot_search,
 )
+
 from deckpose.records import Frame
 
 
@@ -409,9 +409,9 @@ def find_candidates(
                 # window_sigma sigma for the measurement plus 1.5 sigma beyond the wings
                 # for the pedestal.
                 sigma_core = max(r_eq, 1.0) / math.sqrt(2.0 * math.log(1.0 / options.spot_level))
-                pad = int(math.ceil((options.window_sigma + 1.5) * sigma_core)) + 3
+                pad = math.ceil((options.window_sigma + 1.5) * sigma_core) + 3
             else:
-                pad = int(math.ceil(options.window_sigma * max(r_eq, 1.0))) + 3
+                pad = math.ceil(options.window_sigma * max(r_eq, 1.0)) + 3
             gu0, gv0 = box[0] + x, box[1] + y
             wb = (
                 max(0, gu0 - pad),
@@ -516,7 +516,7 @@ def _significant_windows(
         if any(a - near_px <= uc <= c + near_px and b - near_px <= vc <= d + near_px
                for a, b, c, d in taken):
             continue
-        half = int(math.ceil(1.5 * r)) + 4
+        half = math.ceil(1.5 * r) + 4
         wb = (max(0, int(uc) - half), max(0, int(vc) - half),
               min(W, int(uc) + half + 1), min(H, int(vc) + half + 1))
         if wb[2] - wb[0] < 5 or wb[3] - wb[1] < 5:

@@ -14,9 +14,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-
 from deckpose.detect.candidates import Candidate, measure_candidates
 from deckpose.detect.registry import Blobs, DetectorOptions, register
+
 from deckpose.records import Frame
 
 Row = tuple[float, float, np.ndarray, float, float, float]

@@ -40,8 +40,8 @@ def blob_rgb_flux(image: np.ndarray, points_px: FloatArray, radii_px: FloatArray
             out[i] = np.nan
             continue
         R = 2.5 * r + 1.0
-        u0, u1 = max(0, int(math.floor(u - R))), min(W, int(math.ceil(u + R)) + 1)
-        v0, v1 = max(0, int(math.floor(v - R))), min(H, int(math.ceil(v + R)) + 1)
+        u0, u1 = max(0, math.floor(u - R)), min(W, math.ceil(u + R) + 1)
+        v0, v1 = max(0, math.floor(v - R)), min(H, math.ceil(v + R) + 1)
         if u1 <= u0 or v1 <= v0:  # a centre outside the image: no colour to measure
             out[i] = np.nan
             continue

@@ -32,10 +32,9 @@ import math
 
 import cv2
 import numpy as np
-from scipy.optimize import least_squares
-
 from deckpose.detect.candidates import Candidate
 from deckpose.detect.centroid import Row
+from scipy.optimize import least_squares
 
 #: Pixels of a clipped core whose signal reaches this fraction of the clip level enter the
 #: fit. Lower values reach into the halo and the housing edge of rendered beacons (0.05-0.1
@@ -108,7 +107,7 @@ def core_fit(cand: Candidate, start: Row, window_sigma: float = 3.0) -> Row | No
     frac = CORE_FRACTION if sat_all.any() else UNCLIPPED_CORE_FRACTION
     sel = near & ((signal >= frac * top) | sat_all)
     # only the core's own pixels: the part of the selection connected to the blob
-    n_lab, labels = cv2.connectedComponents(sel.astype(np.uint8), connectivity=8)
+    _n_lab, labels = cv2.connectedComponents(sel.astype(np.uint8), connectivity=8)
     own = np.unique(labels[cand.mask & sel])
     sel &= np.isin(labels, own[own > 0])
     sat = sat_all[sel]

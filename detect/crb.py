@@ -17,10 +17,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from deckpose.detect.synthetic import SensorModel
 from numpy.typing import NDArray
 from scipy.special import erf
 
-from deckpose.detect.synthetic import SensorModel
 from deckpose.errors import ConfigError
 
 FloatArray = NDArray[np.float64]
@@ -64,7 +64,7 @@ def centroid_fisher(
     """
     if not (sigma_px > 0 and flux_e > 0):
         raise ConfigError(f"CRB needs sigma_px > 0 and flux_e > 0, got {sigma_px}, {flux_e}")
-    h = int(math.ceil(8.0 * sigma_px + 2.0))
+    h = math.ceil(8.0 * sigma_px + 2.0)
     xs = np.arange(round(u_px) - h, round(u_px) + h + 1, dtype=float)
     ys = np.arange(round(v_px) - h, round(v_px) + h + 1, dtype=float)
     Ex, dEx, sEx = gaussian_pixel_terms(u_px, sigma_px, xs)

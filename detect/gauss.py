@@ -21,13 +21,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from scipy.optimize import least_squares
-
 from deckpose.detect.candidates import Candidate, measure_candidates
 from deckpose.detect.centroid import Row, cog_centroid
 from deckpose.detect.core_fit import core_fit
 from deckpose.detect.crb import gaussian_pixel_terms
 from deckpose.detect.registry import Blobs, DetectorOptions, register
+from scipy.optimize import least_squares
+
 from deckpose.records import Frame
 
 

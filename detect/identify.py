@@ -27,10 +27,10 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from deckpose.detect import conic as cn
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
-from deckpose.detect import conic as cn
 from deckpose.errors import ConfigError, check_shape
 from deckpose.layout import DeckLayout
 from deckpose.records import UNASSIGNED
@@ -162,7 +162,7 @@ def ransac_ellipse(
             best, best_cost = inl, cost
             # Adaptive stopping: samples needed to draw one all-inlier 5-set with 99.9 %.
             w5 = (k / n) ** 5
-            needed = int(math.ceil(math.log(1e-3) / math.log1p(-w5))) if w5 < 1 else 1
+            needed = math.ceil(math.log(1e-3) / math.log1p(-w5)) if w5 < 1 else 1
         tried += 1
         if not exhaustive and tried >= max(needed, MIN_RANSAC_SAMPLES):
             break

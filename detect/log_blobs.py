@@ -11,13 +11,13 @@ import math
 
 import cv2
 import numpy as np
-from skimage.feature import blob_log
-
 from deckpose.detect.background import difference_noise, noise_floor_dn, robust_stats
 from deckpose.detect.candidates import coarse_factor, coarse_image, measure_candidates
 from deckpose.detect.centroid import cog_centroid
 from deckpose.detect.registry import Blobs, DetectorOptions, register
 from deckpose.detect.spots import SpotSearch, peak_block_max
+from skimage.feature import blob_log
+
 from deckpose.records import Frame
 
 #: The LoG scale space is searched on at most this many coarse pixels.
@@ -47,7 +47,7 @@ def log_boxes(
         bright = small_max > search.threshold_dn
         n, _, stats, _ = cv2.connectedComponentsWithStats(bright.astype(np.uint8), connectivity=8)
         r_max = math.sqrt(float(stats[1:, cv2.CC_STAT_AREA].max()) / math.pi) if n > 1 else 1.0
-        R = int(math.ceil(3.0 * r_max + 3.0))  # the LoG of a disc of radius r reaches ~2 r
+        R = math.ceil(3.0 * r_max + 3.0)  # the LoG of a disc of radius r reaches ~2 r
         disc = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * R + 1, 2 * R + 1))
         sig[cv2.dilate(bright.astype(np.uint8), disc) == 0] = 0.0
     # The scale-normalised LoG of unit-variance white noise has a standard deviation
@@ -79,7 +79,7 @@ def log_boxes(
     H, W = image.shape[:2]
     boxes = []
     for y, x, s in found:
-        half = int(math.ceil(3.0 * s * f)) + f + 2
+        half = math.ceil(3.0 * s * f) + f + 2
         cu, cv = int(x * f + (f - 1) / 2), int(y * f + (f - 1) / 2)
         boxes.append(
             (max(0, cu - half), max(0, cv - half), min(W, cu + half + 1), min(H, cv + half + 1))

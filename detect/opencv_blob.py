@@ -13,10 +13,10 @@ import math
 
 import cv2
 import numpy as np
-
 from deckpose.detect.candidates import Candidate, measure_candidates
 from deckpose.detect.centroid import Row
 from deckpose.detect.registry import Blobs, DetectorOptions, register
+
 from deckpose.records import Frame
 
 

@@ -7,12 +7,12 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from numpy.typing import NDArray
-
 from deckpose.detect import registry
 from deckpose.detect.colour import blob_rgb_flux
 from deckpose.detect.identify import IdentifyOptions, identify_beacons
 from deckpose.detect.registry import Blobs, DetectorOptions
+from numpy.typing import NDArray
+
 from deckpose.layout import DeckLayout
 from deckpose.records import UNASSIGNED, Detections, Frame
 
@@ -64,7 +64,7 @@ class FrameDetections:
         reason: str,
         seconds: float = 0.0,
         cpu_seconds: float = math.nan,
-    ) -> "FrameDetections":
+    ) -> FrameDetections:
         empty = Detections(np.zeros((0, 2)), np.zeros(0, np.int64), frame_id=frame_id)
         return cls(empty, np.zeros(0), np.zeros(0), detector, False, reason, seconds, cpu_seconds)
 
@@ -100,7 +100,7 @@ def detect_frame(
     t0, c0 = time.perf_counter(), time.thread_time()
     try:
         blobs: Blobs = fn(frame, options)
-    except Exception as exc:  # a detector bug must not end a batch: the frame fails
+    except Exception as exc:  # noqa: BLE001 - a detector bug must not end a batch: the frame fails
         return FrameDetections.failed(
             frame.frame_id,
             detector,

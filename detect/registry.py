@@ -175,13 +175,13 @@ class Blobs:
         return self.ok
 
     @classmethod
-    def empty(cls, reason: str = "") -> "Blobs":
+    def empty(cls, reason: str = "") -> Blobs:
         """No blobs; failed when ``reason`` is given."""
         z = np.zeros(0)
         return cls(np.zeros((0, 2)), np.zeros((0, 2, 2)), z, z, z, ok=not reason, reason=reason)
 
     @classmethod
-    def stack(cls, rows: list[tuple[float, float, FloatArray, float, float, float]]) -> "Blobs":
+    def stack(cls, rows: list[tuple[float, float, FloatArray, float, float, float]]) -> Blobs:
         """Build from ``(u, v, cov (2, 2), flux_dn, size_px, score)`` tuples."""
         if not rows:
             return cls.empty()
@@ -268,7 +268,7 @@ def load_plugin(module: str) -> None:
         importlib.import_module(module)
     except ConfigError:
         raise
-    except Exception as exc:  # noqa: BLE001 - any error in user code is the plugin's fault
+    except Exception as exc:
         raise ConfigError(
             f"cannot import detector plugin {module!r}: {type(exc).__name__}: {exc}"
         ) from exc

@@ -162,7 +162,7 @@ def write_run(
         "source": str(frameset.root.resolve()),
         "source_kind": frameset.kind,
         "cameras": cams,
-        "n_frames": int(len(frames)),
+        "n_frames": len(frames),
         "n_frames_ok": int(frames["ok"].sum()) if len(frames) else 0,
         "versions": _versions(),
     }

@@ -301,7 +301,7 @@ def _spots_at_scale(
     # noise alone, then, for the peaks that pass that, against the tile's texture too.
     # Samples are gathered from a copy of G with a replicated border (the same samples as
     # clipped coordinates) by flat offsets.
-    pad = int(math.ceil(max(radii))) + 1
+    pad = math.ceil(max(radii)) + 1
     Gp = cv2.copyMakeBorder(G, pad, pad, pad, pad, cv2.BORDER_REPLICATE).ravel()
     wp = w + 2 * pad
     offsets = []

@@ -32,7 +32,6 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-
 from deckpose.detect.registry import DetectorOptions
 
 #: The bright-spot level is the value of this brightest pixel (rank from the top).
@@ -274,7 +273,7 @@ def bright_components(mask: np.ndarray, tile_px: int = 16_384) -> np.ndarray:
     m = np.ascontiguousarray(mask, dtype=np.uint8)
     g = max(1, math.ceil(math.sqrt(m.size / tile_px)))
     if g == 1:
-        n, _, st, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
+        _n, _, st, _ = cv2.connectedComponentsWithStats(m, connectivity=8)
         return st[1:, :4].astype(int)
     coarse = block_max(m, g)
     n_c, lab_c, st_c, _ = cv2.connectedComponentsWithStats(coarse, connectivity=8)
@@ -285,7 +284,7 @@ def bright_components(mask: np.ndarray, tile_px: int = 16_384) -> np.ndarray:
         r0, r1, c0, c1 = y * g, min(h_m, (y + h) * g), x * g, min(w_m, (x + w) * g)
         own = np.repeat(np.repeat(lab_c[y : y + h, x : x + w] == k, g, axis=0), g, axis=1)
         sub = m[r0:r1, c0:c1] * own[: r1 - r0, : c1 - c0]
-        n, _, st, _ = cv2.connectedComponentsWithStats(sub, connectivity=8)
+        _n, _, st, _ = cv2.connectedComponentsWithStats(sub, connectivity=8)
         boxes.extend((int(a) + c0, int(b) + r0, int(cw), int(ch)) for a, b, cw, ch, _ in st[1:])
     boxes.sort(key=lambda b: (b[1], b[0]))
     return np.array(boxes, int).reshape(-1, 4)
@@ -346,7 +345,7 @@ def spot_pedestal(
     ``border_level_dn`` (the window border's fitted level).
     """
     r_core = math.sqrt(core.sum() / math.pi)
-    r_px = int(math.ceil(max(wings_px, 2.0 * r_core + 2.0)))
+    r_px = math.ceil(max(wings_px, 2.0 * r_core + 2.0))
     # distance to the core (exact Euclidean): linear time, where a dilation with a disc of
     # radius r_px costs r_px^2 per pixel (minutes for a large bright marking)
     dist = cv2.distanceTransform((~core).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
@@ -371,7 +370,7 @@ def spot_pedestal(
         if g.size == 0:
             continue
         pos = (PEDESTAL_PERCENTILE / 100.0) * (g.size - 1)
-        lo = int(math.floor(pos))
+        lo = math.floor(pos)
         hi = min(lo + 1, g.size - 1)
         part = np.partition(g, (lo, hi))
         levels.append(part[lo] + (part[hi] - part[lo]) * (pos - lo))

@@ -99,8 +99,8 @@ def spot_window(
     centre_px: tuple[float, float], sigma_px: float, half_width: int | None = None
 ) -> tuple[FloatArray, FloatArray]:
     """Integer pixel coordinates ``(us, vs)`` of a square window around a spot (±6 sigma)."""
-    h = int(math.ceil(6.0 * sigma_px + 1.0)) if half_width is None else int(half_width)
-    u0, v0 = int(round(centre_px[0])), int(round(centre_px[1]))
+    h = math.ceil(6.0 * sigma_px + 1.0) if half_width is None else int(half_width)
+    u0, v0 = round(centre_px[0]), round(centre_px[1])
     return np.arange(u0 - h, u0 + h + 1, dtype=float), np.arange(v0 - h, v0 + h + 1, dtype=float)
 
 

@@ -14,9 +14,9 @@ import os
 
 import numpy as np
 import pandas as pd
+from deckpose.detect.pipeline import FrameDetections
 
 from deckpose.atomic_io import atomic_path
-from deckpose.detect.pipeline import FrameDetections
 from deckpose.errors import InputDataError
 from deckpose.records import Detections
 

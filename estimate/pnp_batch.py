@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-from scipy.spatial.transform import Rotation
 from deckpose.estimate.least_squares_batch import (
     FrameObservations,
     evaluate_fit_batch,
@@ -20,6 +19,7 @@ from deckpose.estimate.least_squares_batch import (
 from deckpose.estimate.pnp import _EYE, ALT_MARGIN_CHI2, MIN_BEACONS
 from deckpose.estimate.solution_batch import BatchCandidates, Extra, scatter_fit
 from numpy.typing import NDArray
+from scipy.spatial.transform import Rotation
 
 from deckpose.rotation import wrap_angle_rad
 

@@ -25,7 +25,6 @@ from deckpose.layout import DeckLayout
 from deckpose.pose import R_WORLD_FROM_NADIR_CAM
 from deckpose.records import Detections, PoseEstimate
 
-
 #: Accepted pixel noise, px: beyond it the squared sigma and its inverse leave float64's safe range.
 SIGMA_PX_RANGE = (1e-6, 1e6)
 

@@ -27,8 +27,9 @@ from deckpose.records import POSE_PARAMS, PoseEstimate
 from deckpose.rotation import wrap_angle_rad
 
 if TYPE_CHECKING:
-    from deckpose.camera import CameraModel
     from deckpose.estimate.registry import EstimateOptions
+
+    from deckpose.camera import CameraModel
     from deckpose.layout import DeckLayout
     from deckpose.records import Detections
 
@@ -330,10 +331,10 @@ def _trial_chi2(obs: Observations, params: np.ndarray, R_wc: np.ndarray) -> floa
 def estimate_robustly(
     method: str,
     solve: Callable[[Observations, np.ndarray], Candidate | str],
-    detections: "Detections",
-    camera: "CameraModel",
-    layout: "DeckLayout",
-    options: "EstimateOptions",
+    detections: Detections,
+    camera: CameraModel,
+    layout: DeckLayout,
+    options: EstimateOptions,
     *,
     min_points: int,
     refined: bool,

@@ -18,10 +18,10 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-
-from deckpose.camera import CameraModel
 from deckpose.estimate.registry import EstimateOptions, register
 from deckpose.estimate.thesis_batch import estimate_thesis_batch
+
+from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
 from deckpose.pose import R_WORLD_FROM_NADIR_CAM
 from deckpose.records import Detections, PoseEstimate

@@ -18,10 +18,10 @@ import enum
 from dataclasses import dataclass
 
 import numpy as np
+from deckpose.estimate.conic_fit import fit_conic, ray_ellipse_distances
 from numpy.typing import NDArray
 
 from deckpose.errors import ShapeError
-from deckpose.estimate.conic_fit import fit_conic, ray_ellipse_distances
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]

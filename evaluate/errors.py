@@ -97,7 +97,7 @@ def frame_errors(frames: pd.DataFrame, estimates: pd.DataFrame) -> pd.DataFrame:
         if c.startswith("sigma_"):
             out[c] = e[c]
     # An estimate flagged not ok carries no numbers worth scoring.
-    out.loc[~out["ok"], [c for c in out.columns if c.endswith("_err_deg") or c.endswith("_err_m")]] = np.nan
+    out.loc[~out["ok"], [c for c in out.columns if c.endswith(("_err_deg", "_err_m"))]] = np.nan
     return out.reset_index()
 
 

@@ -18,8 +18,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-
-from deckpose.atomic_io import atomic_open
 from deckpose.evaluate import thesis_reference as ref
 from deckpose.evaluate.thesis_sim import (
     CellResult,
@@ -30,6 +28,8 @@ from deckpose.evaluate.thesis_sim import (
     thesis_batch_estimator,
 )
 from deckpose.evaluate.thesis_tables import HEIGHTS, HEIGHTS_8MP_8PX, NOISE_PX, RESOLUTIONS
+
+from deckpose.atomic_io import atomic_open
 from deckpose.tables import write_table
 
 START = "<!-- estimator-thesis-tables:start -->"
@@ -58,8 +58,8 @@ def run_estimator_cells(methods: Sequence[str], repetitions: int, seed: int, wor
     n = workers or os.cpu_count() or 1
     with ProcessPoolExecutor(max_workers=n) as pool:
         for k, (method, r) in enumerate(pool.map(_one, jobs)):
-            base = dict(method=method, resolution=r.spec.resolution, noise_px=int(r.spec.noise_px),
-                        height=int(r.spec.height), n_ok=r.n_ok, n_images=r.n_images)
+            base = {"method": method, "resolution": r.spec.resolution, "noise_px": int(r.spec.noise_px),
+                        "height": int(r.spec.height), "n_ok": r.n_ok, "n_images": r.n_images}
             for q, mx, sg in zip(_Q, r.max_abs, r.sigma):
                 rows.append(dict(base, quantity=f"max_{q}", value=float(mx)))
                 rows.append(dict(base, quantity=f"sigma_{q}", value=float(sg)))
@@ -129,7 +129,7 @@ def write_estimator_tables(out_dir: Path, methods: Sequence[str], repetitions: i
     md = out_dir / "estimators.md"
     old = md.read_text() if md.exists() else "# Estimators\n"
     if START in old and END in old:
-        new = re.sub(re.escape(START) + ".*?" + re.escape(END), lambda _: section, old, flags=re.S)
+        new = re.sub(re.escape(START) + ".*?" + re.escape(END), lambda _: section, old, flags=re.DOTALL)
     else:
         new = old.rstrip("\n") + "\n\n" + section + "\n"
     with atomic_open(md, "w") as fh:

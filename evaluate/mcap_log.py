@@ -35,6 +35,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pandas as pd
+from deckpose.evaluate import run_layout as rl
 from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
 from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
@@ -54,7 +55,6 @@ from scipy.spatial.transform import Rotation
 from deckpose.atomic_io import atomic_path
 from deckpose.camera import CameraModel
 from deckpose.errors import InputDataError
-from deckpose.evaluate import run_layout as rl
 from deckpose.rotation import R_from_zyx
 
 TRUTH_RGBA = (0.1, 0.9, 0.2, 1.0)

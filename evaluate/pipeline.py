@@ -6,12 +6,12 @@ import json
 from pathlib import Path
 
 import pandas as pd
-
-from deckpose.atomic_io import atomic_open
-from deckpose.errors import InputDataError
 from deckpose.evaluate import run_layout as rl
 from deckpose.evaluate.errors import run_errors
 from deckpose.evaluate.resolution_tables import resolution_markdown, resolution_table
+
+from deckpose.atomic_io import atomic_open
+from deckpose.errors import InputDataError
 from deckpose.tables import write_table
 
 
@@ -25,8 +25,8 @@ def frame_crb(run: rl.RunPaths, frames: pd.DataFrame, centroid_rms_px: pd.Series
     import math
 
     import numpy as np
-
     from deckpose.estimate.crb import cramer_rao_bound
+
     from deckpose.pose import CameraPose, ShipPose
     from deckpose.records import POSE_PARAMS
 

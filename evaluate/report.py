@@ -15,18 +15,18 @@ import cv2
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from deckpose.evaluate import run_layout as rl
+from deckpose.evaluate import thesis_reference as ref
+from deckpose.evaluate.errors import centroid_errors
+from deckpose.evaluate.resolution_tables import resolution_markdown, resolution_table
 
-from deckpose.atomic_io import atomic_open  # noqa: E402
-from deckpose.camera import THESIS_RESOLUTIONS  # noqa: E402
-from deckpose.errors import InputDataError  # noqa: E402
-from deckpose.evaluate import run_layout as rl  # noqa: E402
-from deckpose.evaluate import thesis_reference as ref  # noqa: E402
-from deckpose.evaluate.errors import centroid_errors  # noqa: E402
-from deckpose.evaluate.resolution_tables import resolution_markdown, resolution_table  # noqa: E402
-from deckpose.tables import read_table  # noqa: E402
+from deckpose.atomic_io import atomic_open
+from deckpose.camera import THESIS_RESOLUTIONS
+from deckpose.errors import InputDataError
+from deckpose.tables import read_table
 
 _QUANT = (("roll_err_deg", "roll [deg]"), ("pitch_err_deg", "pitch [deg]"),
           ("yaw_err_deg", "yaw [deg]"), ("height_err_m", "height [m]"))
@@ -294,12 +294,12 @@ def thesis_comparison(table: pd.DataFrame, sizes_px: dict[str, tuple[int, int]] 
     ``sizes_px`` maps camera names to ``(width_px, height_px)``; a camera is set beside a
     thesis resolution only when its size is that resolution (:func:`resolution_of`).
     """
-    lines = ["| detector + method | resolution | height | roll max ours / thesis [deg] | pitch | yaw | "
-             "height [m] | centroid RMS ours / thesis image RMS [px] |", "|---|---|---|---|---|---|---|---|"]
+    lines = [("| detector + method | resolution | height | roll max ours / thesis [deg] | pitch | yaw | "
+             "height [m] | centroid RMS ours / thesis image RMS [px] |"), "|---|---|---|---|---|---|---|---|"]
     n = 0
     for _, r in table.iterrows():
         res = resolution_of(str(r.camera), None if sizes_px is None else sizes_px.get(str(r.camera), (0, 0)))
-        h = int(round(r.table_height_m))
+        h = round(r.table_height_m)
         if res is None or h not in ref.MAX_ERROR[(res, 4)]:
             continue
         t = ref.MAX_ERROR[(res, 4)][h]
@@ -402,23 +402,23 @@ def write_report(run: rl.RunPaths) -> Path:
         examples.append((cam, name))
     ok = errors.groupby(["detector", "method"])["ok"].mean()
     lines = [f"# deckpose report: {_run_title(run)}", "",
-             f"{len(frames)} rendered frames; cameras {', '.join(sorted(frames.camera.unique()))}; "
+             (f"{len(frames)} rendered frames; cameras {', '.join(sorted(frames.camera.unique()))}; "
              f"heights {', '.join(f'{h:g}' for h in sorted(frames.camera_height_m.unique()))} m; "
-             f"detectors {', '.join(dets) or 'none'}; estimators {', '.join(sorted(errors.method.unique()))}.", "",
+             f"detectors {', '.join(dets) or 'none'}; estimators {', '.join(sorted(errors.method.unique()))}."), "",
              "Share of frames with an estimate flagged ok: " + ", ".join(f"{d}+{m} {v:.1%}" for (d, m), v in ok.items()) + ".", "",
              *provenance_lines(run),
              "## Error against resolution", "",
              "![error vs resolution](figures/error_vs_resolution.png)", "",
-             *([f"Beacon cores clip (hollow points) at: "
+             *(["Beacon cores clip (hollow points) at: "
                 + ", ".join(f"{c} {h:g} m" for c, h in sorted(clipped)) + "."] if clipped else []),
              "",
              "## Error vs height", "", "![error vs height](figures/error_vs_height.png)", "",
              "## Error distributions", "", "![error distributions](figures/error_distributions.png)", "",
              "## Centroid error vs apparent beacon size", "", "![centroid vs size](figures/centroid_vs_size.png)", "",
              "## Beside the thesis", "",
-             "The thesis simulated eq. 4.1 noise on ideal pixel coordinates; here the errors come from "
+             ("The thesis simulated eq. 4.1 noise on ideal pixel coordinates; here the errors come from "
              "rendered frames and real detectors. Its smallest noise level (4 px, Tables 4.4, 4.7, 4.10, 4.13) "
-             "is shown.", ""]
+             "is shown."), ""]
     lines += thesis_comparison(table, sizes)
     lines += ["", "## Example frames", ""]
     lines += [f"![{cam}](figures/{name})" for cam, name in examples]

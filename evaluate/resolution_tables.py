@@ -58,16 +58,16 @@ def _f(v: float, d: int) -> str:
 def resolution_markdown(table: pd.DataFrame) -> str:
     """Markdown: a thesis-style table per detector x method x camera, plus a sigma table."""
     lines = ["# Resolution tables measured on rendered frames", "",
-             "Per detector, estimator and camera: rows per table height (camera height above the "
+             ("Per detector, estimator and camera: rows per table height (camera height above the "
              "world origin). Max = maximum absolute error over the frames of the cell; sigma = standard "
              "deviation of the error; centroid RMS = per-frame RMS distance between identified detections "
              "and projected beacon centres (mean and sigma over frames); fail = share of frames whose "
-             "estimate was flagged not ok (excluded from the error statistics).", ""]
+             "estimate was flagged not ok (excluded from the error statistics)."), ""]
     has_crb = any(c.startswith("crb_") for c in table.columns)
     for (det, method, cam), g in table.groupby(["detector", "method", "camera"], sort=True):
         lines += [f"## {det} + {method}, camera {cam}", "",
-                  "| Height | Roll max [deg] | Pitch max [deg] | Yaw max [deg] | Height max [m] | "
-                  "centroid RMS [px] | sigma [px] | fail | frames |",
+                  ("| Height | Roll max [deg] | Pitch max [deg] | Yaw max [deg] | Height max [m] | "
+                  "centroid RMS [px] | sigma [px] | fail | frames |"),
                   "|---|---|---|---|---|---|---|---|---|"]
         for _, r in g.sort_values("table_height_m").iterrows():
             lines.append(

@@ -18,11 +18,11 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
+from deckpose.estimate.thesis_batch import Failure, estimate_thesis_batch
 from numpy.typing import NDArray
 
 from deckpose.camera import THESIS_RESOLUTIONS, CameraModel, PixelForm, from_focal_angle
 from deckpose.errors import InputDataError
-from deckpose.estimate.thesis_batch import Failure, estimate_thesis_batch
 from deckpose.layout import thesis_layout
 from deckpose.noise import thesis_uniform
 from deckpose.projection import project_thesis_centred
@@ -168,7 +168,7 @@ def thesis_batch_estimator(points_c: FloatArray, mask: NDArray[np.bool_], camera
     return BatchOutput(res.roll_deg, res.pitch_deg, res.yaw_deg, res.height, res.ok, names[res.failure], res.yz2)
 
 
-def registry_batch_estimator(method: str, options: "EstimateOptions | None" = None) -> BatchEstimator:
+def registry_batch_estimator(method: str, options: EstimateOptions | None = None) -> BatchEstimator:
     """Any registered estimator as a :data:`BatchEstimator` (through :func:`estimate_batch`).
 
     Beacons keep their ring ids (row ``i`` of the points is beacon ``i``); the

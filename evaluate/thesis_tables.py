@@ -20,11 +20,11 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from deckpose.evaluate import thesis_reference as ref
+from deckpose.evaluate.thesis_sim import CellResult, CellSpec, load_thesis_motion, simulate_cell
 
 from deckpose.atomic_io import atomic_open
 from deckpose.errors import ConfigError
-from deckpose.evaluate import thesis_reference as ref
-from deckpose.evaluate.thesis_sim import CellResult, CellSpec, load_thesis_motion, simulate_cell
 from deckpose.tables import write_table
 
 RESOLUTIONS = ("4mp", "8mp", "16mp", "64mp")
@@ -97,14 +97,14 @@ def results_frame(results: list[CellResult]) -> pd.DataFrame:
             ours = list(r.max_abs) + [r.rms_mean_px, r.rms_sigma_px]
             names = ["max_" + q for q in QUANTITIES] + ["rms_mean_px", "rms_sigma_px"]
             for name, o, t in zip(names, ours, theirs):
-                rows.append(dict(table=f"Table 4.{ref.TABLE_NUMBER[key]}", resolution=s.resolution,
-                                 noise_px=int(s.noise_px), height=h, quantity=name, ours=o, thesis=t))
+                rows.append({"table": f"Table 4.{ref.TABLE_NUMBER[key]}", "resolution": s.resolution,
+                                 "noise_px": int(s.noise_px), "height": h, "quantity": name, "ours": o, "thesis": t})
         if key == ("8mp", 8) and h in ref.YZ2:
             for name, o, t in zip(("yz2_within_sigma_pct", "yz2_sign_pct"),
                                   (r.yz2_within_sigma_pct, r.yz2_sign_pct), ref.YZ2[h]):
-                rows.append(dict(table="Table 4.14", resolution="8mp", noise_px=8, height=h, quantity=name, ours=o, thesis=t))
+                rows.append({"table": "Table 4.14", "resolution": "8mp", "noise_px": 8, "height": h, "quantity": name, "ours": o, "thesis": t})
             for name, o, t in zip(["sigma_" + q for q in QUANTITIES], r.sigma, ref.SIGMA[h]):
-                rows.append(dict(table="Table 4.15", resolution="8mp", noise_px=8, height=h, quantity=name, ours=o, thesis=t))
+                rows.append({"table": "Table 4.15", "resolution": "8mp", "noise_px": 8, "height": h, "quantity": name, "ours": o, "thesis": t})
     df = pd.DataFrame(rows)
     df["ratio"] = df["ours"] / df["thesis"]
     return df
@@ -126,16 +126,16 @@ def markdown_report(df: pd.DataFrame, results: list[CellResult], config: ThesisT
         "# The thesis's tables 4.2-4.15, reproduced",
         "",
         "Each cell reads **ours / thesis / ratio** (ours divided by the thesis's value).",
-        f"Set-up: the reference page's reconstruction of the thesis experiment: 12 beacons on a "
+        (f"Set-up: the reference page's reconstruction of the thesis experiment: 12 beacons on a "
         f"radius-10 ring, thesis camera (75 deg focal angle, non-square eq. 1.8/1.9), the 495-sample "
         f"regular-wave motion series, camera distance = table height + heave, beacons outside the "
         f"image dropped, eq. 4.1-4.3 noise, the faithful `thesis` estimator. "
         f"{config.repetitions} repetitions x 495 samples = {n_img:,} images per row; seed {config.seed}; "
         f"{len(results)} cells in {seconds:.0f} s on {platform.machine()} with {os.cpu_count()} cores "
-        f"({config.workers or os.cpu_count()} worker processes).",
+        f"({config.workers or os.cpu_count()} worker processes)."),
         "",
-        "Regenerate with `deckpose thesis-tables --repetitions "
-        f"{config.repetitions} --seed {config.seed} -o {out_dir}`.",
+        ("Regenerate with `deckpose thesis-tables --repetitions "
+        f"{config.repetitions} --seed {config.seed} -o {out_dir}`."),
         "",
     ]
     lines += _summary(df, results, n_img)
@@ -198,28 +198,28 @@ def _summary(df: pd.DataFrame, results: list[CellResult], n_draws: int) -> list[
     out = [
         "## Summary",
         "",
-        f"- **Roll and pitch maxima** (Tables 4.2-4.13): median ratio {rp.median():.2f} "
+        (f"- **Roll and pitch maxima** (Tables 4.2-4.13): median ratio {rp.median():.2f} "
         f"(range {rp.min():.2f}-{rp.max():.2f}) over {len(rp)} cells. Maxima of {n_draws:,} draws "
-        "are themselves noisy, so single cells scatter around the median.",
-        f"- **Image RMS** of the injected noise: median ratio {med('rms_mean_px'):.2f} (mean), "
-        f"{med('rms_sigma_px'):.2f} (sigma).",
-        f"- **Table 4.15 sigma**: roll {sig[sig.quantity == 'sigma_roll_deg'].ratio.median():.3f}, "
+        "are themselves noisy, so single cells scatter around the median."),
+        (f"- **Image RMS** of the injected noise: median ratio {med('rms_mean_px'):.2f} (mean), "
+        f"{med('rms_sigma_px'):.2f} (sigma)."),
+        (f"- **Table 4.15 sigma**: roll {sig[sig.quantity == 'sigma_roll_deg'].ratio.median():.3f}, "
         f"pitch {sig[sig.quantity == 'sigma_pitch_deg'].ratio.median():.3f}, "
         f"yaw {sig[sig.quantity == 'sigma_yaw_deg'].ratio.median():.3f}, "
-        f"height {sig[sig.quantity == 'sigma_height'].ratio.median():.3f} (median ratios).",
-        f"- **Yaw**: median ratio of the yaw maxima {med('max_yaw_deg'):.2f}; expect no agreement: the thesis's "
+        f"height {sig[sig.quantity == 'sigma_height'].ratio.median():.3f} (median ratios)."),
+        (f"- **Yaw**: median ratio of the yaw maxima {med('max_yaw_deg'):.2f}; expect no agreement: the thesis's "
         "own motion input for yaw is unknown (the published series' \"yaw\" is a synthetic heave*sin(t) "
-        "signal), so we do not tune toward its yaw column.",
-        f"- **Height**: median ratio of the maxima {med('max_height', (80,)):.2f} at 80 U "
-        f"against {med('max_height', (20, 30, 40, 50)):.2f} at 20-50 U.",
-        f"- **Table 4.14** (Y''_z, 8 MP, 8 px): sign accuracy ours {_mean(t14, 'yz2_sign_pct', 'ours'):.1f}% "
+        "signal), so we do not tune toward its yaw column."),
+        (f"- **Height**: median ratio of the maxima {med('max_height', (80,)):.2f} at 80 U "
+        f"against {med('max_height', (20, 30, 40, 50)):.2f} at 20-50 U."),
+        (f"- **Table 4.14** (Y''_z, 8 MP, 8 px): sign accuracy ours {_mean(t14, 'yz2_sign_pct', 'ours'):.1f}% "
         f"vs thesis {_mean(t14, 'yz2_sign_pct', 'thesis'):.1f}% (mean over heights); errors within one sigma ours "
         f"{_mean(t14, 'yz2_within_sigma_pct', 'ours'):.1f}% vs {_mean(t14, 'yz2_within_sigma_pct', 'thesis'):.1f}%. "
         "The thesis does not define the Y''_z error precisely; we use the difference from the noise-free "
-        "estimate of the same sample, and a mismatch here says only that the definitions differ.",
-        "- Under this noise model the angle and height errors depend on the resolution only through "
+        "estimate of the same sample, and a mismatch here says only that the definitions differ."),
+        ("- Under this noise model the angle and height errors depend on the resolution only through "
         "p = N/||(W/2, H/2)|| (the relative size of the noise) and cropping; the thesis's \"pixelation "
-        "effect\" is a scaling of injected noise, not real pixelation. Rendered frames measure the real thing.",
+        "effect\" is a scaling of injected noise, not real pixelation. Rendered frames measure the real thing."),
     ]
     return out
 

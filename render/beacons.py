@@ -22,12 +22,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from deckpose.render.config import SensorSpec
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose, T_cam_from_deck
-from deckpose.render.config import SensorSpec
 
 
 @dataclass(frozen=True)

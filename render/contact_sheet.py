@@ -13,13 +13,13 @@ from pathlib import Path
 
 import cv2
 import numpy as np
-
-from deckpose.atomic_io import atomic_path
-from deckpose.pose import ShipPose
 from deckpose.render.config import Lighting, Shading, config_from_dict
 from deckpose.render.frame import render_frame
 from deckpose.render.plan import FrameSpec
 from deckpose.render.scene import DeckRenderer
+
+from deckpose.atomic_io import atomic_path
+from deckpose.pose import ShipPose
 
 PRESETS = ("4mp", "8mp", "16mp", "64mp")
 
@@ -40,9 +40,9 @@ def contact_sheet(presets: tuple[str, ...] = PRESETS, *, tile_w: int = 480, heig
             c, r = (pbr, pbr_r) if light is Lighting.DAY else (cfg, flat_r)
             rf = render_frame(c, FrameSpec(0, name, height_m, ship, (), 0.0, light, seed), cam, r)
             img = np.ascontiguousarray(rf.frame.image[..., ::-1])
-            th = int(round(tile_w * cam.height_px / cam.width_px))
+            th = round(tile_w * cam.height_px / cam.width_px)
             tile = cv2.resize(img, (tile_w, th), interpolation=cv2.INTER_AREA)
-            u, v = (int(round(x)) for x in rf.truth.points_px[cfg.layout.bow_id])
+            u, v = (round(x) for x in rf.truth.points_px[cfg.layout.bow_id])
             k = int(max(8.0, 2.5 * rf.truth.apparent_radius_px[cfg.layout.bow_id] + 6))
             crop = img[max(v - k, 0): v + k, max(u - k, 0): u + k]
             inset = cv2.resize(crop, (110, 110), interpolation=cv2.INTER_NEAREST)

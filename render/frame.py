@@ -11,15 +11,15 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-
-from deckpose.camera import CameraModel
-from deckpose.projection import BeaconProjection, project_layout
-from deckpose.records import Frame, GroundTruth
 from deckpose.render.beacons import beacon_splats
 from deckpose.render.config import RenderConfig
 from deckpose.render.plan import FrameSpec
 from deckpose.render.scene import DeckRenderer, radiance_scale
 from deckpose.render.sensor import SpotRecord, distort, expose, spot_record
+
+from deckpose.camera import CameraModel
+from deckpose.projection import BeaconProjection, project_layout
+from deckpose.records import Frame, GroundTruth
 
 
 @dataclass(frozen=True)

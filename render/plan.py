@@ -13,12 +13,12 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from deckpose.render.config import Lighting, MotionSource, MotionSpec, RenderConfig
 
 from deckpose.errors import ConfigError, DeckposeError
 from deckpose.motion import MotionSeries, read_series
-from deckpose.pose import CameraPose, ShipPose
-from deckpose.render.config import Lighting, MotionSource, MotionSpec, RenderConfig
 from deckpose.motion.thesis_series import thesis_motion_table
+from deckpose.pose import CameraPose, ShipPose
 from deckpose.rotation import zyx_from_thesis
 
 
@@ -58,7 +58,7 @@ class FrameSpec:
 
     @property
     def stamp_ns(self) -> int:
-        return int(round(self.t_s * 1e9))
+        return round(self.t_s * 1e9)
 
 
 def thesis_series(path: str | Path | None = None) -> MotionSeries:

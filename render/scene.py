@@ -123,10 +123,10 @@ def deck_texture(layout: DeckLayout, half_size_m: float, size_px: int) -> NDArra
     px_per_m = s / (2.0 * half_size_m)
 
     def pt(x_m: float, y_m: float) -> tuple[int, int]:
-        return int(round((half_size_m - y_m) * px_per_m * 16)), int(round((half_size_m - x_m) * px_per_m * 16))
+        return round((half_size_m - y_m) * px_per_m * 16), round((half_size_m - x_m) * px_per_m * 16)
 
     def w(m: float) -> int:
-        return max(1, int(round(m * px_per_m)))
+        return max(1, round(m * px_per_m))
 
     white, yellow = (235, 235, 230), (230, 200, 40)
     r_pad = 0.6 * layout.radius_m

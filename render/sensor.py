@@ -26,11 +26,11 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from deckpose.render.beacons import Splat, add_splats
+from deckpose.render.config import SensorSpec
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
-from deckpose.render.beacons import Splat, add_splats
-from deckpose.render.config import SensorSpec
 
 #: Rows per processing strip.
 STRIP_ROWS = 256
@@ -198,7 +198,7 @@ def spot_record(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splat
         n = sp.patch.shape[0]
         rc = sp.row0 + n // 2
         cc = sp.col0 + n // 2
-        h = int(math.ceil(2.0 * sp.sigma_px))
+        h = math.ceil(2.0 * sp.sigma_px)
         r0, r1 = max(0, rc - h), min(H, rc + h + 1)
         c0, c1 = max(0, cc - h), min(W, cc + h + 1)
         mean_raster = np.zeros(3)

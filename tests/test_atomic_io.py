@@ -19,9 +19,8 @@ def test_atomic_open_writes_whole_file_with_normal_mode(tmp_path):
 def test_failure_leaves_old_file_and_no_temporaries(tmp_path):
     p = tmp_path / "b.txt"
     p.write_text("old")
-    with pytest.raises(RuntimeError):
-        with atomic_path(p) as tmp:
-            tmp.write_text("half")
-            raise RuntimeError("crash")
+    with pytest.raises(RuntimeError), atomic_path(p) as tmp:
+        tmp.write_text("half")
+        raise RuntimeError("crash")
     assert p.read_text() == "old"
     assert sorted(x.name for x in tmp_path.iterdir()) == ["b.txt"]

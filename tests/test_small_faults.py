@@ -6,12 +6,12 @@ import json
 
 import numpy as np
 import pandas as pd
+from deckpose.detect import registry
+from deckpose.detect.registry import DetectorOptions
 
 from deckpose.camera import CameraModel
 from deckpose.camera_info import write_camera_info
 from deckpose.cli import main
-from deckpose.detect import registry
-from deckpose.detect.registry import DetectorOptions
 from deckpose.records import Frame
 
 

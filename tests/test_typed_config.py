@@ -11,13 +11,13 @@ import copy
 from pathlib import Path
 
 import pytest
+from deckpose.detect.synthetic_dataset import read_config as read_synthetic_config
+from deckpose.render.config import DEFAULT_CONFIG, config_from_dict, load_config
 
 from deckpose.camera_info import read_camera_info
 from deckpose.cli import main
-from deckpose.detect.synthetic_dataset import read_config as read_synthetic_config
 from deckpose.errors import CameraFileError, ConfigError
 from deckpose.layout import read_layout
-from deckpose.render.config import DEFAULT_CONFIG, config_from_dict, load_config
 from deckpose.typed_config import coerce
 
 STRING_HINT = "a string; numbers and true/false go without quotes"
@@ -72,7 +72,7 @@ def test_render_config_type_holes_are_refused(section, over, match):
     with pytest.raises(ConfigError, match=match) as err:
         config_from_dict(_cfg(section, **over), "job.yaml")
     msg = str(err.value)
-    assert msg.startswith("job.yaml: ") or msg.startswith("scene.deck"), msg
+    assert msg.startswith(("job.yaml: ", "scene.deck")), msg
     assert "\n" not in msg
     if "got '" in match:
         assert STRING_HINT in msg

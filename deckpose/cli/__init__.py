@@ -71,13 +71,13 @@ def os_error_line(exc: OSError) -> tuple[str, int]:
 
     name = f" {exc.filename}" if exc.filename else ""
     if exc.errno == errno.ENOSPC:
-        return (f"the disk is full (writing{name}); free some space and run the same command again "
-                "(finished files are kept, none is left half-written)", exit_codes.UNEXPECTED)
+        return ((f"the disk is full (writing{name}); free some space and run the same command again "
+                "(finished files are kept, none is left half-written)"), exit_codes.UNEXPECTED)
     if exc.errno in (errno.EROFS, errno.EACCES, errno.EPERM):
         return (f"cannot write{name}: {exc.strerror}; choose a folder you can write to (-o DIR)",
                 exit_codes.USAGE)
-    return (f"{type(exc).__name__}: {exc.strerror or exc}{name} (run 'deckpose --debug ...' for the "
-            "traceback)", exit_codes.UNEXPECTED)
+    return ((f"{type(exc).__name__}: {exc.strerror or exc}{name} (run 'deckpose --debug ...' for the "
+            "traceback)"), exit_codes.UNEXPECTED)
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -109,7 +109,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         line, code = os_error_line(exc)
         print(f"deckpose {args.command}: error: {line}", file=sys.stderr)
         return code
-    except Exception as exc:  # noqa: BLE001 - the one place that turns any error into a line
+    except Exception as exc:
         if getattr(args, "debug", False):
             raise
         text = " ".join(str(exc).split())

@@ -18,7 +18,7 @@ from deckpose.cli.common_options import HelpFormatter, add_progress, add_workers
 METHODS = ("thesis", "conic", "pnp")
 
 
-def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "demo",
         help="run the main job end to end on the embedded default (what the README's first command runs)",

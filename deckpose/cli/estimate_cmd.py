@@ -22,7 +22,7 @@ if TYPE_CHECKING:
     from deckpose.records import Detections, PoseEstimate
 
 
-def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "estimate",
         help="estimate the deck pose per frame from beacon detections",

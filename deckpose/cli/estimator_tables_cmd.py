@@ -14,7 +14,7 @@ from deckpose.cli.common_options import (
 )
 
 
-def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "estimator-tables",
         help="the thesis's tables 4.2-4.13 and 4.15 for several estimators side by side",

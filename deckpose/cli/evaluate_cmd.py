@@ -8,7 +8,7 @@ from pathlib import Path
 from deckpose.cli.common_options import HelpFormatter
 
 
-def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "evaluate",
         help="join ground truth, detections and estimates of a run into errors, tables and an MCAP log",

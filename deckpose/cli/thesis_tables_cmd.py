@@ -8,7 +8,7 @@ from pathlib import Path
 from deckpose.cli.common_options import HelpFormatter, add_progress, add_workers, workers
 
 
-def register(sub: "argparse._SubParsersAction[argparse.ArgumentParser]") -> None:
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p = sub.add_parser(
         "thesis-tables",
         help="reproduce the thesis's error tables 4.2-4.15 (Monte Carlo)",

@@ -10,7 +10,7 @@ from deckpose.cli import build_parser, main
 from deckpose.cli.common_options import default_workers
 
 PARSER = build_parser()
-COMMANDS = [a for a in PARSER._actions if isinstance(a, argparse._SubParsersAction)][0].choices
+COMMANDS = next(a for a in PARSER._actions if isinstance(a, argparse._SubParsersAction)).choices
 #: Commands that write files (each takes -o/--output, or writes into the run folder it is given).
 WRITE_INTO_RUN = {"evaluate", "report", "pipeline"}
 #: Commands with a progress bar.

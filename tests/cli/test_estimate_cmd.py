@@ -21,7 +21,7 @@ def _detections(n_frames=6, seed=0):
         D = rng.uniform(20, 60)
         proj = project_layout(DeckLayout(), pose, CameraPose.nadir(D), cam)
         for b in np.flatnonzero(proj.visible):
-            rows.append(dict(frame_id=f, beacon_id=int(b), u_px=proj.points_px[b, 0], v_px=proj.points_px[b, 1]))
+            rows.append({"frame_id": f, "beacon_id": int(b), "u_px": proj.points_px[b, 0], "v_px": proj.points_px[b, 1]})
         truth.append((pose, D))
     return cam, pd.DataFrame(rows), truth
 
@@ -156,7 +156,7 @@ def test_posterior_mean_option(setup):
 
 
 def test_sigma_px_out_of_range_is_refused(setup, capsys):
-    tmp, cam_path, df, truth = setup
+    tmp, cam_path, df, _truth = setup
     det = tmp / "det.csv"
     df.to_csv(det, index=False)
     for bad in ("0", "-1", "nan", "inf", "1e300"):
@@ -167,7 +167,7 @@ def test_sigma_px_out_of_range_is_refused(setup, capsys):
 
 
 def test_covariance_that_is_not_positive_definite_names_the_row(setup, capsys):
-    tmp, cam_path, df, truth = setup
+    tmp, cam_path, df, _truth = setup
     df = df.assign(cov_uu=0.25, cov_uv=0.0, cov_vv=0.25)
     df.loc[5, "cov_uu"] = -0.25
     det = tmp / "det.csv"
@@ -180,7 +180,7 @@ def test_covariance_that_is_not_positive_definite_names_the_row(setup, capsys):
 def test_frames_that_keep_the_ml_pose_are_counted(setup, capsys, monkeypatch):
     import deckpose.estimate.posterior_mean as pmm
 
-    tmp, cam_path, df, truth = setup
+    tmp, cam_path, df, _truth = setup
     det = tmp / "det.csv"
     df.to_csv(det, index=False)
     monkeypatch.setattr(pmm, "MIN_EFFECTIVE_NODES", 1e9)  # no frame's sample is good enough
@@ -193,7 +193,7 @@ def test_frames_that_keep_the_ml_pose_are_counted(setup, capsys, monkeypatch):
 
 def test_method_label_names_the_variant(setup, capsys):
     """``--method pnp+mean`` is ``--method pnp --posterior-mean``; the method column carries the label."""
-    tmp, cam_path, df, truth = setup
+    tmp, cam_path, df, _truth = setup
     det = tmp / "det.csv"
     df.to_csv(det, index=False)
     a, b = tmp / "a.csv", tmp / "b.csv"
@@ -260,7 +260,7 @@ def test_unidentified_detections_are_identified_or_the_reason_says_what_is_neede
 def test_exit_codes(setup, tmp_path, capsys, monkeypatch):
     # 0 the job ran; 3 no frame succeeded; 4 with --strict when any failed; 2 bad input;
     # 1 an unexpected error, one line (the traceback with --debug)
-    tmp, cam_path, df, truth = setup
+    tmp, cam_path, df, _truth = setup
     good, out = tmp / "good.csv", tmp / "o.csv"
     df.to_csv(good, index=False)
     base = ["estimate", str(good), "--camera", str(cam_path), "-o", str(out), "--method", "pnp"]
@@ -306,8 +306,8 @@ def test_default_method_is_pnp_and_thesis_flags_an_off_centre_deck(tmp_path, cap
         pose = ShipPose(np.radians(3.0), np.radians(3.0), 0.0, surge_m=s, sway_m=w)
         proj = project_layout(DeckLayout(), pose, CameraPose.nadir(40.0), cam)
         for b in np.flatnonzero(proj.visible):
-            rows.append(dict(frame_id=f, beacon_id=int(b), u_px=proj.points_px[b, 0],
-                             v_px=proj.points_px[b, 1]))
+            rows.append({"frame_id": f, "beacon_id": int(b), "u_px": proj.points_px[b, 0],
+                             "v_px": proj.points_px[b, 1]})
     det = tmp_path / "det.csv"
     pd.DataFrame(rows).to_csv(det, index=False)
     out = tmp_path / "pnp.csv"
@@ -366,8 +366,8 @@ def test_a_string_in_an_optional_numeric_column_names_the_row(setup, capsys, col
 
 
 @pytest.mark.parametrize("content", [b"\xff\xfe\x00not text",
-                                     b"image_width: 64\nimage_height: 36\ncamera_matrix:\n"
-                                     b"  rows: three\n  cols: 3\n  data: [1,0,0,0,1,0,0,0,1]\n"])
+                                     (b"image_width: 64\nimage_height: 36\ncamera_matrix:\n"
+                                     b"  rows: three\n  cols: 3\n  data: [1,0,0,0,1,0,0,0,1]\n")])
 def test_a_broken_camera_file_is_one_line(setup, capsys, content):
     # non-UTF-8 bytes and `rows: three` were tracebacks
     tmp, cam_path, df, _ = setup

@@ -46,7 +46,7 @@ def test_pipeline_runs_every_stage_publishes_and_resumes(tmp_path: Path, capsys:
     assert "## How this was made" in report and "config `tiny`" in report and "seed 3" in report
     assert str(pub / "report.md") in capsys.readouterr().out
     # a second run keeps the rendered frames (resume) and rewrites the later stages
-    image = sorted((run / "images").rglob("*.png"))[0]
+    image = min((run / "images").rglob("*.png"))
     before = image.stat().st_mtime_ns
     assert main(argv) == 0
     assert image.stat().st_mtime_ns == before

@@ -6,7 +6,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from deckpose.detect.synthetic_dataset import SyntheticDatasetConfig, write_synthetic_dataset
 
 #: A camera of 640x360 px with the thesis focal angle sees the standard ring from 18-25 m

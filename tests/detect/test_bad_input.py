@@ -5,7 +5,6 @@ import shutil
 import cv2
 import numpy as np
 import pytest
-
 from deckpose.detect.run import detect_frames
 from deckpose.detect.sources import open_dataset
 
@@ -24,7 +23,7 @@ def damaged(tiny_dataset, tmp_path):
 
 
 def test_each_bad_frame_has_a_reason_and_the_rest_succeed(damaged):
-    ds, imgs = damaged
+    ds, _imgs = damaged
     dets, frames = detect_frames(open_dataset(ds), "cog")
     reasons = dict(zip(frames.frame_id, frames.reason))
     assert "truncated" in reasons[0]
@@ -53,7 +52,7 @@ def test_dark_missing_and_non_image_files(damaged):
 def test_all_black_frame(tiny_dataset, tmp_path):
     ds = tmp_path / "black"
     shutil.copytree(tiny_dataset, ds)
-    img = sorted((ds / "images").iterdir())[0]
+    img = min((ds / "images").iterdir())
     H, W = cv2.imread(str(img), cv2.IMREAD_UNCHANGED).shape[:2]
     cv2.imwrite(str(img), np.zeros((H, W), np.uint8))
     _, frames = detect_frames(open_dataset(ds), "binary")
@@ -63,11 +62,12 @@ def test_all_black_frame(tiny_dataset, tmp_path):
 def test_a_centre_outside_the_image_does_not_end_the_frame():
     # A peer detector's diverged fit put a centre outside the frame; the colour measure then
     # raised "negative dimensions" and ended the benchmark. It is now a NaN colour.
-    from deckpose.camera import preset
     from deckpose.detect import registry
     from deckpose.detect.colour import blob_rgb_flux
     from deckpose.detect.pipeline import detect_frame
     from deckpose.detect.registry import Blobs
+
+    from deckpose.camera import preset
     from deckpose.layout import DeckLayout
     from deckpose.records import Frame
 

@@ -6,9 +6,9 @@ import shutil
 import numpy as np
 import pandas as pd
 import pytest
+from deckpose.detect.tables import DETECTION_COLUMNS, FRAME_COLUMNS, read_detections
 
 from deckpose.cli import main
-from deckpose.detect.tables import DETECTION_COLUMNS, FRAME_COLUMNS, read_detections
 
 
 @pytest.mark.parametrize("detector", ["binary", "cog", "gauss", "log", "opencv-blob"])

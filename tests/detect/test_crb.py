@@ -1,5 +1,4 @@
 import numpy as np
-
 from deckpose.detect.crb import centroid_crb_px2
 from deckpose.detect.synthetic import SensorModel
 

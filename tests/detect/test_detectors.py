@@ -2,12 +2,12 @@
 
 import numpy as np
 import pytest
-
-from deckpose.camera import preset
 from deckpose.detect import registry
 from deckpose.detect.crb import centroid_crb_px2
 from deckpose.detect.registry import Blobs, DetectorOptions
 from deckpose.detect.synthetic import SensorModel, render_spots
+
+from deckpose.camera import preset
 from deckpose.records import Frame
 
 from .conftest import grid_points

@@ -2,9 +2,9 @@
 
 import numpy as np
 import pytest
+from deckpose.detect.identify import identify_beacons
 
 from deckpose.camera import preset
-from deckpose.detect.identify import identify_beacons
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.projection import project_layout

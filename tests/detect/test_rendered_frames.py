@@ -15,7 +15,6 @@ import cv2
 import numpy as np
 import pandas as pd
 import pytest
-
 from deckpose.detect.pipeline import detect_frame
 from deckpose.detect.registry import DetectorOptions
 from deckpose.detect.sources import load_frame, open_dataset
@@ -141,7 +140,7 @@ def _hide_and_glint(
     row = truth.loc[hide_id]
     mask = np.zeros(img.shape[:2], np.uint8)
     r_px = int(np.ceil(10.0 * row.apparent_radius_px + 10))  # core, housing and glow
-    cv2.circle(mask, (int(round(row.u_px)), int(round(row.v_px))), r_px, 1, -1)
+    cv2.circle(mask, (round(row.u_px), round(row.v_px)), r_px, 1, -1)
     img = cv2.inpaint(img, mask, 3, cv2.INPAINT_TELEA)
     H, W = img.shape[:2]
     beacons = truth[["u_px", "v_px"]].to_numpy(float)

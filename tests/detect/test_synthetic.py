@@ -1,8 +1,7 @@
 import numpy as np
+from deckpose.detect.synthetic import SensorModel, add_noise, expected_electrons, pixel_fractions
 from scipy.integrate import quad
 from scipy.stats import norm
-
-from deckpose.detect.synthetic import SensorModel, add_noise, expected_electrons, pixel_fractions
 
 
 def test_pixel_fractions_match_numerical_integration():

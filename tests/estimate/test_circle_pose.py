@@ -4,10 +4,15 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from deckpose.estimate.circle_pose import (
+    circle_planes,
+    diameter_pairs,
+    imaged_centre,
+    plane_from_centre,
+)
+from deckpose.estimate.ellipse_fit import fit_ellipse_direct
 from scipy.spatial.transform import Rotation
 
-from deckpose.estimate.circle_pose import circle_planes, diameter_pairs, imaged_centre, plane_from_centre
-from deckpose.estimate.ellipse_fit import fit_ellipse_direct
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose, T_cam_from_deck
 
@@ -97,10 +102,11 @@ def test_pure_geometric_conic_is_near_the_bound_near_nadir():
     Monte Carlo scatter of an RMS over 200 trials is ~5 %, and the measured ratio is ~1.1
     (benchmarks/bench_estimators.py), so 2x fails only if the construction regresses.
     """
-    from deckpose.camera import preset
     from deckpose.estimate import registry
     from deckpose.estimate.crb import cramer_rao_bound
     from deckpose.estimate.registry import EstimateOptions
+
+    from deckpose.camera import preset
     from tests.estimate.synthetic import detections_for
 
     layout, camera = DeckLayout(), preset("8mp")

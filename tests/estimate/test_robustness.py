@@ -158,10 +158,11 @@ def test_random_inputs_never_raise_nor_report_nan_as_ok(method, det, refine):
 @pytest.mark.parametrize("method", ["conic", "pnp"])
 def test_near_coincident_points_are_not_reported_ok(method):
     """Thirteen beacons within a hundredth of a pixel of each other: a finite but meaningless pose."""
-    from deckpose.camera import preset
     from deckpose.estimate import registry
     from deckpose.estimate.batch import estimate_many
     from deckpose.estimate.registry import EstimateOptions
+
+    from deckpose.camera import preset
     from deckpose.layout import DeckLayout
     from deckpose.records import Detections
 

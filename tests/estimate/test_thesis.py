@@ -5,15 +5,15 @@ import math
 
 import numpy as np
 import pytest
+from deckpose.estimate import registry
+from deckpose.estimate.conic_fit import fit_conic, fit_conic_coefficients
+from deckpose.estimate.thesis import estimate_thesis
+from deckpose.estimate.thesis_batch import Failure, estimate_thesis_batch
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from deckpose.camera import preset, preset_names
-from deckpose.estimate import registry
-from deckpose.estimate.conic_fit import fit_conic, fit_conic_coefficients
-from deckpose.estimate.thesis import estimate_thesis
-from deckpose.estimate.thesis_batch import Failure, estimate_thesis_batch
 from deckpose.layout import DeckLayout, thesis_layout
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.projection import project_layout, project_thesis_centred
@@ -60,7 +60,7 @@ def test_per_frame_estimator_through_general_projection_gives_zyx_truth():
         assert est.ok, est.reason
         R_est = R_from_zyx(est.roll_rad, est.pitch_rad, est.yaw_rad)
         assert np.max(np.abs(R_est - truth.R_world_from_deck)) < 1e-8
-        t_r, t_p, t_y = np.degrees(truth.thesis_angles_rad())
+        t_r, t_p, _t_y = np.degrees(truth.thesis_angles_rad())
         assert est.extras["thesis_roll_deg"] == pytest.approx(t_r, abs=1e-6)
         assert est.extras["thesis_pitch_deg"] == pytest.approx(t_p, abs=1e-6)
         assert est.height_m == pytest.approx(D, rel=1e-9)

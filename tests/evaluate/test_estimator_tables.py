@@ -1,7 +1,7 @@
 import pandas as pd
+from deckpose.evaluate.estimator_tables import END, START
 
 from deckpose.cli import main
-from deckpose.evaluate.estimator_tables import END, START
 
 
 def test_estimator_tables_splice_into_existing_report(tmp_path):

@@ -5,15 +5,15 @@ import json
 import numpy as np
 import pandas as pd
 import pytest
+from deckpose.evaluate.errors import frame_errors
+from deckpose.evaluate.pipeline import compute_errors
+from deckpose.evaluate.run_layout import run_paths
 from mcap.decoder import DecoderFactory as McapDecoderFactory
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 
 from deckpose.cli import main
 from deckpose.errors import InputDataError
-from deckpose.evaluate.errors import frame_errors
-from deckpose.evaluate.pipeline import compute_errors
-from deckpose.evaluate.run_layout import run_paths
 from tests.evaluate.fake_run import make_fake_run
 
 
@@ -60,11 +60,11 @@ def test_variants_of_a_method_are_kept_apart(run):
 
 
 def test_frame_errors_wrap_yaw_and_use_true_height():
-    frames = pd.DataFrame(dict(frame_id=[0], camera=["c"], camera_height_m=[30.0], roll_rad=[0.0], pitch_rad=[0.0],
-                               yaw_rad=[np.radians(179.0)], heave_m=[2.0], surge_m=[1.0], sway_m=[0.0],
-                               cam_x_m=[0.0], cam_y_m=[0.0], cam_z_m=[30.0]))
-    est = pd.DataFrame(dict(frame_id=[0], method=["m"], ok=[True], reason=[""], roll_deg=[0.1], pitch_deg=[0.0],
-                            yaw_deg=[-179.0], surge_m=[1.5], sway_m=[0.0], height_m=[28.5]))
+    frames = pd.DataFrame({"frame_id": [0], "camera": ["c"], "camera_height_m": [30.0], "roll_rad": [0.0], "pitch_rad": [0.0],
+                               "yaw_rad": [np.radians(179.0)], "heave_m": [2.0], "surge_m": [1.0], "sway_m": [0.0],
+                               "cam_x_m": [0.0], "cam_y_m": [0.0], "cam_z_m": [30.0]})
+    est = pd.DataFrame({"frame_id": [0], "method": ["m"], "ok": [True], "reason": [""], "roll_deg": [0.1], "pitch_deg": [0.0],
+                            "yaw_deg": [-179.0], "surge_m": [1.5], "sway_m": [0.0], "height_m": [28.5]})
     e = frame_errors(frames, est).iloc[0]
     assert e.yaw_err_deg == pytest.approx(2.0)
     assert e.height_err_m == pytest.approx(0.5)  # true height = 30 - 2
@@ -126,8 +126,8 @@ def test_report(run):
 def test_thesis_comparison_needs_the_thesis_resolution():
     from deckpose.evaluate.report import thesis_comparison
 
-    row = dict(detector="cog", method="pnp", table_height_m=20.0, max_roll=0.1, max_pitch=0.1,
-               max_yaw=0.1, max_height=0.01, centroid_rms_mean_px=0.05)
+    row = {"detector": "cog", "method": "pnp", "table_height_m": 20.0, "max_roll": 0.1, "max_pitch": 0.1,
+               "max_yaw": 0.1, "max_height": 0.01, "centroid_rms_mean_px": 0.05}
     table = pd.DataFrame([dict(row, camera="4mp-thesis"), dict(row, camera="4mp-640x480")])
     lines = thesis_comparison(table, {"4mp-thesis": (2312, 1734), "4mp-640x480": (640, 480)})
     rows = [ln for ln in lines if ln.startswith("| cog+pnp")]
@@ -176,7 +176,6 @@ def test_example_frame_hands_matplotlib_at_most_max_px(run, tmp_path, monkeypatc
     # max_px on its long side, with the axes still in full-resolution pixels.
     import cv2
     import matplotlib.axes
-
     from deckpose.evaluate import run_layout as rl
     from deckpose.evaluate.report import example_frame
 

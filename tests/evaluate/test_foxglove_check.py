@@ -10,7 +10,6 @@ from pathlib import Path
 
 import pytest
 
-
 TOOL = Path(__file__).resolve().parents[2] / "tools" / "foxglove_check"
 NODE = shutil.which("node")
 

@@ -6,9 +6,9 @@ import re
 import numpy as np
 import pandas as pd
 import pytest
+from deckpose.evaluate.mcap_log import annotations_msg, foxglove_layout, log_stamps, plot_path
 from mcap.reader import make_reader
 
-from deckpose.evaluate.mcap_log import annotations_msg, foxglove_layout, log_stamps, plot_path
 from tests.tolerances import ROUNDOFF
 
 

@@ -5,7 +5,6 @@ import re
 import numpy as np
 import pandas as pd
 import pytest
-
 from deckpose.evaluate import thesis_reference as ref
 from deckpose.evaluate.thesis_sim import CellSpec, load_thesis_motion, simulate_cell
 from deckpose.evaluate.thesis_tables import ThesisTablesConfig, run_cells, write_outputs

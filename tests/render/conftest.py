@@ -6,7 +6,6 @@ import os
 from typing import Any
 
 import pytest
-
 from deckpose.render.config import RenderConfig, config_from_dict
 
 

@@ -11,14 +11,14 @@ import dataclasses
 
 import numpy as np
 import pytest
-
-from deckpose.camera import CameraModel
-from deckpose.pose import CameraPose, ShipPose
-from deckpose.projection import project_layout
 from deckpose.render.beacons import beacon_splats
 from deckpose.render.config import Lighting, SensorSpec
 from deckpose.render.scene import radiance_scale
 from deckpose.render.sensor import distort, expose
+
+from deckpose.camera import CameraModel
+from deckpose.pose import CameraPose, ShipPose
+from deckpose.projection import project_layout
 
 from .conftest import tiny_config
 
@@ -30,7 +30,7 @@ def _centroids(diff: np.ndarray, points_px: np.ndarray, half: int) -> np.ndarray
     out = np.full_like(points_px, np.nan)
     H, W = diff.shape
     for i, (u, v) in enumerate(points_px):
-        c0, r0 = int(round(u)) - half, int(round(v)) - half
+        c0, r0 = round(u) - half, round(v) - half
         if c0 < 0 or r0 < 0 or c0 + 2 * half >= W or r0 + 2 * half >= H:
             continue
         win = diff[r0: r0 + 2 * half + 1, c0: c0 + 2 * half + 1]
@@ -109,7 +109,7 @@ def test_spot_record_matches_the_rendered_spot(egl_renderer_factory, color: str)
     checked = 0
     for i in np.flatnonzero(proj.visible):
         u, v = proj.points_px[i]
-        c0, r0, half = int(round(u)) - 25, int(round(v)) - 25, 25
+        c0, r0, half = round(u) - 25, round(v) - 25, 25
         if c0 < 0 or r0 < 0 or c0 + 2 * half >= 640 or r0 + 2 * half >= 480:
             continue
         win = np.s_[r0: r0 + 2 * half + 1, c0: c0 + 2 * half + 1]

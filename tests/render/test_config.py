@@ -6,10 +6,10 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
-from deckpose.errors import ConfigError
 from deckpose.render.config import config_from_dict, config_to_dict, load_config
 from deckpose.render.plan import plan_frames, thesis_series
+
+from deckpose.errors import ConfigError
 from deckpose.rotation import R_from_thesis, R_from_zyx
 
 from .conftest import tiny_doc

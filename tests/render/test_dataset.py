@@ -16,11 +16,11 @@ import numpy as np
 import pandas as pd
 import pytest
 import yaml
+from deckpose.render.config import Backend, config_from_dict
+from deckpose.render.dataset import FORMAT, render_dataset
 
 from deckpose.camera_info import read_camera_info
 from deckpose.errors import ConfigError
-from deckpose.render.config import Backend, config_from_dict
-from deckpose.render.dataset import FORMAT, render_dataset
 
 from .conftest import tiny_doc
 
@@ -78,8 +78,8 @@ def test_dataset_follows_the_contract(reference: Path) -> None:
     f0 = frames.iloc[0]
     img = cv2.imread(str(reference / f0.image))  # BGR
     b = beacons[beacons.frame_id == f0.frame_id].set_index("beacon_id")
-    bow = img[int(round(b.loc[0, "v_px"])), int(round(b.loc[0, "u_px"]))].astype(int)
-    other = img[int(round(b.loc[3, "v_px"])), int(round(b.loc[3, "u_px"]))].astype(int)
+    bow = img[round(b.loc[0, "v_px"]), round(b.loc[0, "u_px"])].astype(int)
+    other = img[round(b.loc[3, "v_px"]), round(b.loc[3, "u_px"])].astype(int)
     assert bow[2] > 200 and bow[0] < bow[2] - 80  # red dominates blue
     assert abs(other[2] - other[0]) < 40
 

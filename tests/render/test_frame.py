@@ -5,18 +5,18 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
-
-from deckpose.pose import ShipPose
-from deckpose.projection import project_layout
 from deckpose.render.config import Lighting, Shading
 from deckpose.render.frame import render_frame
 from deckpose.render.plan import FrameSpec
+
+from deckpose.pose import ShipPose
+from deckpose.projection import project_layout
 
 from .conftest import tiny_config
 
 
 def _spot_moments(img: np.ndarray, u: float, v: float, half: int = 9) -> tuple[np.ndarray, np.ndarray]:
-    r0, c0 = int(round(v)) - half, int(round(u)) - half
+    r0, c0 = round(v) - half, round(u) - half
     win = img[r0: r0 + 2 * half + 1, c0: c0 + 2 * half + 1].astype(float)
     vv, uu = np.mgrid[r0: r0 + 2 * half + 1, c0: c0 + 2 * half + 1]
     m = np.array([(win * uu).sum(), (win * vv).sum()]) / win.sum()

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from deckpose.render import scene as scene_mod
+from deckpose.render.config import Lighting
 
 from deckpose.camera import CameraModel
 from deckpose.pose import CameraPose, ShipPose
-from deckpose.render import scene as scene_mod
-from deckpose.render.config import Lighting
 
 from .conftest import tiny_config
 
@@ -98,7 +98,6 @@ def test_distortion_remap_moves_raster_to_the_distorted_projection(egl_renderer_
 def test_distortion_maps_match_undistort() -> None:
     """The remap table takes every distorted pixel to CameraModel.undistort of it (1/32 px fixed point)."""
     import cv2
-
     from deckpose.render.sensor import distortion_maps
 
     cam = CameraModel(200, 150, [[150.0, 0, 99.5], [0, 150.0, 74.5], [0, 0, 1]], [-0.25, 0.08, 0.001, 0.0, 0.0])
