@@ -19,7 +19,8 @@ from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
-from deckpose.estimate.least_squares import Fit, levenberg_marquardt
+from deckpose.estimate.least_squares import Fit
+from deckpose.estimate.least_squares_batch import FrameObservations, levenberg_marquardt_batch
 from deckpose.estimate.observations import Observations
 from deckpose.estimate.pose_model import relative_from_params
 
@@ -151,7 +152,8 @@ def pick_candidate(
 #: only ranks which point to drop, from the current fit's pose.
 TRIAL_ITERATIONS = 8
 
-RefitFn = Callable[[Observations, np.ndarray], float]
+#: ``(observations, params) -> chi2 of each leave-one-out subset`` (n,).
+RefitFn = Callable[[Observations, np.ndarray], np.ndarray]
 
 
 def solve_robust(
@@ -167,9 +169,10 @@ def solve_robust(
     :data:`SCALED_MAX_RMS_PX`, the search is repeated with the threshold times that scale. The plain search runs first because a least-squares fit
     smears a wrong id's residual over every point and would hide it in the scale.
 
-    ``refit(observations, params) -> chi2`` ranks the leave-one-out trials from the current
-    fit's pose (:data:`TRIAL_ITERATIONS` iterations) instead of a full ``solve`` of each;
-    the subset chosen is then solved in full. On garbage (19 points, three outliers allowed,
+    ``refit(observations, params) -> chi2 of each subset without one point`` ranks the
+    leave-one-out trials from the current fit's pose (:data:`TRIAL_ITERATIONS` iterations,
+    all subsets as one batch) instead of a full ``solve`` of each; the subset chosen is then
+    solved in full. On garbage (19 points, three outliers allowed,
     both thresholds) the full trials took 62 solves and up to 0.3 s a frame.
 
     Returns
@@ -213,14 +216,14 @@ def _remove_outliers(
                 f"after removing {len(removed)} outlier(s): spurious point, wrong id, or sigma_px too small"
             )), obs, removed, True
         best: tuple[float, int, Candidate | None] = (math.inf, -1, None)
-        for i in range(len(obs)):
+        if refit is not None:
+            chi2 = np.asarray(refit(obs, result.fit.params), float)
+            chi2 = np.where(np.isfinite(chi2), chi2, np.inf)
+            if chi2.size and np.isfinite(chi2.min()):
+                best = (float(chi2.min()), int(np.argmin(chi2)), None)
+        for i in range(len(obs) if refit is None else 0):
             keep = np.ones(len(obs), dtype=bool)
             keep[i] = False
-            if refit is not None:
-                chi2 = refit(obs.subset(keep), result.fit.params)
-                if chi2 < best[0]:
-                    best = (chi2, i, None)
-                continue
             r = solve(obs.subset(keep))
             if isinstance(r, Candidate) and r.fit.chi2 < best[0]:
                 best = (r.fit.chi2, i, r)
@@ -322,10 +325,19 @@ def make_estimate(
     )
 
 
-def _trial_chi2(obs: Observations, params: np.ndarray, R_wc: np.ndarray) -> float:
-    """chi2 of ``obs`` after :data:`TRIAL_ITERATIONS` LM iterations from ``params``."""
-    fit = levenberg_marquardt(params, obs, R_wc, max_iterations=TRIAL_ITERATIONS)
-    return float(fit.chi2) if math.isfinite(fit.chi2) else math.inf
+def _trial_chi2(obs: Observations, params: np.ndarray, R_wc: np.ndarray) -> np.ndarray:
+    """chi2 of each subset of ``obs`` without one point, (n,), after :data:`TRIAL_ITERATIONS`
+    LM iterations from ``params``: all subsets as one batch, the left-out point given zero
+    weight (it must still lie in front of the camera)."""
+    n = len(obs)
+    sqrt_info = np.repeat(obs.sqrt_info[None], n, axis=0)
+    sqrt_info[np.arange(n), np.arange(n)] = 0.0
+    stacked = FrameObservations(
+        obs.ids, obs.points_deck_m, np.repeat(obs.xy[None], n, axis=0), sqrt_info,
+        np.repeat(obs.px_from_norm[None], n, axis=0), np.repeat(R_wc[None], n, axis=0))
+    fit = levenberg_marquardt_batch(np.repeat(np.asarray(params, float)[None], n, axis=0), stacked,
+                                    max_iterations=TRIAL_ITERATIONS)
+    return np.where(np.isfinite(fit.chi2), fit.chi2, np.inf)
 
 
 def estimate_robustly(
