@@ -130,3 +130,22 @@ def test_lock_file_records_holder(tmp_path):
         assert time.strftime("%Y-") in text
     finally:
         release(p)
+
+
+def test_a_full_disk_in_render_says_the_disk_is_full(tmp_path, monkeypatch, capsys):
+    # OpenCV only says it could not write; the message used to stop there
+    import deckpose.render.dataset as ds
+
+    cfg = tmp_path / "job.yaml"
+    cfg.write_text("cameras: [{preset: 4mp, size: [64, 48]}]\nheights_m: [30]\n")
+    monkeypatch.setattr(ds.cv2, "imwrite", lambda *_a, **_k: False)
+
+    class Full:
+        free = 10
+
+    real = ds.shutil.disk_usage
+    monkeypatch.setattr(ds.shutil, "disk_usage", lambda p: Full if "images" in str(p) else real(p))
+    code = main(["render", str(cfg), "-o", str(tmp_path / "ds"), "--workers", "0", "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == 1 and "the disk is full" in err and "same command again" in err
+    assert "Traceback" not in err and err.count("\n") == 1
