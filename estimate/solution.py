@@ -166,8 +166,10 @@ def solve_robust(
     When that leaves residuals too large after ``max_outliers`` removals, and the first
     fit's :func:`covariance_scale` says the detections' covariances understate every
     residual alike (a clipped spot's centroid, say) while its reprojection RMS is at most
-    :data:`SCALED_MAX_RMS_PX`, the search is repeated with the threshold times that scale. The plain search runs first because a least-squares fit
-    smears a wrong id's residual over every point and would hide it in the scale.
+    :data:`SCALED_MAX_RMS_PX`, the search's fits are taken again at the threshold times that
+    scale (the search at that threshold would remove the same points, only stop sooner). The
+    plain search runs first because a least-squares fit smears a wrong id's residual over
+    every point and would hide it in the scale.
 
     ``refit(observations, params) -> chi2 of each subset without one point`` ranks the
     leave-one-out trials from the current fit's pose (:data:`TRIAL_ITERATIONS` iterations,
@@ -180,9 +182,10 @@ def solve_robust(
     (Candidate or failure reason, observations used, ids removed)
     """
     first = solve(obs) if len(obs) >= min_points else _too_few(obs, min_points)
+    states: list[tuple[Candidate, Observations, list[int]]] = []
     result, used, removed, residual_failure = _remove_outliers(
         obs, solve, first, min_points=min_points, threshold=outlier_chi2, max_outliers=max_outliers,
-        refit=refit)
+        refit=refit, states=states)
     if not (residual_failure and isinstance(result, Candidate)):
         return result, used, removed
     # The scale from the fit without the worst points, where a wrong point no longer smears.
@@ -190,22 +193,31 @@ def solve_robust(
     scale = float(covariance_scale(pc)) if np.all(np.isfinite(pc)) else 1.0
     if scale <= 1.0:
         return result, used, removed
-    scaled = _remove_outliers(obs, solve, first, min_points=min_points,
-                              threshold=outlier_chi2 * scale, max_outliers=max_outliers, refit=refit)
-    c = scaled[0]
-    if scaled[3] or not isinstance(c, Candidate) or not c.fit.rms_px <= SCALED_MAX_RMS_PX:
-        return result, used, removed
-    return scaled[:3]
+    # The search at the scaled threshold removes the same points in the same order (which
+    # point to drop does not depend on the threshold); it only stops sooner: at the first
+    # state of the search above whose residuals all lie within the scaled threshold. None
+    # does: it gives up where the search above did.
+    for c, c_obs, c_removed in states:
+        c_pc = c.fit.point_chi2()
+        if c_pc.size == 0 or float(np.max(c_pc)) <= outlier_chi2 * scale:
+            if c.fit.rms_px <= SCALED_MAX_RMS_PX:
+                return c, c_obs, c_removed
+            break
+    return result, used, removed
 
 
 def _remove_outliers(
     obs: Observations, solve: SolveFn, result: Candidate | str, *, min_points: int, threshold: float,
     max_outliers: int, refit: RefitFn | None = None,
+    states: list[tuple[Candidate, Observations, list[int]]] | None = None,
 ) -> tuple[Candidate | str, Observations, list[int], bool]:
     """The leave-one-out search of :func:`solve_robust` at one threshold; the flag says
-    whether it gave up with a residual above the threshold."""
+    whether it gave up with a residual above the threshold. ``states`` (when given) collects
+    every fit the search went through, with its observations and the ids removed so far."""
     removed: list[int] = []
     while isinstance(result, Candidate):
+        if states is not None:
+            states.append((result, obs, list(removed)))
         pc = result.fit.point_chi2()
         if pc.size == 0 or float(np.max(pc)) <= threshold:
             return result, obs, removed, False
