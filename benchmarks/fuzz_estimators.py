@@ -20,7 +20,8 @@ batch of 1-16 frames, for every method and variant. Counted (each must be 0):
   scipy's rotation, independently of ``estimate/pose_checks.py``);
 * frames whose batched answer differs from their answer alone (ok, reason, or a
   value by more than 1e-6 relative);
-* frames that took more than 50 ms alone.
+* frames that took more than 50 ms alone (a frame over it is timed twice more and
+  counted by the fastest of the three, so a pause of a shared machine does not count).
 
 Usage::
 
@@ -141,6 +142,11 @@ def fuzz(method: str, options: EstimateOptions, n: int, seed: int) -> Counts:
             alone.append(None)
             continue
         dt = time.perf_counter() - t0
+        if dt > SLOW_S:  # timed twice more: a frame's cost, not a pause of the machine's
+            for _ in range(2):
+                t0 = time.perf_counter()
+                run_estimator(method, det, cam, LAYOUT, options)
+                dt = min(dt, time.perf_counter() - t0)
         c.max_s = max(c.max_s, dt)
         c.slow += dt > SLOW_S
         alone.append(e)
@@ -182,7 +188,7 @@ def main() -> int:
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"fuzz_estimators: seed {args.seed}; 1-minute load {load:.2f} on {os.cpu_count()} cores")
     print(f"{'method':14s} {'inputs':>7s} {'ok':>6s} {'escaped':>8s} {'nan ok':>7s} {'upside ok':>9s} "
-          f"{'batch!=':>8s} {'>50ms':>6s} {'max ms':>8s}")
+          f"{'batch!=':>8s} {'>50ms':>6s} {'max ms':>8s}   (times: fastest of 3 for slow frames)")
     bad = 0
     for method in ("thesis", "conic", "pnp"):
         for label, opts, n in (
