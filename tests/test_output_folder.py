@@ -149,3 +149,31 @@ def test_a_full_disk_in_render_says_the_disk_is_full(tmp_path, monkeypatch, caps
     err = capsys.readouterr().err
     assert code == 1 and "the disk is full" in err and "same command again" in err
     assert "Traceback" not in err and err.count("\n") == 1
+
+
+def test_read_only_output_is_one_line_for_every_writer(tmp_path, monkeypatch, capsys):
+    # render, pipeline, motion and estimate said "OSError [Errno 30]" (exit 1)
+    from deckpose.camera import preset
+    from deckpose.camera_info import write_camera_info
+
+    cfg = tmp_path / "job.yaml"
+    cfg.write_text("cameras: [{preset: 4mp, size: [64, 48]}]\nheights_m: [30]\n")
+    cam = tmp_path / "cam.yaml"
+    write_camera_info(preset("8mp"), cam)
+    det = tmp_path / "d.csv"
+    det.write_text("frame_id,beacon_id,u_px,v_px\n0,0,1.0,2.0\n")
+
+    def read_only(*_a, **_k):
+        raise OSError(errno.EROFS, "Read-only file system")
+
+    monkeypatch.setattr(output_folder.tempfile, "mkstemp", read_only)
+    ro = tmp_path / "ro"
+    for argv in (["render", str(cfg), "-o", str(ro / "ds"), "--no-progress"],
+                 ["pipeline", str(cfg), str(ro / "run"), "--no-progress"],
+                 ["motion", "thesis", "-o", str(ro / "m.csv")],
+                 ["estimate", str(det), "--camera", str(cam), "-o", str(ro / "p.csv")]):
+        code = main(argv)
+        err = capsys.readouterr().err
+        assert code == 2, (argv[0], err)
+        assert "cannot write in" in err and "Read-only file system" in err, (argv[0], err)
+        assert "Traceback" not in err and err.count("\n") == 1
