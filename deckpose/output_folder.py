@@ -150,17 +150,3 @@ def release(folder: str | os.PathLike[str]) -> None:
     with contextlib.suppress(OSError):
         os.unlink(p / LOCK_NAME)  # while still locked: a waiting process sees no stale file
     os.close(fd)
-
-
-@contextlib.contextmanager
-def claimed(folder: str | os.PathLike[str], *, need_bytes: int = 0, what: str = "job"):  # type: ignore[no-untyped-def]
-    """:func:`claim_output` for the length of a ``with`` block (released after, unless
-    this process held it before)."""
-    p = Path(folder).resolve() if Path(folder).exists() else None
-    held_before = p is not None and p in _HELD
-    got = claim_output(folder, need_bytes=need_bytes, what=what)
-    try:
-        yield got
-    finally:
-        if not held_before:
-            release(got)

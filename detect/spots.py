@@ -17,9 +17,9 @@ Large frames are searched on a block-*maximum* copy (block means would dilute
 small spots below the level), then at full resolution in boxes around it.
 
 All of it is computed once per frame (:func:`spot_search`) and shared by the
-box search and the candidate windows. The full frame is read by one OpenCV
-dilation that keeps its integer type (block maxima of the peak channel, straight
-from the interleaved RGB pixels); the peak channel itself is made only for
+box search and the candidate windows. The full frame is read once, by strided
+element-wise maxima that keep its integer type (block maxima of the peak channel,
+straight from the interleaved RGB pixels); the peak channel itself is made only for
 strided samples and small windows, and the bright level is ranked among the
 pixels of the brightest blocks only.
 """
@@ -37,7 +37,7 @@ from deckpose.detect.registry import DetectorOptions
 #: The bright-spot level is the value of this brightest pixel (rank from the top).
 BRIGHT_RANK = 20
 
-#: dtypes OpenCV's max and dilate handle natively.
+#: dtypes kept as they are (others become float32).
 _CV_DTYPES = (np.uint8, np.uint16, np.int16, np.float32, np.float64)
 
 

@@ -228,17 +228,18 @@ def _remove_outliers(
                 f"after removing {len(removed)} outlier(s): spurious point, wrong id, or sigma_px too small"
             )), obs, removed, True
         best: tuple[float, int, Candidate | None] = (math.inf, -1, None)
-        if refit is not None:
+        if refit is not None:  # all trials in one batch; the chosen subset is solved below
             chi2 = np.asarray(refit(obs, result.fit.params), float)
             chi2 = np.where(np.isfinite(chi2), chi2, np.inf)
             if chi2.size and np.isfinite(chi2.min()):
                 best = (float(chi2.min()), int(np.argmin(chi2)), None)
-        for i in range(len(obs) if refit is None else 0):
-            keep = np.ones(len(obs), dtype=bool)
-            keep[i] = False
-            r = solve(obs.subset(keep))
-            if isinstance(r, Candidate) and r.fit.chi2 < best[0]:
-                best = (r.fit.chi2, i, r)
+        else:
+            for i in range(len(obs)):
+                keep = np.ones(len(obs), dtype=bool)
+                keep[i] = False
+                r = solve(obs.subset(keep))
+                if isinstance(r, Candidate) and r.fit.chi2 < best[0]:
+                    best = (r.fit.chi2, i, r)
         if best[1] < 0:
             return result, obs, removed, False
         keep = np.ones(len(obs), dtype=bool)

@@ -9,6 +9,7 @@ thesis's Table 4.2-4.13 maxima next to ours where resolution and height match.
 from __future__ import annotations
 
 import io
+import json
 from pathlib import Path
 
 import cv2
@@ -22,6 +23,7 @@ from deckpose.evaluate import run_layout as rl
 from deckpose.evaluate import thesis_reference as ref
 from deckpose.evaluate.errors import centroid_errors
 from deckpose.evaluate.resolution_tables import resolution_markdown, resolution_table
+from matplotlib.lines import Line2D
 
 from deckpose.atomic_io import atomic_open
 from deckpose.camera import THESIS_RESOLUTIONS
@@ -141,8 +143,6 @@ def plot_error_vs_resolution(table: pd.DataFrame, sizes_px: dict[str, tuple[int,
             if row == len(quantities) - 1:
                 ax.set_xlabel("megapixels")
     handles, labels = axes[0, 0].get_legend_handles_labels()
-    from matplotlib.lines import Line2D
-
     handles.append(Line2D([], [], ls="--", color="grey"))
     labels.append("Cramér–Rao bound")
     fig.suptitle("Error sigma against resolution (numbers: frames per point; bars: standard error "
@@ -330,7 +330,6 @@ def provenance_lines(run: rl.RunPaths) -> list[str]:
     list of str
         Markdown lines; empty when the run has neither record.
     """
-    import json
 
     lines: list[str] = []
     if run.manifest.exists():
@@ -361,7 +360,6 @@ def provenance_lines(run: rl.RunPaths) -> list[str]:
 
 def _run_title(run: rl.RunPaths) -> str:
     """The dataset's config name from its manifest (the folder name when there is none)."""
-    import json
 
     if run.manifest.exists():
         name = json.loads(run.manifest.read_text()).get("name")
@@ -383,7 +381,6 @@ def write_report(run: rl.RunPaths) -> Path:
     fig_dir.mkdir(parents=True, exist_ok=True)
     cams = rl.read_cameras(run, sorted(frames["camera"].astype(str).unique()))
     sizes = {n: (c.width_px, c.height_px) for n, c in cams.items()}
-    import json
 
     manifest = json.loads(run.manifest.read_text()) if run.manifest.exists() else {}
     full_well = (manifest.get("sensor") or {}).get("full_well_e")

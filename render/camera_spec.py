@@ -6,7 +6,6 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
-from deckpose.render.config_checks import parse_enum
 
 from deckpose.camera import CameraModel, PixelForm, from_focal_angle, preset
 from deckpose.errors import ConfigError
@@ -43,7 +42,7 @@ class CameraSpec:
         elif self.K is not None:
             K = np.asarray(self.K, dtype=float).reshape(3, 3)
         elif self.focal_angle_deg is not None:
-            form = parse_enum(PixelForm, self.form, f"{where}.form")
+            form = coerce(PixelForm, self.form, f"{where}.form")
             K = from_focal_angle(*self.size, self.focal_angle_deg, form=form).K
         else:
             raise ConfigError(f"{where}: needs focal_angle_deg or K besides size")

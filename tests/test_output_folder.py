@@ -14,7 +14,7 @@ import pytest
 
 from deckpose import output_folder
 from deckpose.cli import main, os_error_line
-from deckpose.output_folder import LOCK_NAME, OutputFolderError, claim_output, claimed, release
+from deckpose.output_folder import LOCK_NAME, OutputFolderError, claim_output, release
 
 
 def _holder(folder: Path) -> subprocess.Popen:
@@ -44,8 +44,9 @@ def test_a_second_job_on_a_folder_is_refused_and_a_killed_one_leaves_no_lock(tmp
         assert proc.stdout is not None
         proc.stdout.close()
     # the kernel dropped the dead process's lock: the same command runs now
-    with claimed(folder, what="detect") as p:
-        assert (p / LOCK_NAME).is_file()
+    p = claim_output(folder, what="detect")
+    assert (p / LOCK_NAME).is_file()
+    release(p)
     assert not (folder / LOCK_NAME).exists()  # released and removed
 
 
@@ -64,8 +65,7 @@ def test_stale_temporary_files_go_when_a_folder_is_claimed(tmp_path):
     keep = [run / "log.mcap", run / "detections" / "cog.parquet", run / ".hidden_notes"]
     for p in stale + keep:
         p.write_text("x")
-    with claimed(run, what="evaluate"):
-        pass
+    release(claim_output(run, what="evaluate"))
     assert not any(p.exists() for p in stale)
     assert all(p.exists() for p in keep)
 

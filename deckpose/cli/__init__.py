@@ -52,11 +52,8 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for name in SUBCOMMAND_MODULES:
         importlib.import_module(name).register(sub)
-    for sp in sub.choices.values():  # -v/-q after the command too (set only when given there)
-        sp.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS,
-                        help="log more: -v what each stage does, -vv debugging detail")
-        sp.add_argument("-q", "--quiet", action="store_true", default=argparse.SUPPRESS,
-                        help="log errors only")
+    for sp in sub.choices.values():  # -v/-q after the command too
+        add_verbosity(sp, command=True)
     return parser
 
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from deckpose.cli.common_options import add_output
 from deckpose.cli.detect_cmd import add_detector_arguments
 
 
@@ -21,9 +22,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
     )
     p.add_argument("dataset", metavar="DATASET", help="dataset folder (deckpose-dataset/1)")
     p.add_argument("--detectors", help="comma-separated detector names (default: all registered)")
-    p.add_argument("-o", "--output", dest="out", metavar="DIR",
-                   help="report folder (default DATASET/bench-detectors)")
-    p.add_argument("--out", dest="out", help=argparse.SUPPRESS)  # the old spelling, unlisted
+    add_output(p, "report folder (default DATASET/bench-detectors)", metavar="DIR", dest="out")
     p.add_argument(
         "--threshold-sigma", type=float, default=6.0, help="detection threshold (sigmas)"
     )

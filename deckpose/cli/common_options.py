@@ -48,12 +48,12 @@ def workers(args: argparse.Namespace) -> int:
 
 
 def add_output(p: argparse.ArgumentParser, help: str, *, default: Path | None = None,
-               required: bool = False, metavar: str = "PATH") -> None:
-    """``-o/--output`` (the old ``--out`` spelling still parses, unlisted)."""
-    p.add_argument("-o", "--output", dest="output", type=Path, default=default,
+               required: bool = False, metavar: str = "PATH", dest: str = "output") -> None:
+    """``-o/--output`` into ``args.<dest>`` (the old ``--out`` spelling still parses, unlisted)."""
+    p.add_argument("-o", "--output", dest=dest, type=Path, default=default,
                    required=required, metavar=metavar,
                    help=help + (f" (default: {default})" if default is not None else ""))
-    p.add_argument("--out", dest="output", type=Path, help=argparse.SUPPRESS)
+    p.add_argument("--out", dest=dest, type=Path, help=argparse.SUPPRESS)
 
 
 def add_progress(p: argparse.ArgumentParser) -> None:
@@ -62,11 +62,14 @@ def add_progress(p: argparse.ArgumentParser) -> None:
                    help="no progress bars (they are off anyway when the output is not a terminal)")
 
 
-def add_verbosity(p: argparse.ArgumentParser) -> None:
-    """``-v/--verbose`` (repeatable) and ``-q/--quiet`` on the top-level parser."""
-    p.add_argument("-v", "--verbose", action="count", default=0,
+def add_verbosity(p: argparse.ArgumentParser, *, command: bool = False) -> None:
+    """``-v/--verbose`` (repeatable) and ``-q/--quiet``: on the top-level parser, and with
+    ``command`` on a command's, where they are set only when given (so they do not undo
+    the top level's)."""
+    unset = {"default": argparse.SUPPRESS} if command else {}
+    p.add_argument("-v", "--verbose", action="count", **({"default": 0} | unset),
                    help="log more: -v what each stage does, -vv debugging detail")
-    p.add_argument("-q", "--quiet", action="store_true", help="log errors only")
+    p.add_argument("-q", "--quiet", action="store_true", **unset, help="log errors only")
 
 
 def configure_logging(args: Any) -> None:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from deckpose.cli.common_options import add_output
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = subparsers.add_parser(
@@ -25,16 +27,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         help="dataset folder, or a folder of images (not needed with --list)",
     )
     p.add_argument("--detector", default="cog", help="detector name (see --list); default cog")
-    p.add_argument("--out", dest="out", help=argparse.SUPPRESS)  # the old spelling, unlisted
-    p.add_argument(
-        "-o",
-        "--output",
-        dest="out",
-        metavar="DIR",
-        help="self-contained output folder (detections.parquet, detect_frames.parquet, cameras/, "
+    add_output(
+        p,
+        "self-contained output folder (detections.parquet, detect_frames.parquet, cameras/, "
         "detect_run.json); default for a dataset: DATASET/detections/<detector>.parquet and "
         "<detector>.frames.parquet, where 'deckpose estimate --run DATASET' reads them; "
         "required for a folder of images",
+        metavar="DIR", dest="out",
     )
     p.add_argument("--camera-info", dest="camera_info", help=argparse.SUPPRESS)  # old spelling
     p.add_argument(

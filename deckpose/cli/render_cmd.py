@@ -52,7 +52,7 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.output_folder import claim_output
 
     # room for at least the largest frame (uncompressed), checked before anything is written
-    biggest = max(c.model().width_px * c.model().height_px for c in cfg.cameras)
+    biggest = max(c.width_px * c.height_px for c in cfg.cameras_by_name().values())
     claim_output(out, need_bytes=biggest * 3 * (2 if cfg.sensor.bit_depth > 8 else 1), what="render")
     path = render_dataset(cfg, out, workers=workers(args), resume=args.resume, scheduler=args.scheduler,
                           progress=not args.no_progress)
