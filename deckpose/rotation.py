@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.spatial.transform import Rotation
 
 FloatArray = NDArray[np.float64]
 
@@ -102,7 +101,3 @@ def wrap_angle_rad(angle_rad: ArrayLike) -> FloatArray:
     a = np.asarray(angle_rad, dtype=float)
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
-
-def as_scipy(R: ArrayLike) -> Rotation:
-    """Wrap rotation matrices as a :class:`scipy.spatial.transform.Rotation`."""
-    return Rotation.from_matrix(np.asarray(R, dtype=float))

@@ -54,14 +54,6 @@ def fit_conic(points_px: FloatArray) -> FloatArray:
     return c / np.linalg.norm(c)
 
 
-def is_ellipse(conic: FloatArray) -> bool:
-    """A real, non-degenerate ellipse."""
-    A, B, C = conic[:3]
-    if not B * B - 4 * A * C < 0:
-        return False
-    return ellipse_semi_axes(conic) is not None
-
-
 def ellipse_centre(conic: FloatArray) -> FloatArray:
     """Centre of an ellipse conic, (2,)."""
     A, B, C, D, E, _ = conic

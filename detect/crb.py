@@ -103,9 +103,3 @@ def centroid_crb_px2(
     info = centroid_fisher(u_px, v_px, sigma_px, flux_e, sensor)
     return np.linalg.inv(info)[:2, :2]
 
-
-def centroid_crb_rms_px(
-    u_px: float, v_px: float, sigma_px: float, flux_e: float, sensor: SensorModel
-) -> float:
-    """Per-axis RMS of the bound, ``sqrt(trace(CRB) / 2)``, pixels."""
-    return float(math.sqrt(np.trace(centroid_crb_px2(u_px, v_px, sigma_px, flux_e, sensor)) / 2.0))

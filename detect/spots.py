@@ -251,14 +251,6 @@ def tophat_spot_search(image: np.ndarray, options: DetectorOptions) -> SpotSearc
     return dataclasses.replace(s, saturation_dn=clip_level(image.dtype, bright_pk))
 
 
-def spot_threshold(
-    image: np.ndarray, options: DetectorOptions
-) -> tuple[float, float, float, float]:
-    """``(threshold, background, bright level, noise)`` of the peak-channel image, DN."""
-    s = spot_search(image, options)
-    return s.threshold_dn, s.background_dn, s.bright_dn, s.noise_dn
-
-
 def bright_components(mask: np.ndarray, tile_px: int = 16_384) -> np.ndarray:
     """Bounding boxes ``(x, y, w, h)`` of the 8-connected components of a sparse mask, (n, 4).
 

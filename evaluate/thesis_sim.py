@@ -9,7 +9,6 @@ noise of N px; the faithful estimator; errors against the true thesis angles.
 
 from __future__ import annotations
 
-import enum
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from importlib import resources
@@ -81,13 +80,6 @@ class CellSpec:
     def __post_init__(self) -> None:
         if self.resolution not in THESIS_RESOLUTIONS:
             raise InputDataError(f"unknown resolution {self.resolution!r}; use {list(THESIS_RESOLUTIONS)}")
-
-
-class Quantity(enum.IntEnum):
-    ROLL = 0
-    PITCH = 1
-    YAW = 2
-    HEIGHT = 3
 
 
 @dataclass(frozen=True)
