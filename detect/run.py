@@ -16,6 +16,7 @@ import json
 import logging
 import os
 import platform
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +35,99 @@ from deckpose.layout import layout_to_dict
 log = logging.getLogger(__name__)
 
 RUN_FORMAT = "deckpose-detections/1"
+
+__all__ = ["RUN_FORMAT", "DetectRunResult", "detect_frames", "detect_frames_with", "detect_run", "write_run"]
+
+
+@dataclass(frozen=True)
+class DetectRunResult:
+    """What the detect stage wrote.
+
+    Attributes
+    ----------
+    path : Path
+        The detections table.
+    detections : pandas.DataFrame
+        One row per detection.
+    frames : pandas.DataFrame
+        One row per frame with ``ok`` and ``reason``.
+    """
+
+    path: Path
+    detections: pd.DataFrame
+    frames: pd.DataFrame
+
+    @property
+    def n_ok(self) -> int:
+        return int(self.frames["ok"].sum()) if len(self.frames) else 0
+
+
+def detect_run(
+    source: str | os.PathLike[str],
+    detector: str,
+    *,
+    options: DetectorOptions = DetectorOptions(),
+    identify_options: IdentifyOptions = IdentifyOptions(),
+    out_dir: str | os.PathLike[str] | None = None,
+    camera_file: str | os.PathLike[str] | None = None,
+    layout_file: str | os.PathLike[str] | None = None,
+    progress: bool = False,
+) -> DetectRunResult:
+    """The detect stage: detect and identify in every frame of a dataset or an image folder.
+
+    The CLI (``deckpose detect``) and the pipeline both call this.
+
+    Parameters
+    ----------
+    source : path
+        A deckpose dataset folder, or a folder of images (then ``camera_file`` and
+        ``out_dir`` are required).
+    detector : str
+        A registered detector.
+    options : DetectorOptions, keyword-only
+        With ``gain_dn_per_e = None`` the gain a dataset's manifest declares is used.
+    identify_options : IdentifyOptions, keyword-only
+    out_dir : path, optional, keyword-only
+        A self-contained output folder (default for a dataset: its run layout).
+    camera_file, layout_file : path, optional, keyword-only
+        ROS camera_info and layout YAML of an image folder.
+    progress : bool, keyword-only
+
+    Returns
+    -------
+    DetectRunResult
+
+    Raises
+    ------
+    ConfigError
+        An unknown detector, or an image folder without a camera file or output folder.
+    """
+    from deckpose.detect import registry
+    from deckpose.detect.sources import declared_gain, is_dataset, open_dataset, open_image_folder
+
+    from deckpose.output_folder import claim_output
+
+    registry.get(detector)  # fail early on an unknown name
+    if is_dataset(source):
+        frameset = open_dataset(source)
+    else:
+        if not camera_file:
+            raise ConfigError(
+                f"{source} is not a deckpose dataset (no manifest.json); for a folder of "
+                "images pass --camera CAMERA.yaml (and optionally --layout)"
+            )
+        if not out_dir:
+            raise ConfigError("a folder of images needs an output folder: add -o DIR")
+        frameset = open_image_folder(source, camera_file, layout_file)
+    if options.gain_dn_per_e is None:
+        options = dataclasses.replace(options, gain_dn_per_e=declared_gain(frameset.manifest))
+    # before any frame is detected: the output folder can be written and is no other job's
+    # (a dataset's own folder when detections go into it: a render still writing it is refused)
+    claim_output(Path(out_dir) if out_dir else frameset.root, what="detect")
+    dets, frames = detect_frames(frameset, detector, options=options, identify_options=identify_options,
+                                 progress=progress)
+    path = write_run(out_dir, frameset, detector, dets, frames, options, identify_options)
+    return DetectRunResult(path, dets, frames)
 
 
 def detect_frames(

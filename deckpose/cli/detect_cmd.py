@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 from deckpose.cli.common_options import add_output
 
@@ -104,18 +103,10 @@ def add_detector_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-
     from deckpose.cli.exit_codes import frames_exit_code
     from deckpose.detect import registry
-    from deckpose.detect.identify import IdentifyOptions
     from deckpose.detect.registry import DetectorOptions
-    from deckpose.detect.run import detect_frames, write_run
-    from deckpose.detect.sources import (
-        declared_gain,
-        is_dataset,
-        open_dataset,
-        open_image_folder,
-    )
+    from deckpose.detect.run import detect_run
     from deckpose.errors import ConfigError
 
     for mod in args.plugin:
@@ -125,42 +116,18 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.dataset is None:
         raise ConfigError("no DATASET given: name a dataset folder or a folder of images")
-    registry.get(args.detector)  # fail early on an unknown name
-    if is_dataset(args.dataset):
-        frameset = open_dataset(args.dataset)
-    else:
-        if not args.camera_info:
-            raise ConfigError(
-                f"{args.dataset} is not a deckpose dataset (no manifest.json); for a folder of "
-                "images pass --camera CAMERA.yaml (and optionally --layout)"
-            )
-        if not args.out:
-            raise ConfigError("a folder of images needs an output folder: add -o DIR")
-        frameset = open_image_folder(args.dataset, args.camera_info, args.layout)
     options = DetectorOptions(
         threshold_sigma=args.threshold_sigma,
-        gain_dn_per_e=args.gain if args.gain is not None else declared_gain(frameset.manifest),
+        gain_dn_per_e=args.gain,
         background_kernel_px=args.background_kernel_px,
         spot_level=args.spot_level,
         significance_sigma=args.significance_sigma,
     )
-    ident = IdentifyOptions()
-    from deckpose.output_folder import claim_output
-
-    # before any frame is detected: the output folder can be written and is no other job's
-    # (a dataset's own folder when detections go into it: a render still writing it is refused)
-    claim_output(Path(args.out) if args.out else frameset.root, what="detect")
-    dets, frames = detect_frames(
-        frameset,
-        args.detector,
-        options=options,
-        identify_options=ident,
-        progress=not args.no_progress,
-    )
-    out = write_run(args.out, frameset, args.detector, dets, frames, options, ident)
-    n_ok = int(frames["ok"].sum()) if len(frames) else 0
-    print(f"{len(frames)} frames, {n_ok} ok, {len(dets)} detections -> {out}")
+    res = detect_run(args.dataset, args.detector, options=options, out_dir=args.out,
+                     camera_file=args.camera_info, layout_file=args.layout, progress=not args.no_progress)
+    frames = res.frames
+    print(f"{len(frames)} frames, {res.n_ok} ok, {len(res.detections)} detections -> {res.path}")
     for r in frames.itertuples():
         if not r.ok:
             print(f"  frame {r.frame_id}: {r.reason}")
-    return frames_exit_code(len(frames), n_ok, strict=args.strict)
+    return frames_exit_code(len(frames), res.n_ok, strict=args.strict)

@@ -6,8 +6,6 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from deckpose.cli.common_options import HelpFormatter, add_progress
 from deckpose.cli.exit_codes import frames_exit_code
 
@@ -15,11 +13,7 @@ if TYPE_CHECKING:
     import pandas as pd
     from tqdm import tqdm
 
-    from deckpose.camera import CameraModel
     from deckpose.estimate import registry
-    from deckpose.estimate.registry import EstimateOptions
-    from deckpose.layout import DeckLayout
-    from deckpose.records import Detections, PoseEstimate
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -73,53 +67,50 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 def run(args: argparse.Namespace) -> int:
     import dataclasses
 
-    from tqdm import tqdm
-
     from deckpose.camera_info import read_camera_info
-    from deckpose.detections_io import detections_from_frame, identify_unassigned
     from deckpose.errors import ConfigError
-    from deckpose.estimate import registry
-    from deckpose.estimate.results_table import estimates_frame
+    from deckpose.estimate.estimate_run import estimate_run, estimate_table
     from deckpose.layout import DeckLayout, read_layout
+    from deckpose.output_folder import ensure_writable
     from deckpose.tables import read_table, write_table
 
     spec = _method_spec(args)
     if args.run is not None:
-        return _run_folder(args, spec)
-    if args.detections is None or args.camera is None or args.output is None:
-        raise ConfigError("give DETECTIONS --camera CAMERA.yaml -o OUTPUT, or --run RUN --detector NAME")
-    layout = read_layout(args.layout) if getattr(args, "layout", None) else DeckLayout()
-    if args.radius is not None:
-        if not args.radius > 0:
-            raise ConfigError(f"--radius must be positive, got {args.radius}")
-        if not args.radius > layout.beacon_radius_m:
-            raise ConfigError(
-                f"--radius {args.radius:g} m is not larger than a beacon ({layout.beacon_radius_m:g} m); "
-                "give the ring's radius in metres, or a --layout file")
-        layout = dataclasses.replace(layout, radius_m=float(args.radius))
-    options = registry.EstimateOptions(sigma_px=args.sigma_px, refine=spec.refine,
-                                       posterior_mean=spec.posterior_mean)
-    camera = read_camera_info(args.camera)
-    from deckpose.output_folder import ensure_writable
-
-    ensure_writable(Path(args.output).parent)  # before the work, not after it
-    table = read_table(args.detections, "detections")
-    frames = detections_from_frame(table, layout, str(args.detections))
-    # detections of your own without ids (beacon_id -1): identified here, as detect does
-    frames, unidentified = identify_unassigned(table, frames, layout, camera)
-    ids = list(frames)
-    with tqdm(total=len(ids), desc=f"estimate ({spec.label})", unit="frame", disable=True if args.no_progress else None,
-              leave=False) as bar:
-        results = _estimate_in_chunks(spec.name, [frames[i] for i in ids], camera, layout, options,
-                                      None, bar)
-    df = estimates_frame(ids, results).assign(method=spec.label)
-    if unidentified:  # the frame failed for want of ids: say so, not "0 usable"
-        miss = df["frame_id"].isin(list(unidentified)) & ~df["ok"].astype(bool)
-        df.loc[miss, "reason"] = df.loc[miss, "frame_id"].map(unidentified)
-    write_table(df, args.output, "estimates")
+        with _bar(args, spec) as bar:
+            res = estimate_run(args.run, spec, detector=getattr(args, "detector", None), sigma_px=args.sigma_px,
+                               radius_m=args.radius, progress=bar.update)
+        df, out = res.table, res.path
+    else:
+        if args.detections is None or args.camera is None or args.output is None:
+            raise ConfigError("give DETECTIONS --camera CAMERA.yaml -o OUTPUT, or --run RUN --detector NAME")
+        layout = read_layout(args.layout) if getattr(args, "layout", None) else DeckLayout()
+        if args.radius is not None:
+            if not args.radius > 0:
+                raise ConfigError(f"--radius must be positive, got {args.radius}")
+            if not args.radius > layout.beacon_radius_m:
+                raise ConfigError(
+                    f"--radius {args.radius:g} m is not larger than a beacon ({layout.beacon_radius_m:g} m); "
+                    "give the ring's radius in metres, or a --layout file")
+            layout = dataclasses.replace(layout, radius_m=float(args.radius))
+        camera = read_camera_info(args.camera)
+        out = Path(args.output)
+        ensure_writable(out.parent)  # before the work, not after it
+        table = read_table(args.detections, "detections")
+        with _bar(args, spec) as bar:
+            df = estimate_table(table, camera, layout, spec, sigma_px=args.sigma_px,
+                                source=str(args.detections), progress=bar.update)
+        write_table(df, out, "estimates")
     n_ok = int(df["ok"].sum()) if len(df) else 0
-    print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {args.output}{_mean_note(df)}")
+    print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {out}{_mean_note(df)}")
     return frames_exit_code(len(df), n_ok, strict=args.strict)
+
+
+def _bar(args: argparse.Namespace, spec: registry.MethodSpec) -> tqdm:
+    """The progress bar of an estimate (off with --no-progress or when not a terminal)."""
+    from tqdm import tqdm
+
+    return tqdm(desc=f"estimate ({spec.label})", unit="frame", disable=True if args.no_progress else None,
+                leave=False)
 
 
 def _mean_note(df: pd.DataFrame) -> str:
@@ -143,80 +134,3 @@ def _method_spec(args: argparse.Namespace) -> registry.MethodSpec:
     spec = registry.parse_method(args.method)
     return dataclasses.replace(spec, refine=spec.refine or args.refine,
                                posterior_mean=spec.posterior_mean or args.posterior_mean)
-
-
-def _estimate_in_chunks(method: str, detections: list[Detections], camera: CameraModel,
-                        layout: DeckLayout, options: EstimateOptions,
-                        R_world_from_cam: np.ndarray | None, bar: tqdm, chunk: int = 4096,
-                        ) -> list[PoseEstimate]:
-    """:func:`~deckpose.estimate.batch.estimate_batch` over ``chunk`` frames at a time, advancing ``bar``."""
-    from deckpose.estimate.batch import estimate_batch
-
-    out: list[PoseEstimate] = []
-    for lo in range(0, len(detections), chunk):
-        R = None if R_world_from_cam is None else R_world_from_cam[lo:lo + chunk]
-        out.extend(estimate_batch(method, detections[lo:lo + chunk], camera, layout, options,
-                                  R_world_from_cam=R))
-        bar.update(len(detections[lo:lo + chunk]))
-    return out
-
-
-def _run_folder(args: argparse.Namespace, spec: registry.MethodSpec) -> int:
-    """``--run`` mode: per-frame cameras and camera attitudes from the dataset's frames table.
-
-    The output is named after the variant's label (``RUN/estimates/cog--pnp+mean.parquet``), so
-    a method's variants sit side by side.
-    """
-    import dataclasses
-
-    from tqdm import tqdm
-
-    from deckpose.detections_io import detections_from_frame
-    from deckpose.errors import ConfigError
-    from deckpose.estimate import registry
-    from deckpose.estimate.results_table import estimates_frame
-    from deckpose.evaluate import run_layout as rl
-    from deckpose.tables import write_table
-
-    run = rl.run_paths(args.run)
-    rl.require_dataset(run)  # a missing folder says so, not "no detections"
-    from deckpose.output_folder import claim_output
-
-    claim_output(run.root, what="estimate")
-    detectors = run.detectors()
-    if getattr(args, "detector", None) is None:
-        if len(detectors) != 1:
-            raise ConfigError(f"--run needs --detector (this run has detections of: {detectors or 'none'})")
-        args.detector = detectors[0]
-    layout = rl.read_layout(run)
-    if args.radius is not None:
-        layout = dataclasses.replace(layout, radius_m=float(args.radius))
-    frames = rl.read_frames(run).set_index("frame_id")
-    cameras = rl.read_cameras(run, sorted(frames["camera"].unique()))
-    det_df = rl.read_detections(run, args.detector)
-    rl.check_frames_match(frames.reset_index(), det_df, f"detections of {args.detector}",
-                          f"deckpose detect {run.root} --detector {args.detector}")
-    dets = detections_from_frame(det_df, layout, str(run.detections(args.detector)))
-    from deckpose.records import Detections
-
-    options = registry.EstimateOptions(sigma_px=args.sigma_px, refine=spec.refine,
-                                       posterior_mean=spec.posterior_mean)
-    ids = [int(f) for f in frames.index]
-    R_all = rl.R_world_from_cam_all(frames)
-    results: list[PoseEstimate | None] = [None] * len(ids)
-    with tqdm(total=len(ids), desc=f"estimate ({spec.label})", unit="frame", disable=True if args.no_progress else None,
-              leave=False) as bar:
-        # One batch per camera, each frame with its own camera attitude.
-        for cam_name, rows in frames.reset_index().groupby("camera", sort=True).indices.items():
-            dets_cam = [dets.get(ids[k], Detections(np.zeros((0, 2)), np.zeros(0, dtype=np.int64),
-                                                    frame_id=ids[k])) for k in rows]
-            got = _estimate_in_chunks(spec.name, dets_cam, cameras[cam_name], layout, options,
-                                      R_all[rows], bar)
-            for k, e in zip(rows, got):
-                results[k] = e
-    df = estimates_frame(ids, results).assign(method=spec.label)  # type: ignore[arg-type]
-    out = run.estimates(args.detector, spec.label)
-    write_table(df, out, "estimates")
-    n_ok = int(df["ok"].sum()) if len(df) else 0
-    print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {out}{_mean_note(df)}")
-    return frames_exit_code(len(df), n_ok, strict=args.strict)

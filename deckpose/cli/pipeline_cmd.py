@@ -1,6 +1,7 @@
 """``deckpose pipeline CONFIG RUN``: render -> detect -> estimate -> evaluate -> report in one command.
 
-Every stage is the same code as its own subcommand. The render stage resumes
+Every stage is the same stage function as its own subcommand calls (``render_dataset``,
+``detect_run``, ``estimate_run``, ``evaluate_run``, ``write_report``). The render stage resumes
 (frames already on disk are kept), so an interrupted pipeline picks up where it
 stopped when run again with the same arguments; the later stages are cheap and
 are rewritten. ``RUN/pipeline.json`` records the command, the machine and the
@@ -18,7 +19,7 @@ import os
 import platform
 import shutil
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -196,23 +197,25 @@ def run_pipeline(config: object, options: PipelineOptions, config_label: str = "
     dict of str to Path
         ``report``, ``tables``, ``errors`` and (when written) ``mcap`` and ``published``.
     """
+    from tqdm import tqdm
+
     from deckpose import __version__
-    from deckpose.cli import exit_codes, main
+    from deckpose.detect.run import detect_run
+    from deckpose.estimate.estimate_run import estimate_run
+    from deckpose.estimate.registry import parse_method
+    from deckpose.evaluate.pipeline import evaluate_run
+    from deckpose.evaluate.report import write_report
     from deckpose.evaluate.run_layout import run_paths
     from deckpose.render.dataset import render_dataset
 
     check_names(options)
     say = step or (lambda n, total, text: print(f"[{n}/{total}] {text}", flush=True))
     run_dir = Path(options.run_dir)
-    no_progress = [] if options.progress else ["--no-progress"]
     total = 5 + (options.publish_dir is not None)
     seconds: dict[str, float] = {}
 
-    def sub(argv: Sequence[str]) -> None:
-        code = main(list(argv))
-        # a stage whose every frame failed still ran: the later stages report it
-        if code not in (exit_codes.OK, exit_codes.NO_FRAME_OK):
-            raise DeckposeError(f"step 'deckpose {' '.join(argv)}' failed (exit {code}); see the message above")
+    def bar(desc: str) -> tqdm:
+        return tqdm(desc=desc, unit="frame", leave=False, disable=None if options.progress else True)
 
     first = STAGES.index(options.from_stage)
 
@@ -238,8 +241,9 @@ def run_pipeline(config: object, options: PipelineOptions, config_label: str = "
     t = time.perf_counter()
     if runs("detect"):
         say(2, total, f"detect beacons ({', '.join(options.detectors)})")
-        for det in options.detectors:
-            sub(["detect", str(run_dir), "--detector", det, *no_progress])
+        for det in options.detectors:  # a stage whose every frame failed still ran: the report says so
+            res = detect_run(run_dir, det, progress=options.progress)
+            print(f"{len(res.frames)} frames, {res.n_ok} ok, {len(res.detections)} detections -> {res.path}")
         seconds["detect"] = time.perf_counter() - t
         log.info("stage detect: %.1f s", seconds["detect"])
     t = time.perf_counter()
@@ -247,13 +251,17 @@ def run_pipeline(config: object, options: PipelineOptions, config_label: str = "
         say(3, total, f"estimate the pose ({', '.join(options.methods)})")
         for det in options.detectors:
             for method in options.methods:
-                sub(["estimate", "--run", str(run_dir), "--detector", det, "--method", method, *no_progress])
+                spec = parse_method(method)
+                with bar(f"estimate ({spec.label})") as b:
+                    est = estimate_run(run_dir, spec, detector=det, progress=b.update)
+                print(f"{est.n_frames} frames, {est.n_ok} ok, {est.n_frames - est.n_ok} failed -> {est.path}")
         seconds["estimate"] = time.perf_counter() - t
         log.info("stage estimate: %.1f s", seconds["estimate"])
     t = time.perf_counter()
     if runs("evaluate"):
         say(4, total, "evaluate against the ground truth" + (", write the MCAP log" if options.mcap else ""))
-        sub(["evaluate", str(run_dir), *([] if options.mcap else ["--no-mcap"])])
+        for key, path in evaluate_run(paths, mcap=options.mcap).items():
+            print(f"{key}: {path}")
         seconds["evaluate"] = time.perf_counter() - t
         log.info("stage evaluate: %.1f s", seconds["evaluate"])
     previous = _read_record(run_dir)
@@ -274,7 +282,7 @@ def run_pipeline(config: object, options: PipelineOptions, config_label: str = "
         json.dump(record, fh, indent=2)
     t = time.perf_counter()
     say(5, total, "write the report")
-    sub(["report", str(run_dir)])
+    print(f"report: {write_report(paths)}")
     out = {"report": paths.report_dir / "report.md", "tables": paths.evaluation_dir / "resolution_tables.md",
            "errors": paths.errors}
     if options.mcap:

@@ -280,12 +280,12 @@ def test_exit_codes(setup, tmp_path, capsys, monkeypatch):
                  "-o", str(out)]) == 2
     capsys.readouterr()
 
-    import deckpose.cli.estimate_cmd as cmd
+    import deckpose.estimate.estimate_run as stage
 
     def boom(*a, **k):
         raise RuntimeError("an internal failure\nover two lines")
 
-    monkeypatch.setattr(cmd, "_estimate_in_chunks", boom)
+    monkeypatch.setattr(stage, "estimate_frames", boom)
     assert main(base) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "RuntimeError: an internal failure over two lines" in err

@@ -1,0 +1,229 @@
+"""The estimate stage: poses for a detections table or a whole run folder.
+
+The CLI (``deckpose estimate``) and the pipeline both call these functions; they
+parse nothing and print nothing. Frames go to :func:`~deckpose.estimate.batch.
+estimate_batch` one camera at a time, which chunks them by its ``CHUNK_FRAMES``
+(the one chunking policy); ``progress`` is advanced per chunk.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from deckpose.estimate.batch import CHUNK_FRAMES, estimate_batch
+from deckpose.estimate.registry import EstimateOptions, MethodSpec
+from deckpose.estimate.results_table import estimates_frame
+from numpy.typing import NDArray
+
+from deckpose.camera import CameraModel
+from deckpose.errors import ConfigError
+from deckpose.layout import DeckLayout
+from deckpose.records import Detections, PoseEstimate
+
+__all__ = ["EstimateRunResult", "estimate_frames", "estimate_run", "estimate_table", "method_options"]
+
+#: ``progress(n)``: ``n`` more frames are done.
+Progress = Callable[[int], None]
+
+
+@dataclass(frozen=True)
+class EstimateRunResult:
+    """What the estimate stage wrote.
+
+    Attributes
+    ----------
+    path : Path
+        The estimates table.
+    table : pandas.DataFrame
+        Its rows, one per frame (``ok``, ``reason``, the pose, sigmas, extras).
+    """
+
+    path: Path
+    table: pd.DataFrame
+
+    @property
+    def n_frames(self) -> int:
+        return len(self.table)
+
+    @property
+    def n_ok(self) -> int:
+        return int(self.table["ok"].sum()) if len(self.table) else 0
+
+
+def method_options(spec: MethodSpec, sigma_px: float = 1.0) -> EstimateOptions:
+    """The :class:`EstimateOptions` a method label's variant asks for (``pnp+mean``: posterior mean)."""
+    return EstimateOptions(sigma_px=sigma_px, refine=spec.refine, posterior_mean=spec.posterior_mean)
+
+
+def estimate_frames(
+    name: str,
+    detections: Sequence[Detections],
+    camera: CameraModel,
+    layout: DeckLayout,
+    options: EstimateOptions,
+    *,
+    R_world_from_cam: NDArray[np.float64] | None = None,
+    progress: Progress | None = None,
+) -> list[PoseEstimate]:
+    """:func:`~deckpose.estimate.batch.estimate_batch` over ``CHUNK_FRAMES`` frames at a time.
+
+    Parameters
+    ----------
+    name : str
+        A registered estimator.
+    detections : sequence of Detections
+        One per frame, all of ``camera``.
+    camera : CameraModel
+    layout : DeckLayout
+    options : EstimateOptions
+    R_world_from_cam : (F, 3, 3) array of float, optional, keyword-only
+        Each frame's camera attitude (default: ``options.R_world_from_cam`` for all).
+    progress : callable, optional, keyword-only
+        Called with the number of frames done after each chunk.
+
+    Returns
+    -------
+    list of PoseEstimate
+        One per frame, in order.
+    """
+    out: list[PoseEstimate] = []
+    for lo in range(0, len(detections), CHUNK_FRAMES):
+        chunk = list(detections[lo:lo + CHUNK_FRAMES])
+        R = None if R_world_from_cam is None else R_world_from_cam[lo:lo + CHUNK_FRAMES]
+        out.extend(estimate_batch(name, chunk, camera, layout, options, R_world_from_cam=R))
+        if progress is not None:
+            progress(len(chunk))
+    return out
+
+
+def estimate_table(
+    detections: pd.DataFrame,
+    camera: CameraModel,
+    layout: DeckLayout,
+    spec: MethodSpec,
+    *,
+    sigma_px: float = 1.0,
+    source: str = "detections",
+    progress: Progress | None = None,
+) -> pd.DataFrame:
+    """Poses for a detections table of one camera (``deckpose estimate DETECTIONS``).
+
+    Frames whose detections are all unassigned (``beacon_id = -1``) are identified
+    first, as ``deckpose detect`` does; where that fails the frame's reason says why.
+
+    Parameters
+    ----------
+    detections : pandas.DataFrame
+        Rows ``frame_id, beacon_id, u_px, v_px`` (optional covariance, ``is_bow`` or flux columns).
+    camera : CameraModel
+    layout : DeckLayout
+    spec : MethodSpec
+        The estimator and its variant.
+    sigma_px : float, keyword-only
+        Pixel sigma where detections carry no covariance.
+    source : str, keyword-only
+        How messages name the table (its path).
+    progress : callable, optional, keyword-only
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per frame (:func:`~deckpose.estimate.results_table.estimates_frame`).
+    """
+    from deckpose.detections_io import detections_from_frame, identify_unassigned
+
+    frames = detections_from_frame(detections, layout, source)
+    frames, unidentified = identify_unassigned(detections, frames, layout, camera)
+    ids = list(frames)
+    results = estimate_frames(spec.name, [frames[i] for i in ids], camera, layout,
+                              method_options(spec, sigma_px), progress=progress)
+    df = estimates_frame(ids, results).assign(method=spec.label)
+    if unidentified:  # the frame failed for want of ids: say so, not "0 usable"
+        miss = df["frame_id"].isin(list(unidentified)) & ~df["ok"].astype(bool)
+        df.loc[miss, "reason"] = df.loc[miss, "frame_id"].map(unidentified)
+    return df
+
+
+def estimate_run(
+    run_dir: str | Path,
+    spec: MethodSpec,
+    *,
+    detector: str | None = None,
+    sigma_px: float = 1.0,
+    radius_m: float | None = None,
+    progress: Progress | None = None,
+) -> EstimateRunResult:
+    """Estimate every frame of a run folder and write ``RUN/estimates/DETECTOR--LABEL.parquet``.
+
+    Each frame gets its own camera and camera attitude from the run's frames table;
+    frames of one camera are estimated as one batch. The output is named after the
+    variant's label (``cog--pnp+mean.parquet``), so a method's variants sit side by side.
+
+    Parameters
+    ----------
+    run_dir : str or Path
+        A rendered run with ``detections/DETECTOR.parquet``.
+    spec : MethodSpec
+    detector : str, optional, keyword-only
+        Whose detections; default the run's only detector.
+    sigma_px : float, keyword-only
+    radius_m : float, optional, keyword-only
+        Ring radius instead of the run's layout's.
+    progress : callable, optional, keyword-only
+
+    Returns
+    -------
+    EstimateRunResult
+
+    Raises
+    ------
+    ConfigError
+        No detector given where the run has several (or none).
+    InputDataError
+        A missing dataset or detections table, or detections of other frames.
+    """
+    from deckpose.evaluate import run_layout as rl
+
+    from deckpose.detections_io import detections_from_frame
+    from deckpose.output_folder import claim_output
+    from deckpose.tables import write_table
+
+    run = rl.run_paths(run_dir)
+    rl.require_dataset(run)  # a missing folder says so, not "no detections"
+    claim_output(run.root, what="estimate")
+    if detector is None:
+        detectors = run.detectors()
+        if len(detectors) != 1:
+            raise ConfigError(f"--run needs --detector (this run has detections of: {detectors or 'none'})")
+        detector = detectors[0]
+    layout = rl.read_layout(run)
+    if radius_m is not None:
+        layout = dataclasses.replace(layout, radius_m=float(radius_m))
+    frames = rl.read_frames(run)
+    cameras = rl.read_cameras(run, sorted(frames["camera"].unique()))
+    det_df = rl.read_detections(run, detector)
+    rl.check_frames_match(frames, det_df, f"detections of {detector}",
+                          f"deckpose detect {run.root} --detector {detector}")
+    dets = detections_from_frame(det_df, layout, str(run.detections(detector)))
+    options = method_options(spec, sigma_px)
+    ids = [int(f) for f in frames["frame_id"]]
+    R_all = rl.R_world_from_cam_all(frames)
+    results: list[PoseEstimate | None] = [None] * len(ids)
+    for cam_name, rows in frames.groupby("camera", sort=True).indices.items():
+        dets_cam = [dets.get(ids[k], Detections(np.zeros((0, 2)), np.zeros(0, dtype=np.int64), frame_id=ids[k]))
+                    for k in rows]
+        got = estimate_frames(spec.name, dets_cam, cameras[cam_name], layout, options,
+                              R_world_from_cam=R_all[rows], progress=progress)
+        for k, e in zip(rows, got, strict=True):
+            results[k] = e
+    done = [e for e in results if e is not None]
+    assert len(done) == len(ids), "every frame has a camera, so every frame is estimated"
+    df = estimates_frame(ids, done).assign(method=spec.label)
+    out = run.estimates(detector, spec.label)
+    write_table(df, out, "estimates")
+    return EstimateRunResult(out, df)
