@@ -88,6 +88,9 @@ class Candidate:
         its wings, raised by a marking under the beacon) and
         :meth:`signal` clips at 0, so a dark beacon housing or a white line around
         the core does not pull the centre.
+    frame_shape : (int, int) or None
+        ``(height, width)`` of the whole frame, pixels, so that a window can tell where
+        the frame edge cuts a spot (:meth:`edge_distance_px`); None: not known.
     """
 
     pixels: np.ndarray
@@ -101,6 +104,20 @@ class Candidate:
     gain_dn_per_e: float
     threshold_dn: float
     clip_signal: bool = False
+    frame_shape: tuple[int, int] | None = None
+
+    def edge_distance_px(self, u_px: float, v_px: float) -> float:
+        """Distance from ``(u_px, v_px)`` to the nearest frame edge, pixels (inf if not known).
+
+        Pixel centres are at integers, so the frame spans ``[-0.5, width - 0.5]``. A
+        window reaching past this distance is cut by the edge on one side only, and a
+        centroid in it is pulled away from the edge (a rendered 20 m beacon 17 px from
+        the edge: 0.25 px).
+        """
+        if self.frame_shape is None:
+            return math.inf
+        h, w = self.frame_shape
+        return min(u_px + 0.5, v_px + 0.5, w - 0.5 - u_px, h - 0.5 - v_px)
 
     def grid(self) -> tuple[np.ndarray, np.ndarray]:
         """Full-resolution ``(u, v)`` coordinates of the window's pixels, each (h, w)."""
@@ -262,7 +279,7 @@ def _saturated(image: np.ndarray, box: tuple[int, int, int, int], sat: float) ->
     """Pixels of the window with any channel at or above ``sat``, (h, w) bool."""
     u0, v0, u1, v1 = box
     block = image[v0:v1, u0:u1]
-    return (block >= sat).any(axis=2) if block.ndim == 3 else block >= sat
+    return np.asarray((block >= sat).any(axis=2) if block.ndim == 3 else block >= sat)
 
 
 def _window(
@@ -372,6 +389,8 @@ def find_candidates(
             # Bright-spot search: the blob is the spot's bright core (peak channel); its
             # threshold and noise are the spot's own, set below.
             above = search.peak(*box) > spot_thr
+            pix = None
+            thr_box = noise_box = math.nan
         else:
             pix, _ = _window(image, box, sat_dn)
             # The threshold follows the local background (the box border) where it is
@@ -392,7 +411,7 @@ def find_candidates(
                 continue  # noise, or an extended light (glare, a lit patch): no beacon
             comp = labels[y : y + h, x : x + w] == lab
             # the component's brightest pixel (of the channel sum) names the blob
-            block = (pix[y : y + h, x : x + w] if search is None else
+            block = (pix[y : y + h, x : x + w] if pix is not None else
                      mono(image[box[1] + y : box[1] + y + h, box[0] + x : box[0] + x + w]))
             peak = np.unravel_index(
                 np.argmax(np.where(comp, block, -np.inf)), comp.shape
@@ -411,6 +430,7 @@ def find_candidates(
                 sigma_core = max(r_eq, 1.0) / math.sqrt(2.0 * math.log(1.0 / options.spot_level))
                 pad = math.ceil((options.window_sigma + 1.5) * sigma_core) + 3
             else:
+                sigma_core = math.nan  # no core: the blob's own size sets the window
                 pad = math.ceil(options.window_sigma * max(r_eq, 1.0)) + 3
             gu0, gv0 = box[0] + x, box[1] + y
             wb = (
@@ -464,7 +484,8 @@ def find_candidates(
         )
     gain0 = options.gain_dn_per_e or 1.0
     cands = [
-        Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, gain0, t, clip_signal=clip)
+        Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, gain0, t, clip_signal=clip,
+                  frame_shape=(H, W))
         for p, m, s, u0, v0, bg, t, nz, clip in raw
     ]
     if options.gain_dn_per_e is None:

@@ -154,6 +154,15 @@ def _windowed_centroid(
     m2_frac = truncated_m2_fraction(window_sigma)
     for it in range(max_iter + 1):
         R = window_sigma * sigma
+        edge = cand.edge_distance_px(u, v)
+        if R > edge:
+            # The frame edge cuts the disc on one side: shrink it to the largest disc
+            # inside the frame, which stays symmetric about the spot (and keep sigma,
+            # which a truncated moment would shrink). Less than one sigma of it: the
+            # spot cannot be measured without a bias.
+            if edge < sigma:
+                return None
+            R = edge
         # Work on the square around the current window only.
         c0 = max(0, int(np.floor(u - cand.u0 - R - 1)))
         c1 = min(w, int(np.ceil(u - cand.u0 + R + 2)))
@@ -172,9 +181,12 @@ def _windowed_centroid(
         su, sv = float((ws * du).sum() / F), float((ws * dv).sum() / F)
         if it == max_iter or math.hypot(su, sv) < tol_px:
             break
-        m2 = float((ws * (du * du + dv * dv)).sum() / F) / 2.0 - (su * su + sv * sv) / 2.0
-        sigma = float(np.clip(math.sqrt(max(m2, 0.0) / m2_frac), 0.5, sigma_max))
+        if R == window_sigma * sigma:  # a whole disc (not one cut to the frame edge)
+            m2 = float((ws * (du * du + dv * dv)).sum() / F) / 2.0 - (su * su + sv * sv) / 2.0
+            sigma = float(np.clip(math.sqrt(max(m2, 0.0) / m2_frac), 0.5, sigma_max))
         u, v = u + su, v + sv
+    else:  # only an empty loop ends without a break (the last iteration breaks)
+        raise ValueError(f"max_iter must be >= 0, got {max_iter}")
     u, v = u + su, v + sv
     du, dv = du - su, dv - sv
     var = cand.variance(s) * win**2
@@ -206,8 +218,9 @@ def gaussian_window_centroid(
     """Gaussian-windowed centroid of an unclipped spot (the windowed position of SExtractor).
 
     Iterates ``c <- c + 2 sum(w I (x - c)) / sum(w I)`` with the window
-    ``w = exp(-|x - c|^2 / (2 sigma_w^2))`` over pixels within 4 ``sigma_w`` of ``c``
-    and ``I`` the signal above the candidate's background (not clipped, so noise
+    ``w = exp(-|x - c|^2 / (2 sigma_w^2))`` over the square of pixels within 4 ``sigma_w``
+    of ``c`` (or, where the frame edge is nearer, within the edge distance, so the
+    window stays symmetric about the spot and the edge does not pull it inward) and ``I`` the signal above the candidate's background (not clipped, so noise
     does not bias it). For a Gaussian spot of sigma ``sigma_w`` the fixed point is
     its centre and the estimate is the matched-filter centroid, close to the
     Cramér–Rao bound where the background dominates; a disc window of 3 sigma
@@ -217,9 +230,13 @@ def gaussian_window_centroid(
     """
     h, w = s_full.shape
     u, v = u_px, v_px
-    R = 4.0 * sigma_w_px
     inv2s2 = 1.0 / (2.0 * sigma_w_px**2)
     for it in range(max_iter + 1):
+        # Pixels within 4 window sigmas, or (where the frame edge is nearer) within the
+        # edge distance, so the window stays symmetric about the spot.
+        R = min(4.0 * sigma_w_px, cand.edge_distance_px(u, v))
+        if R < sigma_w_px:
+            return None
         c0 = max(0, int(np.floor(u - cand.u0 - R)))
         c1 = min(w, int(np.ceil(u - cand.u0 + R)) + 1)
         r0 = max(0, int(np.floor(v - cand.v0 - R)))
@@ -244,6 +261,8 @@ def gaussian_window_centroid(
             return None
         if step < tol_px or it == max_iter:
             break
+    else:  # only an empty loop ends without a break (the last iteration breaks)
+        raise ValueError(f"max_iter must be >= 0, got {max_iter}")
     du = np.arange(c0, c1, dtype=float)[None, :] + cand.u0 - u
     dv = np.arange(r0, r1, dtype=float)[:, None] + cand.v0 - v
     win = np.exp(-(du * du + dv * dv) * inv2s2)
