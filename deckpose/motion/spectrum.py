@@ -53,7 +53,10 @@ class SeaStateRow:
         Douglas / WMO sea state, 1..9.
     description : str
     hs_min_m, hs_max_m : float
-        Significant wave height range, metres (``hs_max_m`` is ``inf`` for state 9).
+        Significant wave height range, metres (``hs_max_m`` is ``inf`` for state 9): the
+        half-open interval ``hs_min_m < Hs <= hs_max_m``, as the Douglas and WMO tables
+        read ("over 1.25 to 2.5 m"), so every height belongs to exactly one state and a
+        boundary height to the lower one (2.5 m is sea state 4, not 5).
     hs_default_m, tp_default_s : float
         Default ("most probable") significant height and peak period.
     """
@@ -64,6 +67,10 @@ class SeaStateRow:
     hs_max_m: float
     hs_default_m: float
     tp_default_s: float
+
+    def contains(self, hs_m: float) -> bool:
+        """Whether a significant wave height of ``hs_m`` metres is in this state's range."""
+        return self.hs_min_m < hs_m <= self.hs_max_m
 
 
 SEA_STATES: tuple[SeaStateRow, ...] = (
@@ -84,6 +91,13 @@ def sea_state_row(code: int) -> SeaStateRow:
     if isinstance(code, bool) or not isinstance(code, (int, np.integer)) or not 1 <= code <= 9:
         raise ConfigError(f"sea state must be an integer from 1 to 9 (Douglas scale), got {code!r}")
     return SEA_STATES[int(code) - 1]
+
+
+def sea_state_of(hs_m: float) -> SeaStateRow:
+    """The sea state whose range holds a significant wave height of ``hs_m`` metres (> 0)."""
+    if not (math.isfinite(hs_m) and hs_m > 0):
+        raise ConfigError(f"significant wave height must be a finite height > 0 m, got {hs_m!r}")
+    return next(row for row in SEA_STATES if row.contains(hs_m))
 
 
 @dataclass(frozen=True)
@@ -186,10 +200,11 @@ def spectrum_for_sea_state(
     hs = row.hs_default_m if hs_m is None else float(hs_m)
     if not math.isfinite(hs) or hs <= 0:
         raise ConfigError(f"significant wave height must be > 0 m, got {hs}")
-    if not row.hs_min_m <= hs <= row.hs_max_m:
+    if not row.contains(hs):
         raise ConfigError(
-            f"Hs = {hs} m is outside sea state {row.code} ({row.description}: "
-            f"{row.hs_min_m}-{row.hs_max_m} m); pick the matching sea state or omit Hs"
+            f"Hs = {hs} m is outside sea state {row.code} ({row.description}: over "
+            f"{row.hs_min_m} up to {row.hs_max_m} m); it is sea state {sea_state_of(hs).code}: "
+            "pick that sea state or omit Hs"
         )
     tp = row.tp_default_s if tp_s is None else float(tp_s)
     return WaveSpectrum(hs_m=hs, tp_s=tp, kind=kind, gamma=gamma)

@@ -83,3 +83,19 @@ def test_bad_heights_and_periods():
         WaveSpectrum(1.0, 0.0)
     with pytest.raises(ConfigError, match="gamma"):
         WaveSpectrum(1.0, 8.0, gamma=0.5)
+
+
+def test_sea_states_are_half_open_so_every_height_has_one():
+    # Closed at both ends, 2.5 m was both sea state 4 and 5.
+    from deckpose.motion.spectrum import sea_state_of
+
+    for r in SEA_STATES[:-1]:
+        assert sea_state_of(r.hs_max_m).code == r.code  # a boundary belongs to the lower state
+        assert sea_state_of(np.nextafter(r.hs_max_m, np.inf)).code == r.code + 1
+    for hs in np.concatenate([np.linspace(0.01, 30.0, 3001), [r.hs_max_m for r in SEA_STATES[:-1]]]):
+        assert sum(r.contains(float(hs)) for r in SEA_STATES) == 1, hs
+    spectrum_for_sea_state(4, hs_m=2.5)
+    with pytest.raises(ConfigError, match=r"outside sea state 5 .*it is sea state 4"):
+        spectrum_for_sea_state(5, hs_m=2.5)
+    with pytest.raises(ConfigError, match="> 0 m"):
+        sea_state_of(0.0)
