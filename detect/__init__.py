@@ -20,3 +20,51 @@
 * :mod:`~deckpose.detect.benchmark`, :mod:`~deckpose.detect.bench_report` —
   ``deckpose bench-detectors``.
 """
+
+__all__ = [
+    "Blobs",
+    "DetectRunResult",
+    "DetectorOptions",
+    "FrameDetections",
+    "IdentifyOptions",
+    "detect_frame",
+    "detect_frames",
+    "detect_run",
+    "get",
+    "identify_beacons",
+    "load_plugin",
+    "names",
+    "register",
+]
+
+#: Where each name of the stage API lives.
+_API: dict[str, str] = {
+    "Blobs": "deckpose.detect.registry",
+    "DetectorOptions": "deckpose.detect.registry",
+    "register": "deckpose.detect.registry",
+    "names": "deckpose.detect.registry",
+    "get": "deckpose.detect.registry",
+    "load_plugin": "deckpose.detect.registry",
+    "IdentifyOptions": "deckpose.detect.identify",
+    "identify_beacons": "deckpose.detect.identify",
+    "FrameDetections": "deckpose.detect.pipeline",
+    "detect_frame": "deckpose.detect.pipeline",
+    "DetectRunResult": "deckpose.detect.run",
+    "detect_run": "deckpose.detect.run",
+    "detect_frames": "deckpose.detect.run",
+}
+
+
+def __getattr__(name: str) -> object:
+    """The stage API, imported on first use (so that ``import deckpose.detect`` stays cheap)."""
+    import importlib
+
+    try:
+        module = _API[name]
+    except KeyError:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    return getattr(importlib.import_module(module), name)
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

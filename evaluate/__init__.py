@@ -1,1 +1,31 @@
 """Evaluation stage: errors against ground truth, tables, logs and reports."""
+
+__all__ = [
+    "RunPaths",
+    "evaluate_run",
+    "run_paths",
+    "write_report",
+]
+
+#: Where each name of the stage API lives.
+_API: dict[str, str] = {
+    "RunPaths": "deckpose.evaluate.run_layout",
+    "run_paths": "deckpose.evaluate.run_layout",
+    "evaluate_run": "deckpose.evaluate.pipeline",
+    "write_report": "deckpose.evaluate.report",
+}
+
+
+def __getattr__(name: str) -> object:
+    """The stage API, imported on first use (so that ``import deckpose.evaluate`` stays cheap)."""
+    import importlib
+
+    try:
+        module = _API[name]
+    except KeyError:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
+    return getattr(importlib.import_module(module), name)
+
+
+def __dir__() -> list[str]:
+    return sorted(__all__)

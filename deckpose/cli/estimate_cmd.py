@@ -69,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
 
     from deckpose.camera_info import read_camera_info
     from deckpose.errors import ConfigError
-    from deckpose.estimate.estimate_run import estimate_run, estimate_table
+    from deckpose.estimate.run import estimate_run, estimate_table
     from deckpose.layout import DeckLayout, read_layout
     from deckpose.output_folder import ensure_writable
     from deckpose.tables import read_table, write_table

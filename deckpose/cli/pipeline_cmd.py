@@ -201,7 +201,7 @@ def run_pipeline(config: object, options: PipelineOptions, config_label: str = "
 
     from deckpose import __version__
     from deckpose.detect.run import detect_run
-    from deckpose.estimate.estimate_run import estimate_run
+    from deckpose.estimate.run import estimate_run
     from deckpose.estimate.registry import parse_method
     from deckpose.evaluate.pipeline import evaluate_run
     from deckpose.evaluate.report import write_report

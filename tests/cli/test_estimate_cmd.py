@@ -280,7 +280,7 @@ def test_exit_codes(setup, tmp_path, capsys, monkeypatch):
                  "-o", str(out)]) == 2
     capsys.readouterr()
 
-    import deckpose.estimate.estimate_run as stage
+    import deckpose.estimate.run as stage
 
     def boom(*a, **k):
         raise RuntimeError("an internal failure\nover two lines")
