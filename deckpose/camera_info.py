@@ -1,11 +1,26 @@
-"""Read and write ROS ``camera_info`` YAML (the format ``camera_calibration`` writes)."""
+"""Read and write camera files: ROS ``camera_info`` YAML, and read two other forms.
+
+Read:
+
+* ROS ``camera_info`` YAML, as ``camera_calibration`` writes it (``image_width``,
+  ``camera_matrix: {rows, cols, data}``, ``distortion_model``, ...);
+* a ``CameraInfo`` message as ``ros2 topic echo`` (``width``, ``k``, ``d``) or ROS 1's
+  ``rostopic echo`` (``K``, ``D``) print it, the first message of the stream;
+* OpenCV ``FileStorage`` YAML (``%YAML:1.0`` or ``%YAML 1.2``, ``!!opencv-matrix``), as
+  OpenCV's calibration sample writes it, read with :class:`cv2.FileStorage`.
+
+Written: ROS ``camera_info`` YAML.
+"""
 
 from __future__ import annotations
 
+import logging
 import os
+import re
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 import yaml
 
@@ -13,6 +28,13 @@ from deckpose.atomic_io import atomic_open
 from deckpose.camera import DISTORTION_MODELS, CameraModel
 from deckpose.errors import CameraFileError, DeckposeError
 from deckpose.typed_config import parse_yaml
+
+log = logging.getLogger(__name__)
+
+#: OpenCV FileStorage names of the camera matrix and the distortion coefficients, in the
+#: order they are looked for (the calibration sample's first, then common alternatives).
+OPENCV_MATRIX_KEYS = ("camera_matrix", "cameraMatrix", "K", "M1")
+OPENCV_DISTORTION_KEYS = ("distortion_coefficients", "distCoeffs", "dist_coeffs", "D", "D1")
 
 
 def _matrix(doc: dict[str, Any], key: str, rows: int, cols: int | None, source: str) -> np.ndarray:
@@ -54,6 +76,13 @@ def camera_from_dict(doc: object, source: str = "camera_info") -> CameraModel:
             f"{source}: distortion_model {model!r} is not supported; use plumb_bob or rational_polynomial"
         )
     counts = DISTORTION_MODELS.get(model)
+    if model == "plumb_bob" and dist.size == 4:
+        # OpenCV reads four as k1, k2, p1, p2 (k3 = 0), a valid plumb_bob; but a fisheye
+        # calibration's k1..k4 mislabelled plumb_bob has four too, and would be misread.
+        log.warning("%s: distortion_model plumb_bob with 4 coefficients: read as k1, k2, p1, p2 "
+                    "(k3 = 0); if they come from a fisheye (equidistant) calibration they are "
+                    "k1..k4 of another model, which deckpose does not support", source)
+        counts = (4,)
     if counts is not None and dist.size and np.any(dist != 0) and dist.size not in counts:
         fits = [m for m, c in DISTORTION_MODELS.items() if dist.size in c]
         raise CameraFileError(
@@ -84,7 +113,11 @@ def read_camera_info(path: str | os.PathLike[str]) -> CameraModel:
         raise CameraFileError(
             f"{p}: not a text file (byte {exc.start} is not UTF-8); a camera_info YAML is text"
         ) from exc
-    doc = parse_yaml(text, str(p), CameraFileError)
+    if _is_opencv_storage(text):
+        doc = _from_opencv_storage(text, str(p))
+    else:
+        doc = parse_yaml(_first_document(text), str(p), CameraFileError)
+        doc = _from_message(doc)
     try:
         return camera_from_dict(doc, str(p))
     except DeckposeError:
@@ -95,6 +128,67 @@ def read_camera_info(path: str | os.PathLike[str]) -> CameraModel:
             f"{p}: a field has the wrong type ({type(exc).__name__}: {exc}); numbers must be "
             "numbers, matrices {rows, cols, data: [...]}"
         ) from exc
+
+
+def _first_document(text: str) -> str:
+    """The first YAML document of a stream (``ros2 topic echo`` ends each message with ``---``)."""
+    docs = [d for d in re.split(r"^---[ \t]*$", text, flags=re.MULTILINE) if d.strip()]
+    return docs[0] if docs else text
+
+
+def _from_message(doc: object) -> object:
+    """A ``CameraInfo`` message (ROS 2 ``k, d``; ROS 1 ``K, D``) as a camera_info mapping; others as given."""
+    if not isinstance(doc, dict) or "width" not in doc or not ({"k", "K"} & doc.keys()):
+        return doc
+    k = doc.get("k", doc.get("K"))
+    d = doc.get("d", doc.get("D")) or []
+    header = doc.get("header")
+    name = header.get("frame_id", "") if isinstance(header, dict) else ""
+    return {
+        "image_width": doc.get("width"),
+        "image_height": doc.get("height"),
+        "camera_name": name,
+        "camera_matrix": {"rows": 3, "cols": 3, "data": k},
+        "distortion_model": doc.get("distortion_model") or ("plumb_bob" if d else "none"),
+        "distortion_coefficients": {"rows": 1, "cols": len(d) if isinstance(d, list) else 0, "data": d},
+    }
+
+
+def _is_opencv_storage(text: str) -> bool:
+    return text.lstrip().startswith("%YAML") or "!!opencv-matrix" in text
+
+
+def _from_opencv_storage(text: str, source: str) -> dict[str, Any]:
+    """An OpenCV FileStorage YAML as a camera_info mapping (read by :class:`cv2.FileStorage`)."""
+    try:
+        fs = cv2.FileStorage(text, cv2.FILE_STORAGE_READ | cv2.FILE_STORAGE_MEMORY)
+    except cv2.error as exc:
+        msg = " ".join(str(exc).split())
+        raise CameraFileError(f"{source}: not a readable OpenCV FileStorage YAML ({msg[-200:]})") from None
+    try:
+        def node(keys: tuple[str, ...]) -> Any:
+            return next((fs.getNode(k) for k in keys if not fs.getNode(k).empty()), None)
+
+        K, dist = node(OPENCV_MATRIX_KEYS), node(OPENCV_DISTORTION_KEYS)
+        if K is None or K.mat() is None:
+            raise CameraFileError(f"{source}: an OpenCV FileStorage file, but it has no camera matrix "
+                                  f"(looked for {', '.join(OPENCV_MATRIX_KEYS)})")
+        size = [fs.getNode(k) for k in ("image_width", "image_height")]
+        if any(n.empty() for n in size):
+            raise CameraFileError(f"{source}: an OpenCV FileStorage file, but image_width or image_height "
+                                  "is missing (the frame size in pixels)")
+        K_mat = np.asarray(K.mat(), dtype=float)
+        d = np.zeros(0) if dist is None or dist.mat() is None else np.asarray(dist.mat(), dtype=float).ravel()
+        return {
+            "image_width": int(size[0].real()),
+            "image_height": int(size[1].real()),
+            "camera_matrix": {"rows": int(K_mat.shape[0]), "cols": int(K_mat.shape[1]),
+                              "data": [float(x) for x in K_mat.ravel()]},
+            "distortion_model": "rational_polynomial" if d.size == 8 else ("plumb_bob" if d.size else "none"),
+            "distortion_coefficients": {"rows": 1, "cols": int(d.size), "data": [float(x) for x in d]},
+        }
+    finally:
+        fs.release()
 
 
 def camera_to_dict(camera: CameraModel) -> dict[str, Any]:
