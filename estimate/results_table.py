@@ -1,9 +1,17 @@
-"""Per-frame estimate tables: :class:`PoseEstimate` records to rows and back."""
+"""Per-frame estimate tables: :class:`PoseEstimate` records to rows and back.
+
+A row holds the pose (angles in degrees), its standard deviations (``sigma_*``, degrees
+and metres) and the full 6x6 covariance as its 21 upper-triangle entries
+``cov_<a>__<b>`` in the units of :data:`~deckpose.records.POSE_PARAMS` (radians and
+metres; ``cov_roll_rad__pitch_rad`` is in rad^2, ``cov_roll_rad__height_m`` in rad m),
+so :func:`estimates_from_frame` gives back the records as they were, covariance and all.
+"""
 
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from itertools import combinations_with_replacement
 
 import numpy as np
 import pandas as pd
@@ -15,6 +23,14 @@ BASE_COLUMNS = ("frame_id", "method", "ok", "reason", "roll_deg", "pitch_deg", "
                 "surge_m", "sway_m", "height_m")
 _SIGMA_COLUMNS = ("sigma_roll_deg", "sigma_pitch_deg", "sigma_yaw_deg", "sigma_surge_m",
                   "sigma_sway_m", "sigma_height_m")
+#: The covariance's upper triangle: ``(column, row index, column index)`` over POSE_PARAMS.
+COVARIANCE_COLUMNS: tuple[tuple[str, int, int], ...] = tuple(
+    (f"cov_{POSE_PARAMS[i]}__{POSE_PARAMS[j]}", i, j)
+    for i, j in combinations_with_replacement(range(len(POSE_PARAMS)), 2)
+)
+_SIGMA_EXTRAS = frozenset("sigma_" + p for p in POSE_PARAMS)
+_TABLE_ONLY = {"frame_id", "method", "ok", "reason", *_SIGMA_COLUMNS, *(c for c, _, _ in COVARIANCE_COLUMNS),
+               "roll_deg", "pitch_deg", "yaw_deg", "surge_m", "sway_m", "height_m"}
 
 
 def estimate_row(frame_id: int, est: PoseEstimate) -> dict[str, object]:
@@ -35,8 +51,47 @@ def estimate_row(frame_id: int, est: PoseEstimate) -> dict[str, object]:
         sig = np.sqrt(np.clip(np.diag(est.covariance), 0.0, None))
         for name, param, s in zip(_SIGMA_COLUMNS, POSE_PARAMS, sig):
             row[name] = math.degrees(s) if param.endswith("_rad") else float(s)
-    row.update({k: float(v) for k, v in est.extras.items()})
+        for name, i, j in COVARIANCE_COLUMNS:
+            row[name] = float(est.covariance[i, j])
+    # the records' sigma_<param> extras (radians, metres) are the covariance's diagonal,
+    # which the table holds in full: one unit per quantity
+    row.update({k: float(v) for k, v in est.extras.items() if k not in _SIGMA_EXTRAS})
     return row
+
+
+def estimates_from_frame(df: pd.DataFrame) -> list[tuple[int, PoseEstimate]]:
+    """The records of an estimates table, each with its frame id (the inverse of :func:`estimates_frame`).
+
+    Columns other than the pose, its sigmas and its covariance come back as extras (an
+    extra that is NaN in the table, as where a frame's record lacked it, comes back
+    absent); the records' ``sigma_<param>`` extras come back from the covariance.
+    ``inliers`` are not stored in the table and come back empty.
+    """
+    cov_cols = [c for c, _, _ in COVARIANCE_COLUMNS]
+    has_cov = all(c in df.columns for c in cov_cols)
+    extra_cols = [c for c in df.columns if c not in _TABLE_ONLY]
+    out = []
+    for row in df.to_dict("records"):
+        cov = None
+        if has_cov and all(np.isfinite(float(row[c])) for c in cov_cols):
+            cov = np.zeros((6, 6))
+            for name, i, j in COVARIANCE_COLUMNS:
+                cov[i, j] = cov[j, i] = float(row[name])
+        extras = {c: float(row[c]) for c in extra_cols if not _missing(row[c])}
+        if cov is not None:
+            extras.update({"sigma_" + p: float(np.sqrt(cov[k, k])) for k, p in enumerate(POSE_PARAMS)})
+        est = PoseEstimate(
+            method=str(row["method"]), ok=bool(row["ok"]), reason=str(row["reason"] or ""),
+            roll_rad=math.radians(float(row["roll_deg"])), pitch_rad=math.radians(float(row["pitch_deg"])),
+            yaw_rad=math.radians(float(row["yaw_deg"])), surge_m=float(row["surge_m"]),
+            sway_m=float(row["sway_m"]), height_m=float(row["height_m"]), covariance=cov, extras=extras,
+        )
+        out.append((int(row["frame_id"]), est))
+    return out
+
+
+def _missing(value: object) -> bool:
+    return value is None or (isinstance(value, float) and math.isnan(value))
 
 
 def estimates_frame(frame_ids: Sequence[int], estimates: Sequence[PoseEstimate]) -> pd.DataFrame:
