@@ -28,6 +28,11 @@ COVARIANCE_COLUMNS: tuple[tuple[str, int, int], ...] = tuple(
     (f"cov_{POSE_PARAMS[i]}__{POSE_PARAMS[j]}", i, j)
     for i, j in combinations_with_replacement(range(len(POSE_PARAMS)), 2)
 )
+#: Extras that are counts or beacon ids (integer columns, null where a frame has none) and
+#: yes/no flags (boolean columns); the records hold every extra as a float.
+INTEGER_EXTRAS = ("n_points", "n_ignored", "n_outliers_removed", "n_solutions", "dof",
+                  "outlier_id_0", "outlier_id_1", "outlier_id_2")
+FLAG_EXTRAS = ("refined", "posterior_mean", "centre_beacon_used", "assumed_level_deck")
 _SIGMA_EXTRAS = frozenset("sigma_" + p for p in POSE_PARAMS)
 _TABLE_ONLY = {"frame_id", "method", "ok", "reason", *_SIGMA_COLUMNS, *(c for c, _, _ in COVARIANCE_COLUMNS),
                "roll_deg", "pitch_deg", "yaw_deg", "surge_m", "sway_m", "height_m"}
@@ -91,7 +96,7 @@ def estimates_from_frame(df: pd.DataFrame) -> list[tuple[int, PoseEstimate]]:
 
 
 def _missing(value: object) -> bool:
-    return value is None or (isinstance(value, float) and math.isnan(value))
+    return value is None or value is pd.NA or (isinstance(value, float) and math.isnan(value))
 
 
 def estimates_frame(frame_ids: Sequence[int], estimates: Sequence[PoseEstimate]) -> pd.DataFrame:
@@ -104,4 +109,10 @@ def estimates_frame(frame_ids: Sequence[int], estimates: Sequence[PoseEstimate])
     df = df[list(BASE_COLUMNS) + extra]
     df["ok"] = df["ok"].astype(bool)
     df["reason"] = df["reason"].fillna("").astype(str)
+    for c in INTEGER_EXTRAS:
+        if c in df.columns:
+            df[c] = df[c].astype("Int64")
+    for c in FLAG_EXTRAS:
+        if c in df.columns:
+            df[c] = df[c].astype("boolean")
     return df

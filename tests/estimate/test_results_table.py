@@ -62,3 +62,11 @@ def test_the_covariance_columns_are_its_upper_triangle_in_si_units():
     assert len(names) == 21 == len(set(names))
     assert names[0] == "cov_roll_rad__roll_rad" and "cov_roll_rad__height_m" in names
     assert "cov_height_m__roll_rad" not in names  # the lower triangle is the same numbers
+
+
+def test_counts_ids_and_flags_are_typed_columns():
+    dets = _detections()
+    ests = estimate_batch("conic", dets, preset("8mp-square"), DeckLayout(), EstimateOptions(sigma_px=0.3))
+    df = estimates_frame([d.frame_id for d in dets], ests)
+    assert str(df["n_points"].dtype) == "Int64" and str(df["refined"].dtype) == "boolean"
+    assert df["n_points"].iloc[0] == 13 and df["ok"].dtype == bool
