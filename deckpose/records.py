@@ -7,6 +7,7 @@ estimator sees (:class:`Frame`, :class:`Detections`), so no stage can peek at it
 
 from __future__ import annotations
 
+import copy
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -102,7 +103,7 @@ class GroundTruth:
         object.__setattr__(self, "apparent_radius_px", _freeze(self.apparent_radius_px, float))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class Detections:
     """Beacon detections in one frame (detect -> estimate).
 
@@ -117,30 +118,41 @@ class Detections:
     score : (N,) array of float
         Detector confidence or flux (larger = better).
     frame_id : int
+
+    ``covariance_px2`` and ``score`` may be given as None (the defaults above); the
+    record always holds arrays, hence its own ``__init__``.
     """
 
     points_px: FloatArray
     beacon_ids: NDArray[np.int64]
-    covariance_px2: FloatArray | None = None
-    score: FloatArray | None = None
+    covariance_px2: FloatArray
+    score: FloatArray
     frame_id: int = 0
 
-    def __post_init__(self) -> None:
-        pts = _freeze(self.points_px, float)
+    def __init__(
+        self,
+        points_px: FloatArray,
+        beacon_ids: NDArray[np.int64],
+        covariance_px2: FloatArray | None = None,
+        score: FloatArray | None = None,
+        frame_id: int = 0,
+    ) -> None:
+        pts = _freeze(points_px, float)
         check_shape("points_px", pts, (None, 2))
         n = pts.shape[0]
-        ids = _freeze(self.beacon_ids, np.int64)
+        ids = _freeze(beacon_ids, np.int64)
         check_shape("beacon_ids", ids, (n,))
-        cov = np.broadcast_to(np.eye(2), (n, 2, 2)) if self.covariance_px2 is None else self.covariance_px2
+        cov = np.broadcast_to(np.eye(2), (n, 2, 2)) if covariance_px2 is None else covariance_px2
         cov = _freeze(cov, float)
         check_shape("covariance_px2", cov, (n, 2, 2))
-        score = np.ones(n) if self.score is None else self.score
+        score = np.ones(n) if score is None else score
         score = _freeze(score, float)
         check_shape("score", score, (n,))
         object.__setattr__(self, "points_px", pts)
         object.__setattr__(self, "beacon_ids", ids)
         object.__setattr__(self, "covariance_px2", cov)
         object.__setattr__(self, "score", score)
+        object.__setattr__(self, "frame_id", frame_id)
 
     def __len__(self) -> int:
         return int(self.points_px.shape[0])
@@ -174,6 +186,8 @@ class PoseEstimate:
         Beacon ids used.
     extras : mapping of str to float
         Method-specific values (e.g. the thesis's own angles, ``thesis_roll_deg``).
+    frame_id : int
+        The frame estimated (its detections' ``frame_id``; set by the estimate stage).
     """
 
     method: str
@@ -188,6 +202,7 @@ class PoseEstimate:
     covariance: FloatArray | None = None
     inliers: tuple[int, ...] = ()
     extras: Mapping[str, float] = field(default_factory=dict)
+    frame_id: int = 0
 
     def __post_init__(self) -> None:
         if self.ok and self.reason:
@@ -208,3 +223,15 @@ class PoseEstimate:
     def failed(cls, method: str, reason: str, **extras: float) -> PoseEstimate:
         """A failed estimate with a reason."""
         return cls(method=method, ok=False, reason=reason, extras=extras)
+
+    def for_frame(self, frame_id: int) -> PoseEstimate:
+        """This estimate as that of frame ``frame_id``: a new record sharing the frozen fields.
+
+        (A shallow copy: :func:`dataclasses.replace` would validate and freeze every
+        field again, several times the cost of a batched estimate.)
+        """
+        if self.frame_id == frame_id:
+            return self
+        out = copy.copy(self)
+        object.__setattr__(out, "frame_id", int(frame_id))
+        return out

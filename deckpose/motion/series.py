@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from deckpose.errors import InputDataError
 from deckpose.pose import ShipPose
@@ -23,7 +23,7 @@ FloatArray = NDArray[np.float64]
 _CHANNELS = ("roll_rad", "pitch_rad", "yaw_rad", "heave_m", "surge_m", "sway_m")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, init=False)
 class MotionSeries:
     """Deck pose over time.
 
@@ -35,6 +35,9 @@ class MotionSeries:
         ZYX attitude of the deck.
     heave_m, surge_m, sway_m : (T,) array of float
         Deck-centre displacement, metres.
+
+    ``surge_m`` and ``sway_m`` may be left out (None: zeros); the series always holds
+    arrays, hence its own ``__init__``.
     """
 
     t_s: FloatArray
@@ -42,19 +45,30 @@ class MotionSeries:
     pitch_rad: FloatArray
     yaw_rad: FloatArray
     heave_m: FloatArray
-    surge_m: FloatArray | None = None
-    sway_m: FloatArray | None = None
+    surge_m: FloatArray
+    sway_m: FloatArray
 
-    def __post_init__(self) -> None:
-        t = np.array(self.t_s, dtype=float).ravel()
+    def __init__(
+        self,
+        t_s: ArrayLike,
+        roll_rad: ArrayLike,
+        pitch_rad: ArrayLike,
+        yaw_rad: ArrayLike,
+        heave_m: ArrayLike,
+        surge_m: ArrayLike | None = None,
+        sway_m: ArrayLike | None = None,
+    ) -> None:
+        t = np.array(t_s, dtype=float).ravel()
         if t.size == 0:
             raise InputDataError("a motion series needs at least one sample")
         if not np.all(np.isfinite(t)) or np.any(np.diff(t) <= 0):
             raise InputDataError("motion time t_s must be finite and strictly increasing")
         object.__setattr__(self, "t_s", t)
         t.setflags(write=False)
+        given = {"roll_rad": roll_rad, "pitch_rad": pitch_rad, "yaw_rad": yaw_rad,
+                 "heave_m": heave_m, "surge_m": surge_m, "sway_m": sway_m}
         for name in _CHANNELS:
-            v = getattr(self, name)
+            v = given[name]
             arr = np.zeros_like(t) if v is None else np.array(v, dtype=float).ravel()
             if arr.shape != t.shape:
                 raise InputDataError(f"motion channel {name} has {arr.size} samples, t_s has {t.size}")
