@@ -181,6 +181,7 @@ def identify_unassigned(
     frame_col = integer_column(df, "frame_id", "detections")
     has_bow = BOW_COLUMN in df.columns
     has_rgb = all(c in df.columns for c in COLOUR_COLUMNS)
+    bow_v = None
     if has_bow:
         bow = df[BOW_COLUMN]
         if bow.dtype == object:
@@ -196,7 +197,7 @@ def identify_unassigned(
         rgb = None
         if rgb_v is not None:
             rgb = rgb_v[rows]
-        elif has_bow:
+        elif bow_v is not None:
             rgb = np.where(bow_v[rows][:, None], [[1.0, 0.0, 0.0]], [[1.0, 1.0, 1.0]])
         try:
             ident = identify_beacons(d.points_px, layout, camera, rgb_flux=rgb)

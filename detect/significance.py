@@ -283,11 +283,11 @@ def _spots_at_scale(
         rise = G[ys, xs] - local
         keep = rise > thr * sigma_G
         ys, xs, rise = ys[keep], xs[keep], rise[keep]
-    if ys.size:
-        pre_tiles, pre_of = _tiles_of(ys, xs, w)
-        tex2 = texture_noise(G, 2, pre_tiles)[pre_of]
-        keep = rise > thr * np.maximum(sigma_G, tex2)
-        ys, xs = ys[keep], xs[keep]
+        if ys.size:
+            pre_tiles, pre_of = _tiles_of(ys, xs, w)
+            tex2 = texture_noise(G, 2, pre_tiles)[pre_of]
+            keep = rise > thr * np.maximum(sigma_G, tex2)
+            ys, xs = ys[keep], xs[keep]
     if ys.size > MAX_PEAKS:
         return (
             f"{ys.size} local maxima above the significance threshold: "

@@ -82,7 +82,9 @@ def declared_gain(manifest: dict[str, Any]) -> float | None:
     (rendered beacons are no Gaussians, which inflates that estimate).
     """
     doc = manifest.get("sensor")
-    gain = doc.get("gain_dn_per_e") if isinstance(doc, dict) else None
+    if not isinstance(doc, dict):
+        return None
+    gain = doc.get("gain_dn_per_e")
     if isinstance(gain, (int, float)) and gain > 0 and doc.get("noise", True) is not False:
         return float(gain)
     return None
@@ -136,8 +138,10 @@ def open_dataset(path: str | os.PathLike[str]) -> FrameSet:
         cameras[name] = read_camera_info(f)
         files[name] = f
     sources = tuple(
-        FrameSource(int(r.frame_id), root / str(r.image), str(r.camera), int(r.stamp_ns))
-        for r in frames.itertuples(index=False)
+        FrameSource(int(fid), root / str(image), str(camera), int(stamp_ns))
+        for fid, image, camera, stamp_ns in zip(
+            frames["frame_id"], frames["image"], frames["camera"], frames["stamp_ns"]
+        )
     )
     return FrameSet(sources, cameras, files, layout, "dataset", root, manifest)
 

@@ -87,7 +87,8 @@ def conic_candidates(obs: Observations, layout: DeckLayout, R_world_from_cam: np
     if plane is not None:
         # The imaged-centre plane is the better closed form; the eigen candidate farthest
         # from it stays as the competitor, so a real two-fold ambiguity is still tested.
-        others = sorted(planes, key=lambda p: -float(np.linalg.norm(p.normal_up - plane.normal_up)))
+        up = plane.normal_up
+        others = sorted(planes, key=lambda p: -float(np.linalg.norm(p.normal_up - up)))
         planes = [plane, *others[:1]]
     if not planes:
         return "the fitted conic is not the image of a circle in front of the camera"

@@ -16,6 +16,7 @@ own observations, whitening and camera attitude. Leading axis ``F`` = frames.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal, overload
 
 import numpy as np
 from numpy.typing import NDArray
@@ -170,8 +171,9 @@ def solve_batch(A: FloatArray, b: FloatArray) -> tuple[FloatArray, BoolArray]:
     """
     vec = b.ndim == 2
     B = b[..., None] if vec else b
+    x: FloatArray
     try:
-        x = np.linalg.solve(A, B)
+        x = np.asarray(np.linalg.solve(A, B), dtype=np.float64)
         ok = np.ones(A.shape[0], dtype=bool)
     except np.linalg.LinAlgError:
         x = np.full(B.shape, np.nan)
@@ -317,6 +319,16 @@ def _apply(L: FloatArray, vx: FloatArray, vy: FloatArray) -> tuple[FloatArray, F
     if vx.ndim == 3:
         l00, l01, l10, l11 = l00[:, None], l01[:, None], l10[:, None], l11[:, None]
     return l00 * vx + l01 * vy, l10 * vx + l11 * vy
+
+
+@overload
+def _whitened(params: FloatArray, obs: FrameObservations, jacobian: Literal[True] = ...
+              ) -> tuple[FloatArray, FloatArray, BoolArray, FloatArray]: ...
+
+
+@overload
+def _whitened(params: FloatArray, obs: FrameObservations, jacobian: Literal[False]
+              ) -> tuple[FloatArray, None, BoolArray, FloatArray]: ...
 
 
 def _whitened(params: FloatArray, obs: FrameObservations, jacobian: bool = True

@@ -37,16 +37,18 @@ class CameraSpec:
             if self.size is not None:
                 cam = cam.with_size(*self.size)
             K = cam.K
+            w, h = self.size if self.size is not None else (cam.width_px, cam.height_px)
         elif self.size is None:
             raise ConfigError(f"{where}: give a preset, or a size with focal_angle_deg or K")
         elif self.K is not None:
             K = np.asarray(self.K, dtype=float).reshape(3, 3)
+            w, h = self.size
         elif self.focal_angle_deg is not None:
             form = coerce(PixelForm, self.form, f"{where}.form")
             K = from_focal_angle(*self.size, self.focal_angle_deg, form=form).K
+            w, h = self.size
         else:
             raise ConfigError(f"{where}: needs focal_angle_deg or K besides size")
-        w, h = self.size if self.size is not None else (cam.width_px, cam.height_px)
         if K[0, 1] != 0.0:
             raise ConfigError(f"{where}: the renderer needs zero skew (K[0,1] = 0)")
         return CameraModel(w, h, K, np.asarray(self.dist_coeffs, float), self.camera_name(w, h))

@@ -58,7 +58,7 @@ def contact_sheet(presets: tuple[str, ...] = PRESETS, *, tile_w: int = 480, heig
 
 
 def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
     ap.add_argument("out", type=Path, nargs="?", default=Path("reports/contact_sheet.png"))
     ap.add_argument("--presets", nargs="+", default=list(PRESETS))
     args = ap.parse_args()

@@ -163,7 +163,7 @@ def _plane(half_x: float, half_y: float, z: float, uv_scale: float) -> dict[str,
     pos = np.array([[half_x, half_y, z], [-half_x, half_y, z], [-half_x, -half_y, z], [half_x, -half_y, z]],
                    dtype=np.float32)
     uv = np.array([[0, 0], [0, 1], [1, 1], [1, 0]], dtype=np.float32) * uv_scale
-    return {"positions": pos, "normals": np.tile(np.float32([0, 0, 1]), (4, 1)), "texcoord_0": uv,
+    return {"positions": pos, "normals": np.tile(np.array([0, 0, 1], np.float32), (4, 1)), "texcoord_0": uv,
             "indices": np.array([[0, 1, 2], [0, 2, 3]], dtype=np.uint32)}
 
 
@@ -189,7 +189,8 @@ class DeckRenderer:
         self._nodes: dict[str, Any] = {}
         self._sea_tile_m = 40.0
 
-    def _build(self) -> None:
+    def _build(self) -> Any:
+        """Make the scene (pyrender's Scene), kept as ``_scene``; returns it."""
         use_backend(self.backend)
         import pyrender
 
@@ -211,6 +212,7 @@ class DeckRenderer:
         self._nodes["sea"] = s.add(sea)
         self._nodes["sun"] = s.add(pyrender.DirectionalLight(color=np.ones(3), intensity=1.0))
         self._scene = s
+        return s
 
     def _renderer(self, width: int, height: int) -> Any:
         return _offscreen(self._pr, width, height)
@@ -235,9 +237,8 @@ class DeckRenderer:
         (H, W, 3) array of uint8
             Display-referred RGB; :func:`radiance_scale` turns it into radiance.
         """
-        if self._scene is None:
-            self._build()
-        pr, s = self._pr, self._scene
+        s = self._build() if self._scene is None else self._scene
+        pr = self._pr
         light = PRESETS[lighting]
         pbr = self.spec.shading is Shading.PBR
         s.set_pose(self._nodes["deck"], ship.T_world_from_deck)
@@ -321,7 +322,8 @@ def _read_colour_only(self: Any, scene: Any, flags: int) -> tuple[np.ndarray, No
     GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_LINEAR)
     GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
     GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-    buf = GL.glReadPixels(0, 0, width, height, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
+    # bytes, or an array: PyOpenGL has no types, and pyright's guess from its source adds int
+    buf: Any = GL.glReadPixels(0, 0, width, height, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
     colour = np.frombuffer(buf, dtype=np.uint8).reshape((height, width, 3))
     return colour[::-1], None
 

@@ -66,10 +66,10 @@ def add_verbosity(p: argparse.ArgumentParser, *, command: bool = False) -> None:
     """``-v/--verbose`` (repeatable) and ``-q/--quiet``: on the top-level parser, and with
     ``command`` on a command's, where they are set only when given (so they do not undo
     the top level's)."""
-    unset = {"default": argparse.SUPPRESS} if command else {}
-    p.add_argument("-v", "--verbose", action="count", **({"default": 0} | unset),
+    p.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS if command else 0,
                    help="log more: -v what each stage does, -vv debugging detail")
-    p.add_argument("-q", "--quiet", action="store_true", **unset, help="log errors only")
+    p.add_argument("-q", "--quiet", action="store_true",
+                   default=argparse.SUPPRESS if command else False, help="log errors only")
 
 
 def configure_logging(args: Any) -> None:

@@ -22,10 +22,14 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from deckpose.atomic_io import atomic_open
 from deckpose.cli.common_options import HelpFormatter, add_progress, add_workers, workers
 from deckpose.errors import ConfigError, DeckposeError
+
+if TYPE_CHECKING:
+    from deckpose.render.config import RenderConfig
 
 log = logging.getLogger(__name__)
 
@@ -177,7 +181,7 @@ def _machine() -> dict[str, object]:
             "cpu_count": os.cpu_count()}
 
 
-def run_pipeline(config: object, options: PipelineOptions, config_label: str = "",
+def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: str = "",
                  step: Callable[[int, int, str], None] | None = None) -> dict[str, Path]:
     """Run render -> detect -> estimate -> evaluate -> report on one render config.
 
@@ -201,8 +205,8 @@ def run_pipeline(config: object, options: PipelineOptions, config_label: str = "
 
     from deckpose import __version__
     from deckpose.detect.run import detect_run
-    from deckpose.estimate.run import estimate_run
     from deckpose.estimate.registry import parse_method
+    from deckpose.estimate.run import estimate_run
     from deckpose.evaluate.pipeline import evaluate_run
     from deckpose.evaluate.report import write_report
     from deckpose.evaluate.run_layout import run_paths
