@@ -123,14 +123,14 @@ def markdown_table(summary: pd.DataFrame) -> str:
         "| p95 px | recall | precision | id acc. | ms/frame | CPU ms |"
     )
     lines = [head, "|" + "|".join(["---"] * 15) + "|"]
-    for r in summary.sort_values(["camera", "height_m", "detector"]).itertuples():
+    for r in summary.sort_values(["camera", "height_m", "detector"]).to_dict("records"):
         lines.append(
-            f"| {r.detector} | {r.camera} | {r.height_m:g} | {r.radius_px:.2f} | "
-            f"{_fmt(getattr(r, 'saturated', math.nan), 2)} | {_fmt(r.rms_px, 4)} | "
-            f"{_fmt(r.crb_px, 4)} | {_fmt(r.rms_over_crb, 2)} | "
-            f"{_fmt(r.bias_px, 4)} | {_fmt(r.p95_px, 4)} | {_fmt(r.recall, 3)} | "
-            f"{_fmt(r.precision, 3)} | {_fmt(r.id_accuracy, 3)} | {_fmt(r.ms_per_frame, 1)} | "
-            f"{_fmt(getattr(r, 'cpu_ms_per_frame', math.nan), 1)} |"
+            f"| {r['detector']} | {r['camera']} | {r['height_m']:g} | {r['radius_px']:.2f} | "
+            f"{_fmt(r.get('saturated', math.nan), 2)} | {_fmt(r['rms_px'], 4)} | "
+            f"{_fmt(r['crb_px'], 4)} | {_fmt(r['rms_over_crb'], 2)} | "
+            f"{_fmt(r['bias_px'], 4)} | {_fmt(r['p95_px'], 4)} | {_fmt(r['recall'], 3)} | "
+            f"{_fmt(r['precision'], 3)} | {_fmt(r['id_accuracy'], 3)} | {_fmt(r['ms_per_frame'], 1)} | "
+            f"{_fmt(r.get('cpu_ms_per_frame', math.nan), 1)} |"
         )
     return "\n".join(lines)
 
@@ -143,9 +143,9 @@ def lighting_section(by_light: pd.DataFrame) -> list[str]:
              "The table above pools the dataset's lightings; here they are apart.", "",
              "| detector | camera | height m | lighting | beacons | RMS px | CRB px | RMS/CRB |",
              "|" + "|".join(["---"] * 8) + "|"]
-    for r in by_light.sort_values(["camera", "height_m", "detector", "lighting"]).itertuples():
-        lines.append(f"| {r.detector} | {r.camera} | {r.height_m:g} | {r.lighting} | {r.beacons} | "
-                     f"{_fmt(r.rms_px, 4)} | {_fmt(r.crb_px, 4)} | {_fmt(r.rms_over_crb, 2)} |")
+    for r in by_light.sort_values(["camera", "height_m", "detector", "lighting"]).to_dict("records"):
+        lines.append(f"| {r['detector']} | {r['camera']} | {r['height_m']:g} | {r['lighting']} | {r['beacons']} | "
+                     f"{_fmt(r['rms_px'], 4)} | {_fmt(r['crb_px'], 4)} | {_fmt(r['rms_over_crb'], 2)} |")
     return lines + [""]
 
 

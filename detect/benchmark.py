@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import cast
 
 import numpy as np
 import pandas as pd
@@ -67,9 +68,8 @@ def match_frame(det: pd.DataFrame, gt: pd.DataFrame) -> pd.DataFrame:
         (d[i, j], i, j) for i in range(len(G)) for j in range(len(P)) if d[i, j] < gate[i]
     )
     used_g, used_d = set(), set()
-    cols = {
-        c: out.columns.get_loc(c) for c in ("matched", "du_px", "dv_px", "det_beacon_id", "size_px")
-    }
+    names = list(out.columns)
+    cols = {c: names.index(c) for c in ("matched", "du_px", "dv_px", "det_beacon_id", "size_px")}
     for _, i, j in pairs:
         if i in used_g or j in used_d:
             continue
@@ -89,13 +89,13 @@ def crb_per_beacon(beacons: pd.DataFrame, sensor: SensorModel | None) -> np.ndar
     if sensor is None or not {"spot_sigma_px", "spot_flux_e"} <= set(beacons.columns):
         return out
     has_bg = "spot_background_e" in beacons.columns
-    for k, r in enumerate(beacons.itertuples(index=False)):
-        if not (r.spot_flux_e > 0 and r.spot_sigma_px > 0):  # also False for NaN
+    for k, r in enumerate(beacons.to_dict("records")):
+        if not (r["spot_flux_e"] > 0 and r["spot_sigma_px"] > 0):  # also False for NaN
             continue
         s = sensor
-        if has_bg and np.isfinite(r.spot_background_e):
-            s = dataclasses.replace(sensor, background_e=max(float(r.spot_background_e), 0.0))
-        crb = centroid_crb_px2(r.u_px, r.v_px, r.spot_sigma_px, r.spot_flux_e, s)
+        if has_bg and np.isfinite(r["spot_background_e"]):
+            s = dataclasses.replace(sensor, background_e=max(float(r["spot_background_e"]), 0.0))
+        crb = centroid_crb_px2(r["u_px"], r["v_px"], r["spot_sigma_px"], r["spot_flux_e"], s)
         out[k] = float(np.trace(crb)) / 2
     return out
 
@@ -136,7 +136,8 @@ def centroid_by_lighting(matches: pd.DataFrame) -> pd.DataFrame:
     m = matches[matches["matched"]]
     rows = []
     keys = ["detector", "camera", "camera_height_m", "lighting"]
-    for (det, cam, h, light), g in m.groupby(keys, sort=True):
+    for key, g in m.groupby(keys, sort=True):
+        det, cam, h, light = cast("tuple[str, str, float, str]", key)  # the key's columns, in order
         e2 = (g["du_px"].to_numpy(float) ** 2 + g["dv_px"].to_numpy(float) ** 2) / 2
         crb = g["crb_var_px2"].to_numpy(float)
         rms = math.sqrt(float(np.mean(e2)))
@@ -157,7 +158,8 @@ def summarise(
     fo = frames_out.merge(frames[["frame_id", "camera_height_m"]], on="frame_id", how="left")
     nd = detections.groupby("frame_id").size()
     rows = []
-    for (cam, h), g in matched.groupby(["camera", "camera_height_m"], sort=True):
+    for key, g in matched.groupby(["camera", "camera_height_m"], sort=True):
+        cam, h = cast("tuple[str, float]", key)
         fids = set(g["frame_id"])
         f = fo[fo["frame_id"].isin(fids)]
         m = g[g["matched"]]

@@ -11,6 +11,7 @@ n_detections, seconds`` plus ``n_identified, camera, stamp_ns, image``.
 from __future__ import annotations
 
 import os
+from typing import cast
 
 import numpy as np
 import pandas as pd
@@ -80,13 +81,14 @@ def read_detections(path: str | os.PathLike[str]) -> dict[int, Detections]:
     if missing:
         raise InputDataError(f"{path}: missing columns {sorted(missing)}")
     out = {}
-    for fid, g in df.groupby("frame_id", sort=True):
+    for key, g in df.groupby("frame_id", sort=True):
+        fid = int(cast(int, key))  # a frame id (pandas' stubs type a group key as any scalar)
         cov = np.stack([g.cov_uu, g.cov_uv, g.cov_uv, g.cov_vv], axis=1).reshape(-1, 2, 2)
-        out[int(fid)] = Detections(
+        out[fid] = Detections(
             g[["u_px", "v_px"]].to_numpy(float),
             g.beacon_id.to_numpy(np.int64),
             cov,
             g.score.to_numpy(float),
-            frame_id=int(fid),
+            frame_id=fid,
         )
     return out

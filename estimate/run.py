@@ -27,8 +27,8 @@ from deckpose.records import Detections, PoseEstimate
 
 __all__ = ["EstimateRunResult", "estimate_frames", "estimate_run", "estimate_table", "method_options"]
 
-#: ``progress(n)``: ``n`` more frames are done.
-Progress = Callable[[int], None]
+#: ``progress(n)``: ``n`` more frames are done (what it returns is ignored).
+Progress = Callable[[int], object]
 
 
 @dataclass(frozen=True)
@@ -217,7 +217,7 @@ def estimate_run(
     for cam_name, rows in frames.groupby("camera", sort=True).indices.items():
         dets_cam = [dets.get(ids[k], Detections(np.zeros((0, 2)), np.zeros(0, dtype=np.int64), frame_id=ids[k]))
                     for k in rows]
-        got = estimate_frames(spec.name, dets_cam, cameras[cam_name], layout, options,
+        got = estimate_frames(spec.name, dets_cam, cameras[str(cam_name)], layout, options,
                               R_world_from_cam=R_all[rows], progress=progress)
         for k, e in zip(rows, got, strict=True):
             results[k] = e

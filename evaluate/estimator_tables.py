@@ -84,7 +84,7 @@ def estimator_markdown(df: pd.DataFrame, methods: Sequence[str], repetitions: in
              "among themselves; the full-scale thesis estimator is in `thesis_tables.md`. "
              "Regenerate: `deckpose estimator-tables --methods " + " ".join(methods)
              + f" --repetitions {repetitions} --seed {seed}`.", "",
-             "Frames estimated ok: " + ", ".join(f"{m} {ok.loc[m, 'n_ok'] / ok.loc[m, 'n_images']:.2%}" for m in methods) + ".", ""]
+             "Frames estimated ok: " + ", ".join(f"{m} {ok['n_ok'].loc[m] / ok['n_images'].loc[m]:.2%}" for m in methods) + ".", ""]
     # How much each beats the published numbers, as one line per method.
     mx = df[df.quantity.isin([f"max_{q}" for q in ("roll", "pitch", "height")])]
     for m in methods:
@@ -104,14 +104,14 @@ def estimator_markdown(df: pd.DataFrame, methods: Sequence[str], repetitions: in
             pub = ref.MAX_ERROR[(res, noise)][h]
             cells = []
             for qi, q in enumerate(_Q):
-                vals = [_fmt(piv.loc[(res, noise, h, f"max_{q}"), m]) for m in methods]
+                vals = [_fmt(piv[m].loc[(res, noise, h, f"max_{q}")]) for m in methods]
                 cells.append(" / ".join([f"{pub[qi]:.3f}"] + vals))
             lines.append(f"| {h} | " + " | ".join(cells) + " |")
     lines += ["", "### Table 4.15: error sigma [8MP - 8 px]", "",
               "| Height | Roll [deg] | Pitch [deg] | Yaw [deg] | Height [U] |", "|---|---|---|---|---|"]
     for h in HEIGHTS_8MP_8PX:
         pub = ref.SIGMA[h]
-        cells = [" / ".join([f"{pub[qi]:.4f}"] + [_fmt(piv.loc[("8mp", 8, h, f"sigma_{q}"), m], 4) for m in methods])
+        cells = [" / ".join([f"{pub[qi]:.4f}"] + [_fmt(piv[m].loc[("8mp", 8, h, f"sigma_{q}")], 4) for m in methods])
                  for qi, q in enumerate(_Q)]
         lines.append(f"| {h} | " + " | ".join(cells) + " |")
     lines += ["", END]

@@ -64,7 +64,7 @@ def _run_one(args: tuple[int, CellSpec, int, int]) -> CellResult:
 
 
 def run_cells(
-    config: ThesisTablesConfig, progress: Callable[[int, int], None] | None = None
+    config: ThesisTablesConfig, progress: Callable[[int, int], object] | None = None
 ) -> list[CellResult]:
     """Simulate every cell; ``progress(done, total)`` is called as cells finish."""
     specs = cell_specs()
@@ -146,23 +146,26 @@ def markdown_report(df: pd.DataFrame, results: list[CellResult], config: ThesisT
                   "|---|---|---|---|---|---|---|"]
         for h in HEIGHTS:
             row = sub[sub.height == h].set_index("quantity")
-            cells = [_cell(row.loc["max_" + q, "ours"], row.loc["max_" + q, "thesis"], 3) for q in QUANTITIES]
-            cells += [_cell(row.loc[q, "ours"], row.loc[q, "thesis"], 2) for q in ("rms_mean_px", "rms_sigma_px")]
+            ours, thesis = row["ours"], row["thesis"]
+            cells = [_cell(ours.loc["max_" + q], thesis.loc["max_" + q], 3) for q in QUANTITIES]
+            cells += [_cell(ours.loc[q], thesis.loc[q], 2) for q in ("rms_mean_px", "rms_sigma_px")]
             lines.append(f"| {h} [U] | " + " | ".join(cells) + " |")
     sub = df[df.table == "Table 4.14"]
     lines += ["", "## Table 4.14: Y''_z estimate accuracy [8MP - 8 pixels noise]", "",
               "| Height | Y''_z error within one sigma [%] | sign(Y''_z) accuracy [%] |", "|---|---|---|"]
     for h in HEIGHTS_8MP_8PX:
         row = sub[sub.height == h].set_index("quantity")
+        ours, thesis = row["ours"], row["thesis"]
         lines.append(f"| {h} [U] | " + " | ".join(
-            _cell(row.loc[q, "ours"], row.loc[q, "thesis"], 2) for q in ("yz2_within_sigma_pct", "yz2_sign_pct")) + " |")
+            _cell(ours.loc[q], thesis.loc[q], 2) for q in ("yz2_within_sigma_pct", "yz2_sign_pct")) + " |")
     sub = df[df.table == "Table 4.15"]
     lines += ["", "## Table 4.15: USV orientation estimation sigma [8MP - 8 pixels noise]", "",
               "| Height | Roll sigma [deg] | Pitch sigma [deg] | Yaw sigma [deg] | Height sigma [U] |", "|---|---|---|---|---|"]
     for h in HEIGHTS_8MP_8PX:
         row = sub[sub.height == h].set_index("quantity")
+        ours, thesis = row["ours"], row["thesis"]
         lines.append(f"| {h} [U] | " + " | ".join(
-            _cell(row.loc["sigma_" + q, "ours"], row.loc["sigma_" + q, "thesis"], 4) for q in QUANTITIES) + " |")
+            _cell(ours.loc["sigma_" + q], thesis.loc["sigma_" + q], 4) for q in QUANTITIES) + " |")
     fails = sum(sum(r.failures.values()) for r in results)
     total = sum(r.n_images for r in results)
     lines += ["", "## Failures", "",
@@ -249,7 +252,7 @@ def write_outputs(out_dir: Path, results: list[CellResult], config: ThesisTables
 
 
 def run_thesis_tables(config: ThesisTablesConfig, out_dir: Path,
-                      progress: Callable[[int, int], None] | None = None) -> Path:
+                      progress: Callable[[int, int], object] | None = None) -> Path:
     """Run every cell and write the report; returns the Markdown path."""
     t0 = time.perf_counter()
     results = run_cells(config, progress)
