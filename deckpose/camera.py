@@ -168,8 +168,9 @@ class CameraModel:
             return p.copy()
         criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
         src = p.reshape(-1, 1, 2)
-        if hasattr(cv2, "undistortPointsIter"):  # OpenCV 4.x
-            out = cv2.undistortPointsIter(src, self.K, self.dist_coeffs, None, self.K, criteria)
+        undistort_iter = getattr(cv2, "undistortPointsIter", None)
+        if undistort_iter is not None:  # OpenCV 4.x
+            out = undistort_iter(src, self.K, self.dist_coeffs, None, self.K, criteria)
         else:  # OpenCV 5 folded the iterative variant into undistortPoints
             out = cv2.undistortPoints(src, self.K, self.dist_coeffs, R=None, P=self.K, criteria=criteria)
         return out.reshape(-1, 2).astype(float)

@@ -142,9 +142,9 @@ def core_fit(cand: Candidate, start: Row, window_sigma: float = 3.0) -> Row | No
             return J
 
         try:
-            res = least_squares(
-                fun, p, jac=jac, bounds=bounds, method="trf", x_scale="jac", max_nfev=100
-            )
+            # scipy has no types: pyright takes jac's type (str) from its default
+            res = least_squares(fun, p, jac=jac,  # pyright: ignore[reportArgumentType]
+                                bounds=bounds, method="trf", x_scale="jac", max_nfev=100)
         except (ValueError, np.linalg.LinAlgError):
             return None
         p = res.x

@@ -101,5 +101,5 @@ def centroid_crb_px2(
         parameters sigma, flux and background unknown).
     """
     info = centroid_fisher(u_px, v_px, sigma_px, flux_e, sensor)
-    return np.linalg.inv(info)[:2, :2]
+    return np.asarray(np.linalg.inv(info)[:2, :2], dtype=np.float64)
 

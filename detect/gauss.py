@@ -80,7 +80,9 @@ def gauss_fit(cand: Candidate, window_sigma: float = 3.0) -> Row | None:
             return _model_and_jac(q, xs, ys, sel)[1] * wts[:, None]
 
         try:
-            res = least_squares(fun, p, jac=jac, method="lm", x_scale="jac", max_nfev=60)
+            # scipy has no types: pyright takes jac's type (str) from its default
+            res = least_squares(fun, p, jac=jac,  # pyright: ignore[reportArgumentType]
+                                method="lm", x_scale="jac", max_nfev=60)
         except (ValueError, np.linalg.LinAlgError):
             return None
         p = res.x

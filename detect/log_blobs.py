@@ -55,7 +55,7 @@ def log_boxes(
     # times that at the smallest scale searched.
     found = blob_log(
         sig,
-        min_sigma=1.0,
+        min_sigma=1,
         max_sigma=max(2.0, min(sig.shape) / 20.0),
         num_sigma=8,
         threshold=0.40 * options.threshold_sigma,

@@ -20,8 +20,10 @@ from deckpose.detect.registry import Blobs, DetectorOptions, register
 from deckpose.records import Frame
 
 
-def _params(min_threshold: float, min_area: int) -> cv2.SimpleBlobDetector_Params:
-    p = cv2.SimpleBlobDetector_Params()
+def _params(min_threshold: float, min_area: int) -> cv2.SimpleBlobDetector.Params:
+    # OpenCV's stubs name the class SimpleBlobDetector.Params only; the flat name, the same
+    # class, is the one OpenCV 4.x has too (and so is SimpleBlobDetector_create below)
+    p = cv2.SimpleBlobDetector_Params()  # pyright: ignore[reportAttributeAccessIssue]
     p.filterByColor = True
     p.blobColor = 255
     p.minThreshold = float(min_threshold)
@@ -46,7 +48,7 @@ def opencv_blob(cand: Candidate) -> Row | None:
         return None
     img = np.clip(s / peak * 255.0, 0, 255).astype(np.uint8)
     t_min = float(np.clip((cand.threshold_dn - cand.background_dn) / peak * 255.0, 1.0, 240.0))
-    det = cv2.SimpleBlobDetector_create(_params(t_min, 1))
+    det = cv2.SimpleBlobDetector_create(_params(t_min, 1))  # pyright: ignore[reportAttributeAccessIssue]
     kps = det.detect(img)
     if not kps:
         return None

@@ -186,7 +186,8 @@ class Blobs:
         if not rows:
             return cls.empty()
         u, v, cov, flux, size, score = zip(*rows)
-        return cls(np.column_stack([u, v]), np.stack(cov), flux, size, score)
+        return cls(np.column_stack([u, v]), np.stack(cov), np.asarray(flux, float),
+                   np.asarray(size, float), np.asarray(score, float))
 
 
 DetectorFn = Callable[[Frame, DetectorOptions], Blobs]

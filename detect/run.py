@@ -279,5 +279,5 @@ def _versions() -> dict[str, str]:
         "numpy": numpy.__version__,
         "scipy": scipy.__version__,
         "opencv": cv2.__version__,
-        "scikit-image": skimage.__version__,
+        "scikit-image": skimage.__version__,  # pyright: ignore[reportAttributeAccessIssue]  # missing from skimage's stub
     }

@@ -93,7 +93,7 @@ def conic_candidates_batch(obs: FrameObservations, layout: DeckLayout,
         far = np.where(plane_ok[:, 1] & (~plane_ok[:, 0] | (dist[:, 1] > dist[:, 0])), 1, 0)
         ar = np.arange(F)
         rows = np.flatnonzero(c_ok)
-        far_n, far_X, far_ok = normals[ar, far], centres[ar, far], plane_ok.any(axis=1)
+        far_n, far_X, far_ok = normals[ar, far], centres[ar, far], np.asarray(plane_ok.any(axis=1))
         normals[rows, 1], centres[rows, 1], plane_ok[rows, 1] = far_n[rows], far_X[rows], far_ok[rows]
         normals[rows, 0], centres[rows, 0], plane_ok[rows, 0] = n_c[rows], X_c[rows], True
     p0 = np.full((F, 2, 6), np.nan)
@@ -114,7 +114,7 @@ def conic_candidates_batch(obs: FrameObservations, layout: DeckLayout,
     first = swap.astype(np.int64)
     second = 1 - first
     ar = np.arange(F)
-    has_first = start_ok.any(axis=1)
+    has_first = np.asarray(start_ok.any(axis=1))
     has_second = start_ok.all(axis=1) & (chi0[ar, second] < chi0[ar, first] + ALT_MARGIN_CHI2)
     fits = []
     for k, present in ((first, has_first), (second, has_second)):

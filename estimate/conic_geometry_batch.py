@@ -199,7 +199,7 @@ def in_plane_alignment_batch(
         shift = qm - np.stack([c * pm[0] - s * pm[1], s * pm[0] + c * pm[1]], axis=1)
         x_deck = c[:, None] * e1 + s[:, None] * e2
         y_deck = np.cross(n_up, x_deck)
-        R = np.stack([x_deck, y_deck, n_up], axis=2)
+        R = np.asarray(np.stack([x_deck, y_deck, n_up], axis=2), dtype=np.float64)
         t = centre_m + shift[:, 0, None] * e1 + shift[:, 1, None] * e2
     return R, t, ok
 

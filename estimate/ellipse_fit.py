@@ -57,7 +57,7 @@ def fit_ellipse_direct(points: FloatArray) -> FloatArray | None:
     except np.linalg.LinAlgError:
         return None
     if np.iscomplexobj(w):
-        w, V = w.real, V.real
+        w, V = np.real(w), np.real(V)
     cond = 4.0 * V[0] * V[2] - V[1] ** 2
     good = np.flatnonzero(cond > 0)
     if good.size == 0:

@@ -168,7 +168,7 @@ def levenberg_marquardt(
             step = -np.linalg.solve(A, g)
         except np.linalg.LinAlgError:
             break
-        p_new = p + step
+        p_new = np.asarray(p + step, dtype=np.float64)
         r_new, J_new, front_new, _ = _whitened(p_new, obs, R_world_from_cam)
         cost_new = float(np.sum(r_new * r_new)) if front_new else math.inf
         if not math.isfinite(cost_new) and not math.isfinite(float(step.sum())):

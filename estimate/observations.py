@@ -170,7 +170,7 @@ def build_observations(
     if not ok.all():
         index, ids, P, xy, cov_n, D = index[ok], ids[ok], P[ok], xy[ok], cov_n[ok], D[ok]
     if len(index):
-        L = np.linalg.inv(np.linalg.cholesky(cov_n))
+        L = np.asarray(np.linalg.inv(np.linalg.cholesky(cov_n)), dtype=np.float64)
     else:
         L = np.zeros((0, 2, 2))
     return Observations(ids, index, P, xy, L, np.array(D), int(len(ids_all) - len(index)))

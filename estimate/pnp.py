@@ -32,7 +32,7 @@ ALT_MARGIN_CHI2 = 100.0
 
 
 def _params(rvec: np.ndarray, tvec: np.ndarray, R_world_from_cam: np.ndarray) -> np.ndarray:
-    R = cv2.Rodrigues(rvec)[0]
+    R = np.asarray(cv2.Rodrigues(rvec)[0], dtype=np.float64)
     return params_from_relative(R, np.asarray(tvec, dtype=float).ravel(), R_world_from_cam)
 
 

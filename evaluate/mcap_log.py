@@ -113,7 +113,7 @@ def preview_image(path: Path, scale: float) -> np.ndarray:
     if img is None:
         raise InputDataError(f"cannot read image {path}")
     if img.dtype == np.uint16:
-        img = (img >> 8).astype(np.uint8)
+        img = np.right_shift(img, 8).astype(np.uint8)
     if scale < 1.0:
         w = max(1, round(img.shape[1] * scale))
         h = max(1, round(img.shape[0] * scale))

@@ -58,7 +58,8 @@ def distort(raster: NDArray[np.uint8], camera: CameraModel) -> NDArray[np.uint8]
     if not camera.has_distortion:
         return raster
     m1, m2 = distortion_maps(camera)
-    return cv2.remap(raster, m1, m2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+    return np.asarray(cv2.remap(raster, m1, m2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE),
+                      dtype=np.uint8)
 
 
 def _luts(scale_e: np.ndarray, sensor: SensorSpec, dn_per_e: float) -> tuple[np.ndarray, np.ndarray]:
@@ -113,7 +114,7 @@ def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: li
     for r0 in range(0, H, STRIP_ROWS):
         r1 = min(H, r0 + STRIP_ROWS)
         block = src[r0:r1]
-        mean = cv2.LUT(block, lut_mean).reshape(r1 - r0, W, C)
+        mean = np.asarray(cv2.LUT(block, lut_mean), dtype=np.float32).reshape(r1 - r0, W, C)
         touched = add_splats(mean, splats, r0, gain=e_per_rad * dn_per_e)
         if sensor.noise:
             sigma = cv2.LUT(block, lut_sigma).reshape(r1 - r0, W, C)
@@ -122,7 +123,8 @@ def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: li
                 sigma[rr, cc] = np.sqrt(np.maximum(m, 0) / np.float32(dn_per_e) + read2) * np.float32(dn_per_e)
             noise = np.empty(mean.shape, np.float32)
             cv2.setRNGSeed(int(rng.integers(2**31 - 1)))  # OpenCV's fast normal stream, seeded from rng
-            cv2.randn(noise.reshape(r1 - r0, -1), 0.0, 1.0)  # 2-D view: one channel, all of it
+            # 2-D view: one channel, all of it (OpenCV's stubs take mean and stddev for arrays only)
+            cv2.randn(noise.reshape(r1 - r0, -1), 0.0, 1.0)  # pyright: ignore[reportCallIssue, reportArgumentType]
             noise *= sigma
             shape = out[r0:r1].shape
             cv2.add(mean.reshape(shape), noise.reshape(shape), dst=out[r0:r1], dtype=depth)
