@@ -11,12 +11,9 @@ from __future__ import annotations
 import io
 import json
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import cv2
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 from deckpose.evaluate import run_layout as rl
@@ -30,11 +27,26 @@ from deckpose.camera import THESIS_RESOLUTIONS
 from deckpose.errors import InputDataError
 from deckpose.tables import read_table
 
+if TYPE_CHECKING:
+    from matplotlib.axes import Axes
+    from matplotlib.figure import Figure
+
 _QUANT = (("roll_err_deg", "roll [deg]"), ("pitch_err_deg", "pitch [deg]"),
           ("yaw_err_deg", "yaw [deg]"), ("height_err_m", "height [m]"))
 
 
-def _legend(ax: plt.Axes, **kw) -> None:
+def _pyplot():
+    """matplotlib's pyplot on the Agg backend, chosen when a figure is drawn rather than on
+    import (importing this module leaves the caller's backend alone)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def _legend(ax: Axes, **kw) -> None:
     """A legend when the axes hold labelled artists (a run whose every estimate failed has none)."""
     if ax.get_legend_handles_labels()[0]:
         ax.legend(**kw)
@@ -42,12 +54,12 @@ def _legend(ax: plt.Axes, **kw) -> None:
         ax.text(0.5, 0.5, "no finite values", transform=ax.transAxes, ha="center", va="center")
 
 
-def _save(fig: plt.Figure, path: Path, *, layout: bool = True) -> None:
+def _save(fig: Figure, path: Path, *, layout: bool = True) -> None:
     buf = io.BytesIO()
     if layout:
         fig.tight_layout()
     fig.savefig(buf, format="png", dpi=110, bbox_inches="tight")
-    plt.close(fig)
+    _pyplot().close(fig)
     with atomic_open(path, "wb") as fh:
         fh.write(buf.getvalue())
 
@@ -94,6 +106,7 @@ def plot_error_vs_resolution(table: pd.DataFrame, sizes_px: dict[str, tuple[int,
     beside it); the Cramér–Rao bound of the same frames dashed in the same colour; points
     whose beacons clip are drawn hollow.
     """
+    plt = _pyplot()
     t = table.copy()
     t["megapixels"] = [sizes_px.get(str(c), (0, 0))[0] * sizes_px.get(str(c), (0, 0))[1] / 1e6
                        for c in t.camera]
@@ -156,6 +169,7 @@ def plot_error_vs_resolution(table: pd.DataFrame, sizes_px: dict[str, tuple[int,
 def plot_error_vs_height(table: pd.DataFrame, path: Path) -> None:
     """Error sigma vs height: one column per camera, one row per quantity, one colour per
     detector + estimator, the Cramér–Rao bound dashed in the same colour (log scale)."""
+    plt = _pyplot()
     cams = sorted(table.camera.unique(), key=lambda c: (int(c.split("mp")[0]) if c.split("mp")[0].isdigit() else 0, c))
     combos = sorted({(d, m) for d, m in zip(table.detector, table.method)})
     colours = {c: plt.cm.tab10(i % 10) for i, c in enumerate(combos)}
@@ -185,6 +199,7 @@ def plot_error_vs_height(table: pd.DataFrame, path: Path) -> None:
 
 
 def plot_distributions(errors: pd.DataFrame, path: Path) -> None:
+    plt = _pyplot()
     fig, axes = plt.subplots(1, 4, figsize=(16, 3.5))
     for ax, (col, label) in zip(axes, _QUANT):
         for (det, method), g in errors.groupby(["detector", "method"]):
@@ -203,6 +218,7 @@ def plot_centroid_vs_size(ce_by_det: dict[str, pd.DataFrame], path: Path,
                           camera_of: dict[int, str] | None = None) -> None:
     """Centroid RMS error against apparent beacon radius, one line per detector and, with
     ``camera_of`` (frame id -> camera), per camera (line style)."""
+    plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.5, 4))
     styles = ("o-", "s--", "^:", "d-.")
     series = []
@@ -240,7 +256,7 @@ def example_frame(run: rl.RunPaths, frame: pd.Series, beacons: pd.DataFrame,
     if img is None:
         raise InputDataError(f"cannot read image {run.root / frame['image']}")
     if img.dtype == np.uint16:
-        img = (img >> 8).astype(np.uint8)
+        img = np.right_shift(img, 8).astype(np.uint8)
     if img.ndim == 3:
         img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
     H, W = img.shape[:2]
@@ -260,6 +276,7 @@ def example_frame(run: rl.RunPaths, frame: pd.Series, beacons: pd.DataFrame,
     if scale < 1.0:
         img = cv2.resize(img, (max(1, round(W * scale)), max(1, round(H * scale))),
                          interpolation=cv2.INTER_AREA)
+    plt = _pyplot()
     fig, ax = plt.subplots(figsize=(8, 8 * H / W))
     ax.imshow(img, cmap="gray", interpolation="nearest", extent=(-0.5, W - 0.5, H - 0.5, -0.5))
     ax.scatter(b.u_px, b.v_px, s=80, facecolors="none", edgecolors="lime", label="truth")
@@ -402,7 +419,7 @@ def write_report(run: rl.RunPaths) -> Path:
              (f"{len(frames)} rendered frames; cameras {', '.join(sorted(frames.camera.unique()))}; "
              f"heights {', '.join(f'{h:g}' for h in sorted(frames.camera_height_m.unique()))} m; "
              f"detectors {', '.join(dets) or 'none'}; estimators {', '.join(sorted(errors.method.unique()))}."), "",
-             "Share of frames with an estimate flagged ok: " + ", ".join(f"{d}+{m} {v:.1%}" for (d, m), v in ok.items()) + ".", "",
+             "Share of frames with an estimate flagged ok: " + ", ".join(f"{d}+{m} {v:.1%}" for (d, m), v in zip(ok.index, ok)) + ".", "",
              *provenance_lines(run),
              "## Error against resolution", "",
              "![error vs resolution](figures/error_vs_resolution.png)", "",
