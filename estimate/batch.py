@@ -56,7 +56,7 @@ def run_estimator(
     if options.posterior_mean:
         est = apply_posterior_mean([est], [detections], camera, layout, options,
                                    np.asarray(options.R_world_from_cam)[None])[0]
-    return check_poses([est])[0]
+    return check_poses([est])[0].for_frame(detections.frame_id)
 
 
 def _checks_centring(name: str, options: EstimateOptions) -> bool:
@@ -137,8 +137,9 @@ def estimate_batch(
     Returns
     -------
     list of PoseEstimate
-        One per frame, in order: the same records as :func:`run_estimator` frame by
-        frame, to rounding (the iterations stop on the same tolerances).
+        One per frame, in order, each with its detections' ``frame_id``: the same records
+        as :func:`run_estimator` frame by frame, to rounding (the iterations stop on the
+        same tolerances).
     """
     fn = registry.get(name)
     dets = list(detections)
@@ -184,7 +185,7 @@ def estimate_batch(
                                          layout, options, R_chunk[fresh])
             for i, e in zip(fresh, means):
                 ests[i] = e
-        out.extend(check_poses(ests))
+        out.extend(e.for_frame(d.frame_id) for e, d in zip(check_poses(ests), chunk, strict=True))
     return out
 
 

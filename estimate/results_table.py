@@ -38,10 +38,10 @@ _TABLE_ONLY = {"frame_id", "method", "ok", "reason", *_SIGMA_COLUMNS, *(c for c,
                "roll_deg", "pitch_deg", "yaw_deg", "surge_m", "sway_m", "height_m"}
 
 
-def estimate_row(frame_id: int, est: PoseEstimate) -> dict[str, object]:
+def estimate_row(est: PoseEstimate) -> dict[str, object]:
     """One table row: angles in degrees, NaN (empty in CSV) for what the method does not give."""
     row: dict[str, object] = {
-        "frame_id": int(frame_id),
+        "frame_id": int(est.frame_id),
         "method": est.method,
         "ok": bool(est.ok),
         "reason": est.reason,
@@ -64,8 +64,8 @@ def estimate_row(frame_id: int, est: PoseEstimate) -> dict[str, object]:
     return row
 
 
-def estimates_from_frame(df: pd.DataFrame) -> list[tuple[int, PoseEstimate]]:
-    """The records of an estimates table, each with its frame id (the inverse of :func:`estimates_frame`).
+def estimates_from_frame(df: pd.DataFrame) -> list[PoseEstimate]:
+    """The records of an estimates table (the inverse of :func:`estimates_frame`).
 
     Columns other than the pose, its sigmas and its covariance come back as extras (an
     extra that is NaN in the table, as where a frame's record lacked it, comes back
@@ -90,8 +90,9 @@ def estimates_from_frame(df: pd.DataFrame) -> list[tuple[int, PoseEstimate]]:
             roll_rad=math.radians(float(row["roll_deg"])), pitch_rad=math.radians(float(row["pitch_deg"])),
             yaw_rad=math.radians(float(row["yaw_deg"])), surge_m=float(row["surge_m"]),
             sway_m=float(row["sway_m"]), height_m=float(row["height_m"]), covariance=cov, extras=extras,
+            frame_id=int(row["frame_id"]),
         )
-        out.append((int(row["frame_id"]), est))
+        out.append(est)
     return out
 
 
@@ -99,9 +100,9 @@ def _missing(value: object) -> bool:
     return value is None or value is pd.NA or (isinstance(value, float) and math.isnan(value))
 
 
-def estimates_frame(frame_ids: Sequence[int], estimates: Sequence[PoseEstimate]) -> pd.DataFrame:
-    """A table with one row per frame; base columns first, method extras after."""
-    rows = [estimate_row(f, e) for f, e in zip(frame_ids, estimates)]
+def estimates_frame(estimates: Sequence[PoseEstimate]) -> pd.DataFrame:
+    """A table with one row per estimate (its ``frame_id``); base columns first, method extras after."""
+    rows = [estimate_row(e) for e in estimates]
     df = pd.DataFrame(rows)
     if df.empty:
         return pd.DataFrame(columns=list(BASE_COLUMNS))

@@ -142,7 +142,7 @@ def estimate_table(
     ids = list(frames)
     results = estimate_frames(spec.name, [frames[i] for i in ids], camera, layout,
                               method_options(spec, sigma_px), progress=progress)
-    df = estimates_frame(ids, results).assign(method=spec.label)
+    df = estimates_frame(results).assign(method=spec.label)
     if unidentified:  # the frame failed for want of ids: say so, not "0 usable"
         miss = df["frame_id"].isin(list(unidentified)) & ~df["ok"].astype(bool)
         df.loc[miss, "reason"] = df.loc[miss, "frame_id"].map(unidentified)
@@ -223,7 +223,7 @@ def estimate_run(
             results[k] = e
     done = [e for e in results if e is not None]
     assert len(done) == len(ids), "every frame has a camera, so every frame is estimated"
-    df = estimates_frame(ids, done).assign(method=spec.label)
+    df = estimates_frame(done).assign(method=spec.label)
     out = run.estimates(detector, spec.label)
     write_table(df, out, "estimates")
     return EstimateRunResult(out, df)

@@ -9,7 +9,11 @@ import pandas as pd
 import pytest
 from deckpose.estimate.batch import estimate_batch
 from deckpose.estimate.registry import EstimateOptions, parse_method
-from deckpose.estimate.results_table import COVARIANCE_COLUMNS, estimates_frame, estimates_from_frame
+from deckpose.estimate.results_table import (
+    COVARIANCE_COLUMNS,
+    estimates_frame,
+    estimates_from_frame,
+)
 
 from deckpose.camera import preset
 from deckpose.layout import DeckLayout
@@ -40,11 +44,12 @@ def test_a_table_gives_back_the_records_it_was_made_of(label, tmp_path):
                           EstimateOptions(sigma_px=0.3, refine=spec.refine, posterior_mean=spec.posterior_mean))
     ids = [d.frame_id for d in dets]
     path = tmp_path / "est.parquet"
-    estimates_frame(ids, ests).to_parquet(path)
+    assert [e.frame_id for e in ests] == ids  # each record says which frame it is of
+    estimates_frame(ests).to_parquet(path)
     back = estimates_from_frame(pd.read_parquet(path))
-    assert [f for f, _ in back] == ids
+    assert [b.frame_id for b in back] == ids
     assert any(e.ok for e in ests) and not ests[-1].ok
-    for (_, b), e in zip(back, ests, strict=True):
+    for b, e in zip(back, ests, strict=True):
         assert (b.method, b.ok, b.reason) == (e.method, e.ok, e.reason)
         for attr in ("roll_rad", "pitch_rad", "yaw_rad", "surge_m", "sway_m", "height_m"):
             # degrees in the table: one rounding each way
@@ -67,6 +72,6 @@ def test_the_covariance_columns_are_its_upper_triangle_in_si_units():
 def test_counts_ids_and_flags_are_typed_columns():
     dets = _detections()
     ests = estimate_batch("conic", dets, preset("8mp-square"), DeckLayout(), EstimateOptions(sigma_px=0.3))
-    df = estimates_frame([d.frame_id for d in dets], ests)
+    df = estimates_frame(ests)
     assert str(df["n_points"].dtype) == "Int64" and str(df["refined"].dtype) == "boolean"
     assert df["n_points"].iloc[0] == 13 and df["ok"].dtype == bool
