@@ -21,6 +21,8 @@
   ``deckpose bench-detectors``.
 """
 
+from typing import TYPE_CHECKING
+
 __all__ = [
     "Blobs",
     "DetectRunResult",
@@ -53,6 +55,12 @@ _API: dict[str, str] = {
     "detect_run": "deckpose.detect.run",
     "detect_frames": "deckpose.detect.run",
 }
+
+if TYPE_CHECKING:  # the same names for type checkers (at run time __getattr__ imports them)
+    from deckpose.detect.identify import IdentifyOptions, identify_beacons
+    from deckpose.detect.pipeline import FrameDetections, detect_frame
+    from deckpose.detect.registry import Blobs, DetectorOptions, get, load_plugin, names, register
+    from deckpose.detect.run import DetectRunResult, detect_frames, detect_run
 
 
 def __getattr__(name: str) -> object:

@@ -1,5 +1,7 @@
 """Estimation stage: ship attitude and position from identified beacon detections."""
 
+from typing import TYPE_CHECKING
+
 __all__ = [
     "EstimateOptions",
     "EstimateRunResult",
@@ -30,6 +32,23 @@ _API: dict[str, str] = {
     "estimate_run": "deckpose.estimate.run",
     "estimate_table": "deckpose.estimate.run",
 }
+
+if TYPE_CHECKING:  # the same names for type checkers (at run time __getattr__ imports them)
+    from deckpose.estimate.batch import estimate_batch, run_estimator
+    from deckpose.estimate.registry import (
+        EstimateOptions,
+        MethodSpec,
+        get,
+        names,
+        parse_method,
+        register,
+    )
+    from deckpose.estimate.run import (
+        EstimateRunResult,
+        estimate_frames,
+        estimate_run,
+        estimate_table,
+    )
 
 
 def __getattr__(name: str) -> object:

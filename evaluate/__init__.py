@@ -1,5 +1,7 @@
 """Evaluation stage: errors against ground truth, tables, logs and reports."""
 
+from typing import TYPE_CHECKING
+
 __all__ = [
     "RunPaths",
     "evaluate_run",
@@ -14,6 +16,11 @@ _API: dict[str, str] = {
     "evaluate_run": "deckpose.evaluate.pipeline",
     "write_report": "deckpose.evaluate.report",
 }
+
+if TYPE_CHECKING:  # the same names for type checkers (at run time __getattr__ imports them)
+    from deckpose.evaluate.pipeline import evaluate_run
+    from deckpose.evaluate.report import write_report
+    from deckpose.evaluate.run_layout import RunPaths, run_paths
 
 
 def __getattr__(name: str) -> object:

@@ -1,5 +1,7 @@
 """Rendering stage: synthetic camera frames of the lit deck with exact ground truth."""
 
+from typing import TYPE_CHECKING
+
 __all__ = [
     "RenderConfig",
     "config_from_dict",
@@ -16,6 +18,10 @@ _API: dict[str, str] = {
     "default_config": "deckpose.render.config",
     "render_dataset": "deckpose.render.dataset",
 }
+
+if TYPE_CHECKING:  # the same names for type checkers (at run time __getattr__ imports them)
+    from deckpose.render.config import RenderConfig, config_from_dict, default_config, load_config
+    from deckpose.render.dataset import render_dataset
 
 
 def __getattr__(name: str) -> object:

@@ -38,3 +38,20 @@ def test_importing_a_stage_package_imports_none_of_its_modules():
             "print(sorted(m for m in sys.modules if m.count('.') >= 2 and m.startswith('deckpose.')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert out.strip() == "[]", out
+
+
+@pytest.mark.parametrize("name", STAGES)
+def test_type_checkers_see_the_same_stage_api(name):
+    """The package's ``if TYPE_CHECKING:`` imports (what pyright sees) are its ``_API``."""
+    import ast
+
+    pkg = importlib.import_module(name)
+    with open(pkg.__file__, encoding="utf-8") as fh:
+        tree = ast.parse(fh.read())
+    seen: dict[str, str] = {}
+    for node in tree.body:
+        if isinstance(node, ast.If) and isinstance(node.test, ast.Name) and node.test.id == "TYPE_CHECKING":
+            for imp in node.body:
+                assert isinstance(imp, ast.ImportFrom) and imp.module
+                seen.update({alias.name: imp.module for alias in imp.names})
+    assert seen == pkg._API
