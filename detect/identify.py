@@ -364,8 +364,11 @@ def identify_beacons(
         )
     else:
         red = redness(np.asarray(rgb_flux, dtype=float).reshape(-1, 3)[ring])
-        if ring.size < 2 or not np.any(np.isfinite(red)):
-            reasons.append("no colour measured on the ring blobs")
+        if ring.size < 2 or np.count_nonzero(np.isfinite(red)) < 2:
+            # one blob's colour has nothing to be distinctly red against (its margin over
+            # the others' median was NaN, which passed the margin test)
+            reasons.append("no colour measured on the ring blobs" if not np.any(np.isfinite(red))
+                           else "colour measured on only one ring blob: the bow cannot be told")
         else:
             b = int(np.nanargmax(red))
             others = np.delete(red, b)

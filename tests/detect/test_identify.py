@@ -99,3 +99,19 @@ def test_layout_without_centre_and_lens_distortion():
     r = identify_beacons(pr.points_px, lay, cam, rgb_flux=rgb)
     assert r.ok, r.reason
     np.testing.assert_array_equal(r.beacon_ids, np.arange(lay.n_beacons))
+
+
+def test_a_colour_on_one_ring_blob_only_does_not_name_the_bow():
+    # Colour measured on one ring blob (the others' flux not positive: redness NaN): its
+    # margin over the others' median was NaN, which passed the margin test, and the ring ids
+    # were assigned from that blob as if it were the bow.
+    rng = np.random.default_rng(7)
+    pts, ids, rgb = scene(rng)
+    dark = np.zeros_like(rgb)
+    dark[np.flatnonzero(ids == 5)[0]] = WHITE  # one white ring blob with colour, none red
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # and no "All-NaN slice" warning on the way
+        r = identify_beacons(pts, LAYOUT, CAMERA, rgb_flux=dark)
+    assert not r.ok and "only one ring blob" in r.reason
