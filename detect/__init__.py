@@ -3,9 +3,11 @@
 * :mod:`~deckpose.detect.registry` — the detector interface (``Frame`` in,
   :class:`~deckpose.detect.registry.Blobs` out), options and registry;
 * :mod:`~deckpose.detect.candidates` — coarse-to-fine candidate search with
-  frame-adaptive thresholds (:mod:`~deckpose.detect.background`);
-* detectors: ``binary`` and ``cog`` (:mod:`~deckpose.detect.centroid`),
-  ``gauss`` (:mod:`~deckpose.detect.gauss`), ``log``
+  frame-adaptive thresholds (:mod:`~deckpose.detect.background`), each found blob a
+  :class:`~deckpose.detect.candidate.Candidate`;
+* :mod:`~deckpose.detect.centroid` — the classic centroiders on one candidate;
+* detectors: ``binary`` (:mod:`~deckpose.detect.binary`), ``cog``
+  (:mod:`~deckpose.detect.cog`), ``gauss`` (:mod:`~deckpose.detect.gauss`), ``log``
   (:mod:`~deckpose.detect.log_blobs`), ``opencv-blob``
   (:mod:`~deckpose.detect.opencv_blob`);
 * :mod:`~deckpose.detect.identify` — beacon ids (ellipse RANSAC, homography,

@@ -24,7 +24,6 @@ from __future__ import annotations
 import dataclasses
 import math
 from collections.abc import Callable
-from dataclasses import dataclass
 
 import cv2
 import numpy as np
@@ -39,6 +38,8 @@ from deckpose.detect.background import (
     robust_stats,
     tile_stats,
 )
+from deckpose.detect.candidate import Candidate
+from deckpose.detect.gain import estimate_gain
 from deckpose.detect.registry import Blobs, DetectorOptions
 from deckpose.detect.significance import significant_spots
 from deckpose.detect.spots import (
@@ -52,151 +53,6 @@ from deckpose.detect.spots import (
 
 from deckpose.records import Frame
 
-
-@dataclass(frozen=True)
-class Candidate:
-    """One blob, in a full-resolution window of the frame.
-
-    Attributes
-    ----------
-    pixels : (h, w) array of float
-        Mono signal of the window (sum of channels), DN, background not removed;
-        with the bright-spot search (``DetectorOptions.spot_level``) the peak
-        channel (largest channel per pixel).
-    mask : (h, w) array of bool
-        The blob's connected pixels above the full-resolution threshold.
-    saturated : (h, w) array of bool
-        Pixels with a channel at the saturation value.
-    u0, v0 : int
-        Full-resolution column and row of ``pixels[0, 0]``.
-    background_dn : float
-        Local background at the window centre, DN: a plane fitted to the window
-        border (robustly), so a background gradient does not bias centroids.
-    background_grad : (float, float)
-        Slope of that plane along u and v, DN per pixel.
-    noise_dn : float
-        Background noise standard deviation, DN: the frame's, or with an uneven
-        background (``background_kernel_px``) the window border's.
-    gain_dn_per_e : float
-        Gain used by the noise model (given, or estimated by
-        :func:`deckpose.detect.gain.estimate_gain`), DN per electron.
-    threshold_dn : float
-        Full-resolution threshold used for ``mask``, DN.
-    clip_signal : bool
-        Bright-spot search (always, there): ``background_dn`` is the spot's pedestal
-        (:func:`~deckpose.detect.spots.spot_pedestal`: the level around the core beyond
-        its wings, raised by a marking under the beacon) and
-        :meth:`signal` clips at 0, so a dark beacon housing or a white line around
-        the core does not pull the centre.
-    frame_shape : (int, int) or None
-        ``(height, width)`` of the whole frame, pixels, so that a window can tell where
-        the frame edge cuts a spot (:meth:`edge_distance_px`); None: not known.
-    """
-
-    pixels: np.ndarray
-    mask: np.ndarray
-    saturated: np.ndarray
-    u0: int
-    v0: int
-    background_dn: float
-    background_grad: tuple[float, float]
-    noise_dn: float
-    gain_dn_per_e: float
-    threshold_dn: float
-    clip_signal: bool = False
-    frame_shape: tuple[int, int] | None = None
-
-    def edge_distance_px(self, u_px: float, v_px: float) -> float:
-        """Distance from ``(u_px, v_px)`` to the nearest frame edge, pixels (inf if not known).
-
-        Pixel centres are at integers, so the frame spans ``[-0.5, width - 0.5]``. A
-        window reaching past this distance is cut by the edge on one side only, and a
-        centroid in it is pulled away from the edge (a rendered 20 m beacon 17 px from
-        the edge: 0.25 px).
-        """
-        if self.frame_shape is None:
-            return math.inf
-        h, w = self.frame_shape
-        return min(u_px + 0.5, v_px + 0.5, w - 0.5 - u_px, h - 0.5 - v_px)
-
-    def grid(self) -> tuple[np.ndarray, np.ndarray]:
-        """Full-resolution ``(u, v)`` coordinates of the window's pixels, each (h, w)."""
-        h, w = self.pixels.shape
-        return np.meshgrid(np.arange(w, dtype=float) + self.u0, np.arange(h, dtype=float) + self.v0)
-
-    def background_plane(self) -> np.ndarray:
-        """The background's tilt over the window (zero at its centre), (h, w) DN."""
-        h, w = self.pixels.shape
-        gu, gv = self.background_grad
-        return (np.arange(h)[:, None] - (h - 1) / 2) * gv + (
-            np.arange(w)[None, :] - (w - 1) / 2
-        ) * gu
-
-    def signal(self) -> np.ndarray:
-        """Background-subtracted pixels, DN."""
-        s = self.pixels - self.background_dn - self.background_plane()
-        return np.maximum(s, 0.0) if self.clip_signal else s
-
-    def above_floor(
-        self, u_px: float, v_px: float, radius_px: float
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """Pixels above the level a spot at ``(u_px, v_px)`` rises from, and where that level was taken.
-
-        The floor is the :data:`FLOOR_PERCENTILE` percentile of the de-tilted pixels
-        within ``radius_px`` of the spot: the darker part of its surroundings (a
-        beacon's housing, the deck), not the pedestal, which a bright marking nearby
-        raises.
-
-        Returns
-        -------
-        signal_dn : (h, w) array of float
-            De-tilted pixels minus the floor, DN (not clipped).
-        near : (h, w) array of bool
-            The pixels within ``radius_px`` of the spot.
-        """
-        uu, vv = self.grid()
-        near = np.hypot(uu - u_px, vv - v_px) <= radius_px
-        detilted = self.pixels - self.background_plane()
-        return detilted - float(np.percentile(detilted[near], FLOOR_PERCENTILE)), near
-
-    def variance(self, signal_dn: np.ndarray | None = None) -> np.ndarray:
-        """Per-pixel noise variance, DN^2: background noise plus shot noise of the signal."""
-        s = self.signal() if signal_dn is None else signal_dn
-        return self.noise_dn**2 + self.gain_dn_per_e * np.maximum(s, 0.0)
-
-    def mask_moments(self) -> tuple[float, float, float]:
-        """Binary centroid ``(u, v)`` and Gaussian-equivalent sigma of the mask, pixels."""
-        vv, uu = np.nonzero(self.mask)
-        area = uu.size
-        sigma = math.sqrt(max(area, 1) / math.pi) / 2.0 + 0.3
-        return float(uu.mean() + self.u0), float(vv.mean() + self.v0), sigma
-
-    def blob(
-        self,
-        u_px: float,
-        v_px: float,
-        *,
-        flux_dn: float,
-        size_px: float | None = None,
-        cov_px2: np.ndarray | None = None,
-    ) -> tuple[float, float, np.ndarray, float, float, float]:
-        """A :class:`~deckpose.detect.registry.Blobs` row, filling in what is not given.
-
-        The default covariance is that of an intensity-weighted centroid of a
-        Gaussian spot of ``size_px`` under this window's noise model.
-        """
-        size = self.mask_moments()[2] if size_px is None else float(size_px)
-        area = int(self.mask.sum())
-        score = float(flux_dn / (self.noise_dn * math.sqrt(max(area, 1))))
-        if cov_px2 is None:
-            n_e = max(flux_dn, 1e-9) / self.gain_dn_per_e
-            npix = 4.0 * math.pi * size**2
-            bg_e2 = npix * self.noise_dn**2 / self.gain_dn_per_e**2
-            var = (size**2 + 1.0 / 12.0) / n_e * (1.0 + bg_e2 / n_e)
-            cov_px2 = np.eye(2) * var
-        return (float(u_px), float(v_px), np.asarray(cov_px2, float), float(flux_dn), size, score)
-
-
 #: A frame narrower than this has no room for a beacon and its background (and no noise
 #: estimate: a 1x1 frame gave "noise nan DN").
 MIN_FRAME_SIDE_PX = 8
@@ -204,9 +60,6 @@ MIN_FRAME_SIDE_PX = 8
 #: A blob covering more than this fraction of the frame is no beacon: the 13 beacons of a
 #: deck in view are each far smaller (a 64 MP frame at 20 m: 0.01 %).
 MAX_SPOT_AREA_FRACTION = 0.01
-
-#: Percentile of a spot's surroundings that gives its floor (:meth:`Candidate.above_floor`).
-FLOOR_PERCENTILE = 20.0
 
 
 MeasureFn = Callable[[Candidate], "tuple[float, float, np.ndarray, float, float, float] | None"]
@@ -489,8 +342,6 @@ def find_candidates(
         for p, m, s, u0, v0, bg, t, nz, clip in raw
     ]
     if options.gain_dn_per_e is None:
-        from deckpose.detect.gain import estimate_gain  # gain uses cog, which uses this module
-
         gain = estimate_gain(cands, options.window_sigma)
         cands = [dataclasses.replace(c, gain_dn_per_e=gain) for c in cands]
     return cands, ""

@@ -1,4 +1,8 @@
-"""The two classic centroiders: ``binary`` (the baseline) and ``cog``.
+"""The two classic centroiders, one candidate at a time: ``binary`` (the baseline) and ``cog``.
+
+The detectors of those names (:mod:`~deckpose.detect.binary`, :mod:`~deckpose.detect.cog`)
+run them on every candidate of a frame; ``gauss``, ``log`` and the gain estimate start
+from :func:`cog_centroid`.
 
 * ``binary``: threshold + connected components, centre of the binary blob, as
   most LED trackers do. Every pixel above the threshold counts the same, so
@@ -14,10 +18,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from deckpose.detect.candidates import Candidate, measure_candidates
-from deckpose.detect.registry import Blobs, DetectorOptions, register
-
-from deckpose.records import Frame
+from deckpose.detect.candidate import Candidate
 
 Row = tuple[float, float, np.ndarray, float, float, float]
 
@@ -278,15 +279,3 @@ def gaussian_window_centroid(
     ) / F**2
     # flux: the window's flux over the Gaussian window's own weight of a sigma_w spot
     return cand.blob(u, v, flux_dn=2.0 * F, size_px=sigma_w_px, cov_px2=cov)
-
-
-@register("binary")
-def detect_binary(frame: Frame, options: DetectorOptions) -> Blobs:
-    """Baseline: adaptive threshold + connected components, binary-blob centre."""
-    return measure_candidates(frame, options, binary_centroid)
-
-
-@register("cog")
-def detect_cog(frame: Frame, options: DetectorOptions) -> Blobs:
-    """Intensity-weighted centre of gravity in a re-centred window around each blob."""
-    return measure_candidates(frame, options, lambda c: cog_centroid(c, options.window_sigma))

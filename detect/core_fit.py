@@ -32,7 +32,7 @@ import math
 
 import cv2
 import numpy as np
-from deckpose.detect.candidates import Candidate
+from deckpose.detect.candidate import Candidate
 from deckpose.detect.centroid import Row
 from scipy.optimize import least_squares
 

@@ -12,7 +12,7 @@ the conservative side (larger covariances).
 from __future__ import annotations
 
 import numpy as np
-from deckpose.detect.candidates import Candidate
+from deckpose.detect.candidate import Candidate
 from deckpose.detect.centroid import cog_centroid
 from deckpose.detect.synthetic import pixel_fractions
 

@@ -21,7 +21,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from deckpose.detect.candidates import Candidate, measure_candidates
+from deckpose.detect.candidate import Candidate
+from deckpose.detect.candidates import measure_candidates
 from deckpose.detect.centroid import Row, cog_centroid
 from deckpose.detect.core_fit import core_fit
 from deckpose.detect.crb import gaussian_pixel_terms

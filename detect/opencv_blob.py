@@ -13,7 +13,8 @@ import math
 
 import cv2
 import numpy as np
-from deckpose.detect.candidates import Candidate, measure_candidates
+from deckpose.detect.candidate import Candidate
+from deckpose.detect.candidates import measure_candidates
 from deckpose.detect.centroid import Row
 from deckpose.detect.registry import Blobs, DetectorOptions, register
 

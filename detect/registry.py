@@ -15,7 +15,7 @@ does the rest, so a new detector is a few lines::
 
     @registry.register("peak")
     def peak(frame, options):
-        def measure(c):              # c: a candidates.Candidate (full-resolution window)
+        def measure(c):              # c: a candidate.Candidate (full-resolution window)
             s = c.signal()           # background-subtracted pixels
             v, u = np.unravel_index(np.argmax(s), s.shape)
             return c.blob(u + c.u0, v + c.v0, flux_dn=float(s.max()))
@@ -196,7 +196,8 @@ _REGISTRY: dict[str, DetectorFn] = {}
 
 #: Modules that register the built-in detectors when imported.
 _BUILTIN_MODULES: tuple[str, ...] = (
-    "deckpose.detect.centroid",
+    "deckpose.detect.binary",
+    "deckpose.detect.cog",
     "deckpose.detect.gauss",
     "deckpose.detect.log_blobs",
     "deckpose.detect.opencv_blob",

@@ -81,7 +81,7 @@ def test_unknown_detector_lists_the_known_ones(tiny_dataset, capsys):
 def test_plugin_detector_appears_in_the_cli(tmp_path, monkeypatch, capsys):
     (tmp_path / "my_detector_plugin.py").write_text(
         "from deckpose.detect import registry\n"
-        "from deckpose.detect.centroid import detect_cog\n"
+        "from deckpose.detect.cog import detect_cog\n"
         "registry.register('my-cog')(detect_cog)\n"
     )
     monkeypatch.syspath_prepend(str(tmp_path))
@@ -106,7 +106,7 @@ def test_detect_list_needs_no_dataset(capsys):
 def test_plugin_from_the_current_folder_or_a_file(tmp_path, monkeypatch, capsys, how):
     (tmp_path / "mypeak_plugin.py").write_text(
         "from deckpose.detect import registry\n"
-        "from deckpose.detect.centroid import detect_cog\n"
+        "from deckpose.detect.cog import detect_cog\n"
         "registry.register('my-peak')(detect_cog)\n"
     )
     monkeypatch.chdir(tmp_path)  # no PYTHONPATH, as a user types it
