@@ -35,7 +35,7 @@ import cv2
 import numpy as np
 from deckpose.detect import registry
 from deckpose.detect.crb import centroid_crb_px2
-from deckpose.detect.pipeline import detect_frame
+from deckpose.detect.frame_detection import detect_frame
 from deckpose.detect.registry import DetectorOptions
 from deckpose.detect.synthetic import SensorModel, render_spots
 
@@ -50,7 +50,7 @@ def _time_frame(frame: Frame, detectors: list[str], repeat: int, layout: DeckLay
     """Print each detector's CPU and wall time on one decoded frame, median of ``repeat``.
 
     Two figures per detector: detection alone, and detection + identification
-    (:func:`deckpose.detect.pipeline.detect_frame`, what ``deckpose detect`` runs per
+    (:func:`deckpose.detect.frame_detection.detect_frame`, what ``deckpose detect`` runs per
     frame), the latter interleaved with the former run by run.
     """
     for name in detectors:

@@ -4,7 +4,7 @@ Frames come from :mod:`independent_spots` (beside this file), which shares no co
 with ``render/`` or ``detect/``. Each dataset is a family of 8 MP frames (see
 :data:`DATASETS`); every registered detector (ours, and ``sep`` / ``photutils``
 where ``deckpose[peers]`` is installed) runs on each frame through
-``deckpose.detect.pipeline.detect_frame`` (detection + identification), and its
+``deckpose.detect.frame_detection.detect_frame`` (detection + identification), and its
 detections are matched to the truth:
 
 * recall (beacons found), identification (beacons with the right id), frames
@@ -44,7 +44,7 @@ import pandas as pd
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import independent_spots as gen
 from deckpose.detect import registry
-from deckpose.detect.pipeline import detect_frame
+from deckpose.detect.frame_detection import detect_frame
 
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout

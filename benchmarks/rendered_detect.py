@@ -13,7 +13,7 @@ from collections import defaultdict
 import numpy as np
 import pandas as pd
 from deckpose.detect import registry
-from deckpose.detect.pipeline import detect_frame
+from deckpose.detect.frame_detection import detect_frame
 from deckpose.detect.sources import load_frame, open_dataset
 
 

@@ -12,7 +12,7 @@
   (:mod:`~deckpose.detect.opencv_blob`);
 * :mod:`~deckpose.detect.identify` — beacon ids (ellipse RANSAC, homography,
   colour of the bow beacon);
-* :mod:`~deckpose.detect.pipeline` — one frame: detect + identify ->
+* :mod:`~deckpose.detect.frame_detection` — one frame: detect + identify ->
   :class:`~deckpose.records.Detections`;
 * :mod:`~deckpose.detect.sources`, :mod:`~deckpose.detect.run`,
   :mod:`~deckpose.detect.tables` — datasets, image folders and Parquet tables;
@@ -51,16 +51,16 @@ _API: dict[str, str] = {
     "load_plugin": "deckpose.detect.registry",
     "IdentifyOptions": "deckpose.detect.identify",
     "identify_beacons": "deckpose.detect.identify",
-    "FrameDetections": "deckpose.detect.pipeline",
-    "detect_frame": "deckpose.detect.pipeline",
+    "FrameDetections": "deckpose.detect.frame_detection",
+    "detect_frame": "deckpose.detect.frame_detection",
     "DetectRunResult": "deckpose.detect.run",
     "detect_run": "deckpose.detect.run",
     "detect_frames": "deckpose.detect.run",
 }
 
 if TYPE_CHECKING:  # the same names for type checkers (at run time __getattr__ imports them)
+    from deckpose.detect.frame_detection import FrameDetections, detect_frame
     from deckpose.detect.identify import IdentifyOptions, identify_beacons
-    from deckpose.detect.pipeline import FrameDetections, detect_frame
     from deckpose.detect.registry import Blobs, DetectorOptions, get, load_plugin, names, register
     from deckpose.detect.run import DetectRunResult, detect_frames, detect_run
 

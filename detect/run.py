@@ -21,8 +21,8 @@ from pathlib import Path
 from typing import Any
 
 import pandas as pd
+from deckpose.detect.frame_detection import FrameDetections, detect_frame
 from deckpose.detect.identify import IdentifyOptions
-from deckpose.detect.pipeline import FrameDetections, detect_frame
 from deckpose.detect.registry import DetectorOptions
 from deckpose.detect.sources import FrameSet, load_frame
 from deckpose.detect.tables import detection_rows, write_tables

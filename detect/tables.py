@@ -15,7 +15,7 @@ from typing import cast
 
 import numpy as np
 import pandas as pd
-from deckpose.detect.pipeline import FrameDetections
+from deckpose.detect.frame_detection import FrameDetections
 
 from deckpose.atomic_io import atomic_path
 from deckpose.errors import InputDataError

@@ -13,13 +13,13 @@ __all__ = [
 _API: dict[str, str] = {
     "RunPaths": "deckpose.evaluate.run_layout",
     "run_paths": "deckpose.evaluate.run_layout",
-    "evaluate_run": "deckpose.evaluate.pipeline",
+    "evaluate_run": "deckpose.evaluate.run",
     "write_report": "deckpose.evaluate.report",
 }
 
 if TYPE_CHECKING:  # the same names for type checkers (at run time __getattr__ imports them)
-    from deckpose.evaluate.pipeline import evaluate_run
     from deckpose.evaluate.report import write_report
+    from deckpose.evaluate.run import evaluate_run
     from deckpose.evaluate.run_layout import RunPaths, run_paths
 
 

@@ -35,7 +35,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 
 def run_evaluate(args: argparse.Namespace) -> int:
-    from deckpose.evaluate.pipeline import evaluate_run
+    from deckpose.evaluate.run import evaluate_run
     from deckpose.evaluate.run_layout import run_paths
     from deckpose.output_folder import claim_output
 

@@ -207,8 +207,8 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     from deckpose.detect.run import detect_run
     from deckpose.estimate.registry import parse_method
     from deckpose.estimate.run import estimate_run
-    from deckpose.evaluate.pipeline import evaluate_run
     from deckpose.evaluate.report import write_report
+    from deckpose.evaluate.run import evaluate_run
     from deckpose.evaluate.run_layout import run_paths
     from deckpose.render.dataset import render_dataset
 

@@ -64,7 +64,7 @@ def test_a_centre_outside_the_image_does_not_end_the_frame():
     # raised "negative dimensions" and ended the benchmark. It is now a NaN colour.
     from deckpose.detect import registry
     from deckpose.detect.colour import blob_rgb_flux
-    from deckpose.detect.pipeline import detect_frame
+    from deckpose.detect.frame_detection import detect_frame
     from deckpose.detect.registry import Blobs
 
     from deckpose.camera import preset

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from deckpose.detect import registry
-from deckpose.detect.pipeline import detect_frame
+from deckpose.detect.frame_detection import detect_frame
 
 from deckpose.camera import CameraModel
 from deckpose.errors import ConfigError

@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 import pandas as pd
 import pytest
-from deckpose.detect.pipeline import detect_frame
+from deckpose.detect.frame_detection import detect_frame
 from deckpose.detect.registry import DetectorOptions
 from deckpose.detect.sources import load_frame, open_dataset
 

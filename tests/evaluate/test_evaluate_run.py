@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from deckpose.evaluate.errors import frame_errors
-from deckpose.evaluate.pipeline import compute_errors
+from deckpose.evaluate.run import compute_errors
 from deckpose.evaluate.run_layout import run_paths
 from mcap.decoder import DecoderFactory as McapDecoderFactory
 from mcap.reader import make_reader
