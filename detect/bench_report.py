@@ -24,6 +24,7 @@ from deckpose.detect.synthetic import SensorModel
 from deckpose.detect.synthetic_dataset import summed_channels_sensor
 
 from deckpose.atomic_io import atomic_open, atomic_path
+from deckpose.run_folder import RunPaths
 
 
 def dataset_sensor(frameset: FrameSet) -> SensorModel | None:
@@ -85,9 +86,9 @@ def run_benchmark(
 ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Summary table (one row per detector x camera x height) and per-beacon matches."""
     fs = open_dataset(dataset)
-    root = Path(dataset)
-    beacons = pd.read_parquet(root / "beacons.parquet")
-    frames = pd.read_parquet(root / "frames.parquet")
+    run = RunPaths(Path(dataset))
+    beacons = pd.read_parquet(run.beacons)
+    frames = pd.read_parquet(run.frames)
     sensor = dataset_sensor(fs)
     summaries, matches = [], []
     crb_cache: pd.Series | None = None

@@ -31,12 +31,12 @@ from deckpose.atomic_io import atomic_open
 from deckpose.camera_info import write_camera_info
 from deckpose.errors import ConfigError
 from deckpose.layout import layout_to_dict
+from deckpose.run_folder import DETECTIONS_FORMAT, RunPaths
 
 log = logging.getLogger(__name__)
 
-RUN_FORMAT = "deckpose-detections/1"
 
-__all__ = ["RUN_FORMAT", "DetectRunResult", "detect_frames", "detect_frames_with", "detect_run", "write_run"]
+__all__ = ["DetectRunResult", "detect_frames", "detect_frames_with", "detect_run", "write_run"]
 
 
 @dataclass(frozen=True)
@@ -230,9 +230,10 @@ def write_run(
     if out_dir is None:
         if frameset.kind != "dataset":
             raise ConfigError("a folder of images needs an output folder (--out)")
-        base = frameset.root / "detections"
-        det_path, frames_path = base / f"{detector}.parquet", base / f"{detector}.frames.parquet"
-        meta_path, cam_dir = base / f"{detector}.run.json", None
+        run = RunPaths(frameset.root)
+        base = run.detections_dir
+        det_path, frames_path = run.detections(detector), run.detect_frames(detector)
+        meta_path, cam_dir = run.detect_run_record(detector), None
     else:
         base = Path(out_dir)
         det_path, frames_path = base / "detections.parquet", base / "detect_frames.parquet"
@@ -246,7 +247,7 @@ def write_run(
         else:
             cams[name] = os.path.relpath(frameset.camera_files[name], base)
     meta: dict[str, Any] = {
-        "format": RUN_FORMAT,
+        "format": DETECTIONS_FORMAT,
         "detector": detector,
         "detections": det_path.name,
         "frames": frames_path.name,

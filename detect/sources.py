@@ -25,8 +25,8 @@ from deckpose.camera_info import read_camera_info
 from deckpose.errors import InputDataError
 from deckpose.layout import DeckLayout, layout_from_dict, read_layout
 from deckpose.records import Frame
+from deckpose.run_folder import DATASET_FORMAT, RunPaths
 
-DATASET_FORMAT = "deckpose-dataset/1"
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg", ".bmp", ".pgm", ".ppm")
 
 
@@ -92,7 +92,7 @@ def declared_gain(manifest: dict[str, Any]) -> float | None:
 
 def is_dataset(path: str | os.PathLike[str]) -> bool:
     """Whether ``path`` is a dataset folder (has a manifest.json)."""
-    return (Path(path) / "manifest.json").is_file()
+    return RunPaths(Path(path)).manifest.is_file()
 
 
 def open_dataset(path: str | os.PathLike[str]) -> FrameSet:
@@ -106,8 +106,9 @@ def open_dataset(path: str | os.PathLike[str]) -> FrameSet:
     import pandas as pd
 
     root = Path(path)
+    run = RunPaths(root)
     try:
-        manifest = json.loads((root / "manifest.json").read_text())
+        manifest = json.loads(run.manifest.read_text())
     except (OSError, json.JSONDecodeError) as exc:
         raise InputDataError(
             f"{root}: cannot read manifest.json ({exc}); is this a deckpose dataset?"
@@ -126,7 +127,7 @@ def open_dataset(path: str | os.PathLike[str]) -> FrameSet:
     layout = layout_from_dict(manifest.get("layout"), f"{root}/manifest.json: layout")
     try:
         frames = pd.read_parquet(
-            root / "frames.parquet", columns=["frame_id", "image", "camera", "stamp_ns"]
+            run.frames, columns=["frame_id", "image", "camera", "stamp_ns"]
         )
     except Exception as exc:  # pyarrow raises several types for missing/corrupt files
         raise InputDataError(
@@ -134,7 +135,7 @@ def open_dataset(path: str | os.PathLike[str]) -> FrameSet:
         ) from exc
     cameras, files = {}, {}
     for name in sorted(set(frames["camera"].astype(str))):
-        f = root / "cameras" / f"{name}.yaml"
+        f = run.camera_file(name)
         cameras[name] = read_camera_info(f)
         files[name] = f
     sources = tuple(

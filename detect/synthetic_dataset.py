@@ -24,7 +24,6 @@ from typing import Any
 import cv2
 import numpy as np
 import pandas as pd
-from deckpose.detect.sources import DATASET_FORMAT
 from deckpose.detect.synthetic import SensorModel, disc_spot_sigma_px, render_spots
 
 from deckpose.atomic_io import atomic_open, atomic_path
@@ -34,6 +33,7 @@ from deckpose.errors import ConfigError
 from deckpose.layout import DeckLayout, layout_from_dict, layout_to_dict
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.projection import project_layout
+from deckpose.run_folder import DATASET_FORMAT, RunPaths, image_relpath, manifest_cameras
 from deckpose.typed_config import from_mapping, load_yaml
 
 
@@ -135,7 +135,7 @@ def write_synthetic_dataset(
         cam_key = cam_name.replace("/", "_")
         cams[cam_key] = cam
         write_camera_info(
-            dataclasses.replace(cam, name=cam_key), out / "cameras" / f"{cam_key}.yaml"
+            dataclasses.replace(cam, name=cam_key), RunPaths(out).camera_file(cam_key)
         )
         for h in config.heights_m:
             for _ in range(config.frames_per_config):
@@ -175,7 +175,7 @@ def write_synthetic_dataset(
                 img = render_spots(
                     shape, pts, sg, fl, config.sensor, frng, rgb=col if config.colour else None
                 )
-                rel = f"images/{fid:06d}.png"
+                rel = image_relpath(fid)
                 with atomic_path(out / rel) as tmp:
                     bgr = cv2.cvtColor(img, cv2.COLOR_RGB2BGR) if img.ndim == 3 else img
                     if not cv2.imwrite(str(tmp.with_suffix(".png")), bgr):
@@ -201,11 +201,12 @@ def write_synthetic_dataset(
                         }
                     )
                 fid += 1
-    for name, table in (
-        ("frames.parquet", pd.DataFrame(frame_rows)),
-        ("beacons.parquet", pd.DataFrame(beacon_rows)),
+    run = RunPaths(out)
+    for path, table in (
+        (run.frames, pd.DataFrame(frame_rows)),
+        (run.beacons, pd.DataFrame(beacon_rows)),
     ):
-        with atomic_path(out / name) as tmp:
+        with atomic_path(path) as tmp:
             table.to_parquet(tmp, index=False)
     manifest = {
         "format": DATASET_FORMAT,
@@ -213,12 +214,12 @@ def write_synthetic_dataset(
         "config": _config_dict(config),
         "seed": config.seed,
         "layout": layout_to_dict(lay),
-        "cameras": sorted(cams),
+        "cameras": manifest_cameras({k: dataclasses.replace(c, name=k) for k, c in sorted(cams.items())}),
         "sensor": dataclasses.asdict(config.sensor),
         "sensor_channels": 3 if config.colour else 1,
         "versions": {"numpy": np.__version__, "opencv": cv2.__version__},
     }
-    with atomic_open(out / "manifest.json", "w") as fh:
+    with atomic_open(run.manifest, "w") as fh:
         json.dump(manifest, fh, indent=2)
     return out
 

@@ -187,8 +187,7 @@ def estimate_run(
     InputDataError
         A missing dataset or detections table, or detections of other frames.
     """
-    from deckpose.evaluate import run_layout as rl
-
+    from deckpose import run_folder as rl
     from deckpose.detections_io import detections_from_frame
     from deckpose.output_folder import claim_output
     from deckpose.tables import write_table

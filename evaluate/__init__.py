@@ -3,16 +3,12 @@
 from typing import TYPE_CHECKING
 
 __all__ = [
-    "RunPaths",
     "evaluate_run",
-    "run_paths",
     "write_report",
 ]
 
 #: Where each name of the stage API lives.
 _API: dict[str, str] = {
-    "RunPaths": "deckpose.evaluate.run_layout",
-    "run_paths": "deckpose.evaluate.run_layout",
     "evaluate_run": "deckpose.evaluate.run",
     "write_report": "deckpose.evaluate.report",
 }
@@ -20,7 +16,6 @@ _API: dict[str, str] = {
 if TYPE_CHECKING:  # the same names for type checkers (at run time __getattr__ imports them)
     from deckpose.evaluate.report import write_report
     from deckpose.evaluate.run import evaluate_run
-    from deckpose.evaluate.run_layout import RunPaths, run_paths
 
 
 def __getattr__(name: str) -> object:

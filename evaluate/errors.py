@@ -1,7 +1,7 @@
 """Per-frame errors: ground truth joined with detections and estimates.
 
 Pure functions on tables (pandas DataFrames in the run-folder formats of
-:mod:`deckpose.evaluate.run_layout`). Angle errors are wrapped to [-180, 180)
+:mod:`deckpose.run_folder`). Angle errors are wrapped to [-180, 180)
 degrees; the true height is the camera's height above the deck centre along
 world z; surge and sway are relative to the point under the camera.
 """

@@ -35,7 +35,6 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pandas as pd
-from deckpose.evaluate import run_layout as rl
 from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
 from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
@@ -52,6 +51,7 @@ from mcap.writer import CompressionType, Writer
 from mcap_protobuf.schema import build_file_descriptor_set
 from scipy.spatial.transform import Rotation
 
+from deckpose import run_folder as rl
 from deckpose.atomic_io import atomic_path
 from deckpose.camera import CameraModel
 from deckpose.errors import InputDataError

@@ -16,12 +16,12 @@ from typing import TYPE_CHECKING
 import cv2
 import numpy as np
 import pandas as pd
-from deckpose.evaluate import run_layout as rl
 from deckpose.evaluate import thesis_reference as ref
 from deckpose.evaluate.errors import centroid_errors
 from deckpose.evaluate.resolution_tables import resolution_markdown, resolution_table
 from matplotlib.lines import Line2D
 
+from deckpose import run_folder as rl
 from deckpose.atomic_io import atomic_open
 from deckpose.camera import THESIS_RESOLUTIONS
 from deckpose.errors import InputDataError

@@ -6,10 +6,10 @@ import json
 from pathlib import Path
 
 import pandas as pd
-from deckpose.evaluate import run_layout as rl
 from deckpose.evaluate.errors import run_errors
 from deckpose.evaluate.resolution_tables import resolution_markdown, resolution_table
 
+from deckpose import run_folder as rl
 from deckpose.atomic_io import atomic_open
 from deckpose.errors import InputDataError
 from deckpose.tables import write_table

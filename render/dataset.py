@@ -38,14 +38,14 @@ from deckpose.render.config import RenderConfig, config_to_dict, load_config
 from deckpose.render.plan import FrameSpec, plan_frames
 
 from deckpose.atomic_io import atomic_open, atomic_path, remove_stale_temps
-from deckpose.camera_info import camera_to_dict, write_camera_info
+from deckpose.camera_info import write_camera_info
 from deckpose.errors import ConfigError
 from deckpose.layout import layout_to_dict
 from deckpose.output_folder import LOCK_NAME
+from deckpose.run_folder import DATASET_FORMAT, RunPaths, image_relpath, manifest_cameras
 
 log = logging.getLogger(__name__)
 
-FORMAT = "deckpose-dataset/1"
 #: PNG settings: the SUB filter at the default zlib level (lossless; same size as OpenCV's
 #: default, about 1.5x faster to encode on noisy frames here).
 PNG_PARAMS: list[int] = [cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_SUB]
@@ -65,10 +65,6 @@ def _versions() -> dict[str, str]:
         except metadata.PackageNotFoundError:
             pass
     return out
-
-
-def image_relpath(frame_id: int) -> str:
-    return f"images/{frame_id:06d}.png"
 
 
 def _part_path(out_dir: Path, frame_id: int) -> Path:
@@ -104,7 +100,7 @@ def render_one(cfg: RenderConfig, spec: FrameSpec, out_dir: str) -> int:
 def _manifest(cfg: RenderConfig, plan: list[FrameSpec], complete: bool) -> dict[str, Any]:
     cams = cfg.cameras_by_name()
     return {
-        "format": FORMAT,
+        "format": DATASET_FORMAT,
         "name": cfg.name,
         "complete": complete,
         "n_frames": len(plan),
@@ -114,8 +110,7 @@ def _manifest(cfg: RenderConfig, plan: list[FrameSpec], complete: bool) -> dict[
         "layout": layout_to_dict(cfg.layout),
         "sensor": sensor_block(cfg),
         "sensor_channels": 1 if cfg.sensor.color == "mono" else 3,
-        "cameras": [{"name": n, "file": f"cameras/{n}.yaml", "camera_info": camera_to_dict(c)}
-                    for n, c in cams.items()],
+        "cameras": manifest_cameras(cams),
     }
 
 
@@ -139,7 +134,8 @@ def _write_json(path: Path, doc: dict[str, Any]) -> None:
 
 
 def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool) -> None:
-    manifest = out / "manifest.json"
+    run = RunPaths(out)
+    manifest = run.manifest
     if manifest.exists():
         try:
             old = json.loads(manifest.read_text())
@@ -154,8 +150,8 @@ def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool) 
     out.mkdir(parents=True, exist_ok=True)
     remove_stale_temps(out)
     for name, cam in cfg.cameras_by_name().items():
-        write_camera_info(cam, out / "cameras" / f"{name}.yaml")
-    (out / "images").mkdir(exist_ok=True)
+        write_camera_info(cam, run.camera_file(name))
+    run.images_dir.mkdir(exist_ok=True)
     (out / ".parts").mkdir(exist_ok=True)
     _write_json(manifest, _manifest(cfg, plan, complete=False))
 
@@ -249,10 +245,10 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
         bar.update(1)
     bar.close()
     fdf, bdf = collect_tables(out, plan)
-    with atomic_path(out / "frames.parquet") as tmp:
+    with atomic_path(RunPaths(out).frames) as tmp:
         fdf.to_parquet(tmp, index=False)
-    with atomic_path(out / "beacons.parquet") as tmp:
+    with atomic_path(RunPaths(out).beacons) as tmp:
         bdf.to_parquet(tmp, index=False)
-    _write_json(out / "manifest.json", _manifest(cfg, plan, complete=True))
+    _write_json(RunPaths(out).manifest, _manifest(cfg, plan, complete=True))
     log.info("dataset %s complete: %d frames", out, len(plan))
     return out

@@ -83,3 +83,16 @@ def test_no_import_cycles_among_library_modules():
 
 def test_the_cycle_finder_finds_a_cycle():
     assert _cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": set()}) == [["a", "b", "c", "a"]]
+
+
+def test_only_the_run_folder_module_names_the_run_folders_files():
+    # One owner of the run-folder contract (deckpose/run_folder.py): the render stage, the
+    # synthetic dataset writer, detect, estimate and evaluate reach its files through it.
+    owned = {"frames.parquet", "beacons.parquet", "manifest.json", "log.mcap",
+             "deckpose-dataset/1", "deckpose-detections/1"}
+    found = []
+    for path in _modules().values():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Constant) and node.value in owned:
+                found.append(f"{path.relative_to(REPO)}:{node.lineno} {node.value!r}")
+    assert found and all(f.startswith("deckpose/run_folder.py:") for f in found), found

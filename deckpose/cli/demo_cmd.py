@@ -49,8 +49,9 @@ def _drop_stale_demo(run_dir: Path, config: object) -> None:
     import shutil
 
     from deckpose.render.config import config_to_dict
+    from deckpose.run_folder import RunPaths
 
-    manifest = run_dir / "manifest.json"
+    manifest = RunPaths(run_dir).manifest
     if not manifest.is_file():
         return
     try:

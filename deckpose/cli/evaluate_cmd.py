@@ -36,8 +36,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
 
 def run_evaluate(args: argparse.Namespace) -> int:
     from deckpose.evaluate.run import evaluate_run
-    from deckpose.evaluate.run_layout import run_paths
     from deckpose.output_folder import claim_output
+    from deckpose.run_folder import run_paths
 
     run = run_paths(args.run)
     if run.root.is_dir():
@@ -50,8 +50,8 @@ def run_evaluate(args: argparse.Namespace) -> int:
 
 def run_report(args: argparse.Namespace) -> int:
     from deckpose.evaluate.report import write_report
-    from deckpose.evaluate.run_layout import run_paths
     from deckpose.output_folder import claim_output
+    from deckpose.run_folder import run_paths
 
     run = run_paths(args.run)
     if run.root.is_dir():

@@ -209,8 +209,8 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     from deckpose.estimate.run import estimate_run
     from deckpose.evaluate.report import write_report
     from deckpose.evaluate.run import evaluate_run
-    from deckpose.evaluate.run_layout import run_paths
     from deckpose.render.dataset import render_dataset
+    from deckpose.run_folder import run_paths
 
     check_names(options)
     say = step or (lambda n, total, text: print(f"[{n}/{total}] {text}", flush=True))
@@ -310,7 +310,7 @@ def publish_report(run_dir: Path, dest: Path) -> Path:
     Path
         ``dest / "report.md"``.
     """
-    from deckpose.evaluate.run_layout import run_paths
+    from deckpose.run_folder import run_paths
 
     paths = run_paths(run_dir)
     report = paths.report_dir / "report.md"

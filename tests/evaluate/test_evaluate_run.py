@@ -7,13 +7,13 @@ import pandas as pd
 import pytest
 from deckpose.evaluate.errors import frame_errors
 from deckpose.evaluate.run import compute_errors
-from deckpose.evaluate.run_layout import run_paths
 from mcap.decoder import DecoderFactory as McapDecoderFactory
 from mcap.reader import make_reader
 from mcap_protobuf.decoder import DecoderFactory
 
 from deckpose.cli import main
 from deckpose.errors import InputDataError
+from deckpose.run_folder import run_paths
 from tests.evaluate.fake_run import make_fake_run
 
 
@@ -176,8 +176,9 @@ def test_example_frame_hands_matplotlib_at_most_max_px(run, tmp_path, monkeypatc
     # max_px on its long side, with the axes still in full-resolution pixels.
     import cv2
     import matplotlib.axes
-    from deckpose.evaluate import run_layout as rl
     from deckpose.evaluate.report import example_frame
+
+    from deckpose import run_folder as rl
 
     paths = rl.run_paths(run)
     frames = pd.read_parquet(paths.frames)
@@ -205,7 +206,7 @@ def test_example_frame_hands_matplotlib_at_most_max_px(run, tmp_path, monkeypatc
 def test_listings_ignore_a_killed_writers_temp_files(run):
     # a detect killed between its two writes left .cog.parquet.XXXX.tmp.parquet, which the
     # listing returned as a detector and evaluate then failed to read
-    from deckpose.evaluate import run_layout as rl
+    from deckpose import run_folder as rl
 
     paths = rl.run_paths(run)
     before_d, before_e = paths.detectors(), paths.estimate_pairs()

@@ -17,10 +17,11 @@ import pandas as pd
 import pytest
 import yaml
 from deckpose.render.config import Backend, config_from_dict
-from deckpose.render.dataset import FORMAT, render_dataset
+from deckpose.render.dataset import render_dataset
 
 from deckpose.camera_info import read_camera_info
 from deckpose.errors import ConfigError
+from deckpose.run_folder import DATASET_FORMAT as FORMAT
 
 from .conftest import tiny_doc
 

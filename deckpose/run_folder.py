@@ -1,4 +1,7 @@
-"""Where each stage's output lives in a run folder, and loading it with clear errors.
+"""The run folder: its format names, where each stage's output lives, and reading it with clear errors.
+
+Every stage reads and writes a run folder through this module (render, the synthetic
+dataset writer, detect, estimate, evaluate, report).
 
 A run folder is a rendered dataset (``deckpose render``) that later stages add to::
 
@@ -25,12 +28,30 @@ import numpy as np
 import pandas as pd
 
 from deckpose.camera import CameraModel
-from deckpose.camera_info import read_camera_info
+from deckpose.camera_info import camera_to_dict, read_camera_info
 from deckpose.errors import InputDataError
 from deckpose.layout import DeckLayout, layout_from_dict
 from deckpose.tables import read_table
 
+#: Format of a rendered (or synthetic) dataset, recorded in its manifest.
+DATASET_FORMAT = "deckpose-dataset/1"
+#: Format of a detect run's metadata file.
+DETECTIONS_FORMAT = "deckpose-detections/1"
+#: Between the detector and the method in an estimates file name (``cog--pnp.parquet``).
 SEPARATOR = "--"
+#: The folder of the cameras' ROS camera_info files.
+CAMERAS_DIR = "cameras"
+
+
+def manifest_cameras(cameras: dict[str, CameraModel]) -> list[dict[str, Any]]:
+    """The manifest's ``cameras`` entries: name, camera file (relative) and its camera_info."""
+    return [{"name": n, "file": f"{CAMERAS_DIR}/{n}.yaml", "camera_info": camera_to_dict(c)}
+            for n, c in cameras.items()]
+
+
+def image_relpath(frame_id: int) -> str:
+    """A frame's image, relative to the run folder (``images/000042.png``)."""
+    return f"images/{frame_id:06d}.png"
 
 
 @dataclass(frozen=True)
@@ -53,13 +74,27 @@ class RunPaths:
 
     @property
     def cameras_dir(self) -> Path:
-        return self.root / "cameras"
+        return self.root / CAMERAS_DIR
+
+    def camera_file(self, name: str) -> Path:
+        return self.cameras_dir / f"{name}.yaml"
+
+    @property
+    def images_dir(self) -> Path:
+        return self.root / "images"
+
+    @property
+    def detections_dir(self) -> Path:
+        return self.root / "detections"
 
     def detections(self, detector: str) -> Path:
-        return self.root / "detections" / f"{detector}.parquet"
+        return self.detections_dir / f"{detector}.parquet"
 
     def detect_frames(self, detector: str) -> Path:
-        return self.root / "detections" / f"{detector}.frames.parquet"
+        return self.detections_dir / f"{detector}.frames.parquet"
+
+    def detect_run_record(self, detector: str) -> Path:
+        return self.detections_dir / f"{detector}.run.json"
 
     def estimates(self, detector: str, method: str) -> Path:
         return self.root / "estimates" / f"{detector}{SEPARATOR}{method}.parquet"
@@ -146,7 +181,7 @@ def read_cameras(run: RunPaths, names: list[str] | None = None) -> dict[str, Cam
         names = sorted(p.stem for p in run.cameras_dir.glob("*.yaml"))
     out = {}
     for n in names:
-        path = run.cameras_dir / f"{n}.yaml"
+        path = run.camera_file(n)
         _require(path, f"deckpose render CONFIG.yaml {run.root}")
         out[n] = read_camera_info(path)
     return out
