@@ -94,11 +94,12 @@ def _common_isotropic_sigma(cov: np.ndarray) -> float | None:
 
 
 @functools.lru_cache(maxsize=64)
-def _positions(layout: DeckLayout) -> FloatArray:
+def layout_positions_m(layout: DeckLayout) -> FloatArray:
+    """The layout's beacon positions, deck frame, metres, (n_beacons, 3) (cached per layout)."""
     return layout.positions_deck_m()
 
 
-def _distortion_jacobian(camera: CameraModel, xy: FloatArray) -> FloatArray:
+def distortion_jacobian(camera: CameraModel, xy: FloatArray) -> FloatArray:
     """d(pixel)/d(normalised) at normalised points, (N, 2, 2), by central differences."""
     n = xy.shape[0]
     h = _DIFF_STEP
@@ -148,7 +149,7 @@ def build_observations(
                 np.abs(cov_all[:, 1, 0] - b) <= 1e-9 * (np.abs(b) + a + c))
     index = np.flatnonzero(keep)
     ids = ids_all[index]
-    P = _positions(layout)[ids]
+    P = layout_positions_m(layout)[ids]
     K = camera.K
     Kinv = np.linalg.inv(K)
     und = camera.undistort(pts_all[index]) if camera.has_distortion else pts_all[index]
@@ -160,7 +161,7 @@ def build_observations(
         L = np.broadcast_to(K[:2, :2] / sigma_iso, (n, 2, 2))
         return Observations(ids, index, P, xy, L, D, int(len(ids_all) - n))
     if camera.has_distortion and n:
-        D = _distortion_jacobian(camera, xy)
+        D = distortion_jacobian(camera, xy)
     else:
         D = np.broadcast_to(K[:2, :2], (n, 2, 2))
     A = np.linalg.inv(D) if len(index) else np.zeros((0, 2, 2))

@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from deckpose.estimate.least_squares_batch import FrameObservations
-from deckpose.estimate.observations import _distortion_jacobian, _positions
+from deckpose.estimate.observations import distortion_jacobian, layout_positions_m
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -161,7 +161,7 @@ def group_observations(
     n = index.size
     K22 = K[:2, :2]
     if camera.has_distortion and n:
-        D = _distortion_jacobian(camera, xy)
+        D = distortion_jacobian(camera, xy)
     else:
         D = np.broadcast_to(K22, (n, 2, 2))
     general = ~iso[fidx] | camera.has_distortion
@@ -197,7 +197,7 @@ def group_observations(
             n = index.size
     used = np.bincount(fidx, minlength=F)
     ids = ids_all[index]
-    pos = _positions(layout)
+    pos = layout_positions_m(layout)
     first = np.concatenate([[0], np.cumsum(used)[:-1]]).astype(np.int64) if F else used
     groups: dict[bytes, list[int]] = {}
     for f in range(F):

@@ -96,3 +96,13 @@ def test_only_the_run_folder_module_names_the_run_folders_files():
             if isinstance(node, ast.Constant) and node.value in owned:
                 found.append(f"{path.relative_to(REPO)}:{node.lineno} {node.value!r}")
     assert found and all(f.startswith("deckpose/run_folder.py:") for f in found), found
+
+
+def test_no_private_name_is_imported_from_another_module():
+    found = []
+    for path in _modules().values():
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("deckpose"):
+                found += [f"{path.relative_to(REPO)}: {node.module}.{a.name}" for a in node.names
+                          if a.name.startswith("_") and not a.name.startswith("__")]
+    assert found == []
