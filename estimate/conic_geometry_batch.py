@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 from deckpose.estimate.circle_pose import diameter_pairs
-from deckpose.estimate.ellipse_fit import _C1_INV
+from deckpose.estimate.ellipse_fit import C1_INV
 from deckpose.estimate.least_squares_batch import solve_batch
 from numpy.typing import NDArray
 
@@ -68,7 +68,7 @@ def fit_ellipses(points: FloatArray) -> tuple[FloatArray, BoolArray]:
     T, solved = solve_batch(S3, np.swapaxes(S2, 1, 2))
     T = -T
     ok &= solved
-    M = _C1_INV @ (S1 + S2 @ T)
+    M = C1_INV @ (S1 + S2 @ T)
     ok &= np.all(np.isfinite(M), axis=(1, 2))
     M[~ok] = np.eye(3)
     w, V, eig_ok = _eig_batch(M)

@@ -14,7 +14,8 @@ from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
 
-_C1_INV = np.array([[0.0, 0.0, 0.5], [0.0, -1.0, 0.0], [0.5, 0.0, 0.0]])
+#: Inverse of the ellipse constraint matrix C1 of the Halir-Flusser direct fit (4ac - b^2 = 1).
+C1_INV = np.array([[0.0, 0.0, 0.5], [0.0, -1.0, 0.0], [0.5, 0.0, 0.0]])
 
 
 def fit_ellipse_direct(points: FloatArray) -> FloatArray | None:
@@ -51,7 +52,7 @@ def fit_ellipse_direct(points: FloatArray) -> FloatArray | None:
         T = -np.linalg.solve(S3, S2.T)
     except np.linalg.LinAlgError:
         return None
-    M = _C1_INV @ (S1 + S2 @ T)
+    M = C1_INV @ (S1 + S2 @ T)
     try:
         w, V = np.linalg.eig(M)
     except np.linalg.LinAlgError:

@@ -26,7 +26,8 @@ from deckpose.rotation import wrap_angle_rad
 
 #: Identified beacons PnP needs (IPPE's minimum for a planar target).
 MIN_BEACONS = 4
-_EYE = np.eye(3)
+#: The camera matrix of normalised image coordinates (PnP runs on undistorted, K-removed points).
+K_NORMALISED = np.eye(3)
 #: An unrefined alternative solution is refined only if its chi2 is within this of the best.
 ALT_MARGIN_CHI2 = 100.0
 
@@ -57,7 +58,7 @@ def pnp_candidates(obs: Observations, R_world_from_cam: np.ndarray) -> tuple[lis
     img = np.ascontiguousarray(obs.xy, dtype=np.float64)
     starts: list[np.ndarray] = []
     extras: dict[str, float] = {}
-    n_ippe, rvecs, tvecs, errs = cv2.solvePnPGeneric(obj, img, _EYE, None, flags=cv2.SOLVEPNP_IPPE)
+    n_ippe, rvecs, tvecs, errs = cv2.solvePnPGeneric(obj, img, K_NORMALISED, None, flags=cv2.SOLVEPNP_IPPE)
     for rv, tv in zip(rvecs[:n_ippe], tvecs[:n_ippe]):
         starts.append(_params(rv, tv, R_world_from_cam))
     if n_ippe >= 2:
@@ -66,7 +67,7 @@ def pnp_candidates(obs: Observations, R_world_from_cam: np.ndarray) -> tuple[lis
         extras["ippe_alt_roll_rad"], extras["ippe_alt_pitch_rad"], extras["ippe_alt_yaw_rad"] = (
             float(v) for v in starts[1][:3])
         extras["ippe_alt_height_m"] = float(starts[1][5])
-    ok, rv, tv = cv2.solvePnP(obj, img, _EYE, None, flags=cv2.SOLVEPNP_SQPNP)
+    ok, rv, tv = cv2.solvePnP(obj, img, K_NORMALISED, None, flags=cv2.SOLVEPNP_SQPNP)
     if ok:
         p = _params(rv, tv, R_world_from_cam)
         if not any(_same(p, s) for s in starts):

@@ -16,7 +16,7 @@ from deckpose.estimate.least_squares_batch import (
     levenberg_marquardt_batch,
     params_from_relative_batch,
 )
-from deckpose.estimate.pnp import _EYE, ALT_MARGIN_CHI2, MIN_BEACONS
+from deckpose.estimate.pnp import ALT_MARGIN_CHI2, K_NORMALISED, MIN_BEACONS
 from deckpose.estimate.solution_batch import BatchCandidates, Extra, scatter_fit
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
@@ -53,8 +53,8 @@ def _opencv_starts(obs: FrameObservations) -> tuple[FloatArray, BoolArray, Float
     for i in range(F):
         img = xy[i]
         try:
-            n, rvecs, tvecs, e = cv2.solvePnPGeneric(obj, img, _EYE, None, flags=cv2.SOLVEPNP_IPPE)
-            ok, rv, tv = cv2.solvePnP(obj, img, _EYE, None, flags=cv2.SOLVEPNP_SQPNP)
+            n, rvecs, tvecs, e = cv2.solvePnPGeneric(obj, img, K_NORMALISED, None, flags=cv2.SOLVEPNP_IPPE)
+            ok, rv, tv = cv2.solvePnP(obj, img, K_NORMALISED, None, flags=cv2.SOLVEPNP_SQPNP)
         except cv2.error:
             failed[i] = True
             continue
