@@ -2,6 +2,8 @@
 
 from typing import TYPE_CHECKING
 
+from deckpose.lazy_api import lazy_api
+
 __all__ = [
     "evaluate_run",
     "write_report",
@@ -17,17 +19,4 @@ if TYPE_CHECKING:  # the same names for type checkers (at run time __getattr__ i
     from deckpose.evaluate.report import write_report
     from deckpose.evaluate.run import evaluate_run
 
-
-def __getattr__(name: str) -> object:
-    """The stage API, imported on first use (so that ``import deckpose.evaluate`` stays cheap)."""
-    import importlib
-
-    try:
-        module = _API[name]
-    except KeyError:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
-    return getattr(importlib.import_module(module), name)
-
-
-def __dir__() -> list[str]:
-    return sorted(__all__)
+__getattr__, __dir__ = lazy_api(__name__, _API)

@@ -2,6 +2,8 @@
 
 from typing import TYPE_CHECKING
 
+from deckpose.lazy_api import lazy_api
+
 __all__ = [
     "RenderConfig",
     "config_from_dict",
@@ -23,17 +25,4 @@ if TYPE_CHECKING:  # the same names for type checkers (at run time __getattr__ i
     from deckpose.render.config import RenderConfig, config_from_dict, default_config, load_config
     from deckpose.render.dataset import render_dataset
 
-
-def __getattr__(name: str) -> object:
-    """The stage API, imported on first use (so that ``import deckpose.render`` stays cheap)."""
-    import importlib
-
-    try:
-        module = _API[name]
-    except KeyError:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}") from None
-    return getattr(importlib.import_module(module), name)
-
-
-def __dir__() -> list[str]:
-    return sorted(__all__)
+__getattr__, __dir__ = lazy_api(__name__, _API)
