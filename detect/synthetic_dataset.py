@@ -34,6 +34,7 @@ from deckpose.layout import DeckLayout, layout_from_dict, layout_to_dict
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.projection import project_layout
 from deckpose.run_folder import DATASET_FORMAT, RunPaths, image_relpath, manifest_cameras
+from deckpose.tables import write_table
 from deckpose.typed_config import from_mapping, load_yaml
 
 
@@ -202,12 +203,8 @@ def write_synthetic_dataset(
                     )
                 fid += 1
     run = RunPaths(out)
-    for path, table in (
-        (run.frames, pd.DataFrame(frame_rows)),
-        (run.beacons, pd.DataFrame(beacon_rows)),
-    ):
-        with atomic_path(path) as tmp:
-            table.to_parquet(tmp, index=False)
+    write_table(pd.DataFrame(frame_rows), run.frames, "frames")
+    write_table(pd.DataFrame(beacon_rows), run.beacons, "beacons")
     manifest = {
         "format": DATASET_FORMAT,
         "generator": "deckpose.detect.synthetic_dataset (analytic Gaussian spots, NOT rendered)",

@@ -17,9 +17,9 @@ import numpy as np
 import pandas as pd
 from deckpose.detect.frame_detection import FrameDetections
 
-from deckpose.atomic_io import atomic_path
 from deckpose.errors import InputDataError
 from deckpose.records import Detections
+from deckpose.tables import write_table
 
 DETECTION_COLUMNS = (
     "frame_id",
@@ -66,9 +66,8 @@ def write_tables(
     frames: pd.DataFrame,
 ) -> None:
     """Write both tables atomically."""
-    for path, table in ((detections_path, detections), (frames_path, frames)):
-        with atomic_path(path) as tmp:
-            table.to_parquet(tmp, index=False)
+    write_table(detections, detections_path, "detections")
+    write_table(frames, frames_path, "detect frames")
 
 
 def read_detections(path: str | os.PathLike[str]) -> dict[int, Detections]:

@@ -43,6 +43,7 @@ from deckpose.errors import ConfigError
 from deckpose.layout import layout_to_dict
 from deckpose.output_folder import LOCK_NAME
 from deckpose.run_folder import DATASET_FORMAT, RunPaths, image_relpath, manifest_cameras
+from deckpose.tables import write_table
 
 log = logging.getLogger(__name__)
 
@@ -245,10 +246,8 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
         bar.update(1)
     bar.close()
     fdf, bdf = collect_tables(out, plan)
-    with atomic_path(RunPaths(out).frames) as tmp:
-        fdf.to_parquet(tmp, index=False)
-    with atomic_path(RunPaths(out).beacons) as tmp:
-        bdf.to_parquet(tmp, index=False)
+    write_table(fdf, RunPaths(out).frames, "frames")
+    write_table(bdf, RunPaths(out).beacons, "beacons")
     _write_json(RunPaths(out).manifest, _manifest(cfg, plan, complete=True))
     log.info("dataset %s complete: %d frames", out, len(plan))
     return out
