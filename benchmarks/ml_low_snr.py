@@ -42,7 +42,7 @@ from deckpose.estimate.batch import estimate_batch
 from deckpose.estimate.crb import cramer_rao_bound
 from deckpose.estimate.least_squares import evaluate_fit, levenberg_marquardt
 from deckpose.estimate.observations import build_observations
-from deckpose.estimate.pnp import _EYE, _params
+from deckpose.estimate.pnp import K_NORMALISED, params_from_rodrigues
 from deckpose.estimate.registry import EstimateOptions
 from scipy import stats
 
@@ -92,8 +92,8 @@ def analyse(sigma_px: float, height_m: float, cam_name: str, trials: int, seed: 
         f_t = evaluate_fit(truth, obs, R_wc)
         lin = -np.linalg.solve(f_t.information, f_t.gradient)
         n, rv, tv, _ = cv2.solvePnPGeneric(np.ascontiguousarray(obs.points_deck_m), np.ascontiguousarray(obs.xy),
-                                           _EYE, None, flags=cv2.SOLVEPNP_IPPE)
-        branches = [levenberg_marquardt(_params(a, b, R_wc), obs, R_wc) for a, b in zip(rv[:n], tv[:n])]
+                                           K_NORMALISED, None, flags=cv2.SOLVEPNP_IPPE)
+        branches = [levenberg_marquardt(params_from_rodrigues(a, b, R_wc), obs, R_wc) for a, b in zip(rv[:n], tv[:n])]
         e_br = [_err(f.params, truth) / s for f in branches if np.isfinite(f.chi2)]
         from_truth = levenberg_marquardt(truth, obs, R_wc)
         out["ml"].append(_err(p_ml, truth) / s)

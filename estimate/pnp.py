@@ -32,7 +32,8 @@ K_NORMALISED = np.eye(3)
 ALT_MARGIN_CHI2 = 100.0
 
 
-def _params(rvec: np.ndarray, tvec: np.ndarray, R_world_from_cam: np.ndarray) -> np.ndarray:
+def params_from_rodrigues(rvec: np.ndarray, tvec: np.ndarray, R_world_from_cam: np.ndarray) -> np.ndarray:
+    """Pose parameters (6,) from an OpenCV ``rvec, tvec`` (``T_cam_from_deck``) and the camera attitude."""
     R = np.asarray(cv2.Rodrigues(rvec)[0], dtype=np.float64)
     return params_from_relative(R, np.asarray(tvec, dtype=float).ravel(), R_world_from_cam)
 
@@ -60,7 +61,7 @@ def pnp_candidates(obs: Observations, R_world_from_cam: np.ndarray) -> tuple[lis
     extras: dict[str, float] = {}
     n_ippe, rvecs, tvecs, errs = cv2.solvePnPGeneric(obj, img, K_NORMALISED, None, flags=cv2.SOLVEPNP_IPPE)
     for rv, tv in zip(rvecs[:n_ippe], tvecs[:n_ippe]):
-        starts.append(_params(rv, tv, R_world_from_cam))
+        starts.append(params_from_rodrigues(rv, tv, R_world_from_cam))
     if n_ippe >= 2:
         e = np.asarray(errs, dtype=float).ravel()
         extras["ippe_error_ratio"] = float(e[1] / e[0]) if e[0] > 0 else float("inf")
@@ -69,7 +70,7 @@ def pnp_candidates(obs: Observations, R_world_from_cam: np.ndarray) -> tuple[lis
         extras["ippe_alt_height_m"] = float(starts[1][5])
     ok, rv, tv = cv2.solvePnP(obj, img, K_NORMALISED, None, flags=cv2.SOLVEPNP_SQPNP)
     if ok:
-        p = _params(rv, tv, R_world_from_cam)
+        p = params_from_rodrigues(rv, tv, R_world_from_cam)
         if not any(_same(p, s) for s in starts):
             starts.insert(0, p)
     starts = [s for s in starts if np.all(np.isfinite(s))]

@@ -33,6 +33,7 @@ def test_a_rendered_dataset_and_its_detections_carry_the_metadata(tmp_path):
     from deckpose.detect.run import detect_run
     from deckpose.render.config import default_config
     from deckpose.render.dataset import render_dataset
+
     from deckpose.run_folder import RunPaths
 
     cfg = default_config()
