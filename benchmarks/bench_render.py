@@ -69,10 +69,10 @@ def _case_naive(size: str, frames: int, backend: str, out: Path) -> dict[str, fl
     import numpy as np
     import pyrender
     from deckpose.render.scene import (
-        _plane,
         deck_texture,
         gl_camera_pose,
         gl_intrinsics,
+        plane_primitive,
         sea_texture,
     )
 
@@ -90,9 +90,9 @@ def _case_naive(size: str, frames: int, backend: str, out: Path) -> dict[str, fl
             baseColorTexture=pyrender.Texture(source=deck_texture(layout, 14.0, 2048), source_channels="RGB"))
         sea = pyrender.MetallicRoughnessMaterial(
             baseColorTexture=pyrender.Texture(source=sea_texture(512), source_channels="RGB"))
-        s.add(pyrender.Mesh([pyrender.Primitive(**_plane(14.0, 14.0, 0.0, 1.0), material=deck)]),
+        s.add(pyrender.Mesh([pyrender.Primitive(**plane_primitive(14.0, 14.0, 0.0, 1.0), material=deck)]),
               pose=ShipPose(0.05, -0.03, 0.1 * i).T_world_from_deck)
-        s.add(pyrender.Mesh([pyrender.Primitive(**_plane(2000.0, 2000.0, -6.0, 100.0), material=sea)]))
+        s.add(pyrender.Mesh([pyrender.Primitive(**plane_primitive(2000.0, 2000.0, -6.0, 100.0), material=sea)]))
         s.add(pyrender.DirectionalLight(intensity=3.0))
         s.add(pyrender.IntrinsicsCamera(*gl_intrinsics(cam, 0, cam.height_px), znear=0.2, zfar=5000),
               pose=gl_camera_pose(CameraPose.nadir(30.0)))

@@ -159,7 +159,9 @@ def sea_texture(size_px: int) -> NDArray[np.uint8]:
     return (np.clip(img, 0, 1) * 255).astype(np.uint8)
 
 
-def _plane(half_x: float, half_y: float, z: float, uv_scale: float) -> dict[str, np.ndarray]:
+def plane_primitive(half_x: float, half_y: float, z: float, uv_scale: float) -> dict[str, np.ndarray]:
+    """A flat rectangle ``2 half_x`` by ``2 half_y`` metres at height ``z``, facing up, as the keyword
+    arguments of a :class:`pyrender.Primitive` (texture coordinates scaled by ``uv_scale``)."""
     pos = np.array([[half_x, half_y, z], [-half_x, half_y, z], [-half_x, -half_y, z], [half_x, -half_y, z]],
                    dtype=np.float32)
     uv = np.array([[0, 0], [0, 1], [1, 1], [1, 0]], dtype=np.float32) * uv_scale
@@ -204,9 +206,9 @@ class DeckRenderer:
                                                       roughnessFactor=0.8)
         sea_mat = pyrender.MetallicRoughnessMaterial(baseColorTexture=sea_tex, metallicFactor=0.3 if pbr else 0.0,
                                                      roughnessFactor=0.15)
-        deck = pyrender.Mesh([pyrender.Primitive(**_plane(self.half_m, self.half_m, 0.0, 1.0), material=deck_mat)])
+        deck = pyrender.Mesh([pyrender.Primitive(**plane_primitive(self.half_m, self.half_m, 0.0, 1.0), material=deck_mat)])
         L = self.spec.sea_half_size_m
-        sea = pyrender.Mesh([pyrender.Primitive(**_plane(L, L, 0.0, 2 * L / self._sea_tile_m), material=sea_mat)])
+        sea = pyrender.Mesh([pyrender.Primitive(**plane_primitive(L, L, 0.0, 2 * L / self._sea_tile_m), material=sea_mat)])
         s = pyrender.Scene(bg_color=[0, 0, 0, 1], ambient_light=[0.3] * 3)
         self._nodes["deck"] = s.add(deck)
         self._nodes["sea"] = s.add(sea)
