@@ -154,6 +154,11 @@ def _from_message(doc: object) -> object:
     }
 
 
+def _model_for_count(n: int) -> str:
+    """The distortion model of ``n`` coefficients (plumb_bob for any other count, which is then refused)."""
+    return next((m for m, counts in DISTORTION_MODELS.items() if n in counts), "plumb_bob")
+
+
 def _is_opencv_storage(text: str) -> bool:
     return text.lstrip().startswith("%YAML") or "!!opencv-matrix" in text
 
@@ -184,7 +189,7 @@ def _from_opencv_storage(text: str, source: str) -> dict[str, Any]:
             "image_height": int(size[1].real()),
             "camera_matrix": {"rows": int(K_mat.shape[0]), "cols": int(K_mat.shape[1]),
                               "data": [float(x) for x in K_mat.ravel()]},
-            "distortion_model": "rational_polynomial" if d.size == 8 else ("plumb_bob" if d.size else "none"),
+            "distortion_model": _model_for_count(d.size),
             "distortion_coefficients": {"rows": 1, "cols": int(d.size), "data": [float(x) for x in d]},
         }
     finally:

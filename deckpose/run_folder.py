@@ -39,19 +39,24 @@ DATASET_FORMAT = "deckpose-dataset/1"
 DETECTIONS_FORMAT = "deckpose-detections/1"
 #: Between the detector and the method in an estimates file name (``cog--pnp.parquet``).
 SEPARATOR = "--"
-#: The folder of the cameras' ROS camera_info files.
-CAMERAS_DIR = "cameras"
+#: The folders of the cameras' ROS camera_info files and of the frames' images.
+CAMERAS_DIR, IMAGES_DIR = "cameras", "images"
 
 
-def manifest_cameras(cameras: dict[str, CameraModel]) -> list[dict[str, Any]]:
-    """The manifest's ``cameras`` entries: name, camera file (relative) and its camera_info."""
-    return [{"name": n, "file": f"{CAMERAS_DIR}/{n}.yaml", "camera_info": camera_to_dict(c)}
-            for n, c in cameras.items()]
+def camera_relpath(name: str) -> str:
+    """A camera's camera_info file, relative to the run folder (``cameras/8mp.yaml``)."""
+    return f"{CAMERAS_DIR}/{name}.yaml"
 
 
 def image_relpath(frame_id: int) -> str:
     """A frame's image, relative to the run folder (``images/000042.png``)."""
-    return f"images/{frame_id:06d}.png"
+    return f"{IMAGES_DIR}/{frame_id:06d}.png"
+
+
+def manifest_cameras(cameras: dict[str, CameraModel]) -> list[dict[str, Any]]:
+    """The manifest's ``cameras`` entries: name, camera file (relative) and its camera_info."""
+    return [{"name": n, "file": camera_relpath(n), "camera_info": camera_to_dict(c)}
+            for n, c in cameras.items()]
 
 
 @dataclass(frozen=True)
@@ -77,11 +82,11 @@ class RunPaths:
         return self.root / CAMERAS_DIR
 
     def camera_file(self, name: str) -> Path:
-        return self.cameras_dir / f"{name}.yaml"
+        return self.root / camera_relpath(name)
 
     @property
     def images_dir(self) -> Path:
-        return self.root / "images"
+        return self.root / IMAGES_DIR
 
     @property
     def detections_dir(self) -> Path:
@@ -96,8 +101,12 @@ class RunPaths:
     def detect_run_record(self, detector: str) -> Path:
         return self.detections_dir / f"{detector}.run.json"
 
+    @property
+    def estimates_dir(self) -> Path:
+        return self.root / "estimates"
+
     def estimates(self, detector: str, method: str) -> Path:
-        return self.root / "estimates" / f"{detector}{SEPARATOR}{method}.parquet"
+        return self.estimates_dir / f"{detector}{SEPARATOR}{method}.parquet"
 
     @property
     def evaluation_dir(self) -> Path:
@@ -117,7 +126,7 @@ class RunPaths:
 
     def detectors(self) -> list[str]:
         """Detectors with outputs in this run."""
-        d = self.root / "detections"
+        d = self.detections_dir
         # a hidden name is a writer's temporary file (atomic_io), never a stage output
         return sorted(p.stem for p in d.glob("*.parquet")
                       if not p.name.endswith(".frames.parquet") and not p.name.startswith(".")
@@ -125,7 +134,7 @@ class RunPaths:
 
     def estimate_pairs(self) -> list[tuple[str, str]]:
         """``(detector, method)`` pairs with estimates in this run."""
-        d = self.root / "estimates"
+        d = self.estimates_dir
         if not d.is_dir():
             return []
         pairs = []

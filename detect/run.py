@@ -61,6 +61,10 @@ class DetectRunResult:
     def n_ok(self) -> int:
         return int(self.frames["ok"].sum()) if len(self.frames) else 0
 
+    def summary(self) -> str:
+        """One line: frames, how many ok, detections, where they went."""
+        return f"{len(self.frames)} frames, {self.n_ok} ok, {len(self.detections)} detections -> {self.path}"
+
 
 def detect_run(
     source: str | os.PathLike[str],

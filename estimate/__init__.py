@@ -9,7 +9,6 @@ __all__ = [
     "EstimateRunResult",
     "MethodSpec",
     "estimate_batch",
-    "estimate_frames",
     "estimate_run",
     "estimate_table",
     "get",
@@ -30,7 +29,6 @@ _API: dict[str, str] = {
     "estimate_batch": "deckpose.estimate.batch",
     "run_estimator": "deckpose.estimate.batch",
     "EstimateRunResult": "deckpose.estimate.run",
-    "estimate_frames": "deckpose.estimate.run",
     "estimate_run": "deckpose.estimate.run",
     "estimate_table": "deckpose.estimate.run",
 }
@@ -47,7 +45,6 @@ if TYPE_CHECKING:  # the same names for type checkers (at run time __getattr__ i
     )
     from deckpose.estimate.run import (
         EstimateRunResult,
-        estimate_frames,
         estimate_run,
         estimate_table,
     )

@@ -17,7 +17,7 @@ result is the one :func:`run_estimator` gives, to rounding.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 
 import numpy as np
 from deckpose.estimate import registry
@@ -119,6 +119,7 @@ def estimate_batch(
     options: EstimateOptions,
     *,
     R_world_from_cam: NDArray[np.float64] | None = None,
+    progress: Callable[[int], object] | None = None,
 ) -> list[PoseEstimate]:
     """Estimate many frames of one camera with estimator ``name``, batched where possible.
 
@@ -133,6 +134,8 @@ def estimate_batch(
     options : EstimateOptions
     R_world_from_cam : (F, 3, 3) array of float, optional, keyword-only
         Each frame's camera attitude, instead of ``options.R_world_from_cam``.
+    progress : callable, optional, keyword-only
+        Called with the number of frames done after each chunk of :data:`CHUNK_FRAMES`.
 
     Returns
     -------
@@ -186,6 +189,8 @@ def estimate_batch(
             for i, e in zip(fresh, means):
                 ests[i] = e
         out.extend(e.for_frame(d.frame_id) for e, d in zip(check_poses(ests), chunk, strict=True))
+        if progress is not None:
+            progress(len(chunk))
     return out
 
 

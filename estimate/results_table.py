@@ -34,8 +34,7 @@ INTEGER_EXTRAS = ("n_points", "n_ignored", "n_outliers_removed", "n_solutions", 
                   "outlier_id_0", "outlier_id_1", "outlier_id_2")
 FLAG_EXTRAS = ("refined", "posterior_mean", "centre_beacon_used", "assumed_level_deck")
 _SIGMA_EXTRAS = frozenset("sigma_" + p for p in POSE_PARAMS)
-_TABLE_ONLY = {"frame_id", "method", "ok", "reason", *_SIGMA_COLUMNS, *(c for c, _, _ in COVARIANCE_COLUMNS),
-               "roll_deg", "pitch_deg", "yaw_deg", "surge_m", "sway_m", "height_m"}
+_TABLE_ONLY = {*BASE_COLUMNS, *_SIGMA_COLUMNS, *(c for c, _, _ in COVARIANCE_COLUMNS)}
 
 
 def estimate_row(est: PoseEstimate) -> dict[str, object]:

@@ -3,29 +3,28 @@
 The CLI (``deckpose estimate``) and the pipeline both call these functions; they
 parse nothing and print nothing. Frames go to :func:`~deckpose.estimate.batch.
 estimate_batch` one camera at a time, which chunks them by its ``CHUNK_FRAMES``
-(the one chunking policy); ``progress`` is advanced per chunk.
+(the one chunking policy) and advances ``progress`` per chunk.
 """
 
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Sequence
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from deckpose.estimate.batch import CHUNK_FRAMES, estimate_batch
+from deckpose.estimate.batch import estimate_batch
 from deckpose.estimate.registry import EstimateOptions, MethodSpec
 from deckpose.estimate.results_table import estimates_frame
-from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
 from deckpose.errors import ConfigError
 from deckpose.layout import DeckLayout
 from deckpose.records import Detections, PoseEstimate
 
-__all__ = ["EstimateRunResult", "estimate_frames", "estimate_run", "estimate_table", "method_options"]
+__all__ = ["EstimateRunResult", "estimate_run", "estimate_table", "method_options"]
 
 #: ``progress(n)``: ``n`` more frames are done (what it returns is ignored).
 Progress = Callable[[int], object]
@@ -54,51 +53,14 @@ class EstimateRunResult:
     def n_ok(self) -> int:
         return int(self.table["ok"].sum()) if len(self.table) else 0
 
+    def summary(self) -> str:
+        """One line: frames, how many ok and failed, where they went."""
+        return f"{self.n_frames} frames, {self.n_ok} ok, {self.n_frames - self.n_ok} failed -> {self.path}"
+
 
 def method_options(spec: MethodSpec, sigma_px: float = 1.0) -> EstimateOptions:
     """The :class:`EstimateOptions` a method label's variant asks for (``pnp+mean``: posterior mean)."""
     return EstimateOptions(sigma_px=sigma_px, refine=spec.refine, posterior_mean=spec.posterior_mean)
-
-
-def estimate_frames(
-    name: str,
-    detections: Sequence[Detections],
-    camera: CameraModel,
-    layout: DeckLayout,
-    options: EstimateOptions,
-    *,
-    R_world_from_cam: NDArray[np.float64] | None = None,
-    progress: Progress | None = None,
-) -> list[PoseEstimate]:
-    """:func:`~deckpose.estimate.batch.estimate_batch` over ``CHUNK_FRAMES`` frames at a time.
-
-    Parameters
-    ----------
-    name : str
-        A registered estimator.
-    detections : sequence of Detections
-        One per frame, all of ``camera``.
-    camera : CameraModel
-    layout : DeckLayout
-    options : EstimateOptions
-    R_world_from_cam : (F, 3, 3) array of float, optional, keyword-only
-        Each frame's camera attitude (default: ``options.R_world_from_cam`` for all).
-    progress : callable, optional, keyword-only
-        Called with the number of frames done after each chunk.
-
-    Returns
-    -------
-    list of PoseEstimate
-        One per frame, in order.
-    """
-    out: list[PoseEstimate] = []
-    for lo in range(0, len(detections), CHUNK_FRAMES):
-        chunk = list(detections[lo:lo + CHUNK_FRAMES])
-        R = None if R_world_from_cam is None else R_world_from_cam[lo:lo + CHUNK_FRAMES]
-        out.extend(estimate_batch(name, chunk, camera, layout, options, R_world_from_cam=R))
-        if progress is not None:
-            progress(len(chunk))
-    return out
 
 
 def estimate_table(
@@ -140,8 +102,8 @@ def estimate_table(
     frames = detections_from_frame(detections, layout, source)
     frames, unidentified = identify_unassigned(detections, frames, layout, camera)
     ids = list(frames)
-    results = estimate_frames(spec.name, [frames[i] for i in ids], camera, layout,
-                              method_options(spec, sigma_px), progress=progress)
+    results = estimate_batch(spec.name, [frames[i] for i in ids], camera, layout,
+                             method_options(spec, sigma_px), progress=progress)
     df = estimates_frame(results).assign(method=spec.label)
     if unidentified:  # the frame failed for want of ids: say so, not "0 usable"
         miss = df["frame_id"].isin(list(unidentified)) & ~df["ok"].astype(bool)
@@ -216,8 +178,8 @@ def estimate_run(
     for cam_name, rows in frames.groupby("camera", sort=True).indices.items():
         dets_cam = [dets.get(ids[k], Detections(np.zeros((0, 2)), np.zeros(0, dtype=np.int64), frame_id=ids[k]))
                     for k in rows]
-        got = estimate_frames(spec.name, dets_cam, cameras[str(cam_name)], layout, options,
-                              R_world_from_cam=R_all[rows], progress=progress)
+        got = estimate_batch(spec.name, dets_cam, cameras[str(cam_name)], layout, options,
+                             R_world_from_cam=R_all[rows], progress=progress)
         for k, e in zip(rows, got, strict=True):
             results[k] = e
     done = [e for e in results if e is not None]

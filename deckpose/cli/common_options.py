@@ -14,7 +14,10 @@ import argparse
 import logging
 import os
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from tqdm import tqdm
 
 
 class HelpFormatter(argparse.ArgumentDefaultsHelpFormatter):
@@ -60,6 +63,13 @@ def add_progress(p: argparse.ArgumentParser) -> None:
     """``--no-progress``."""
     p.add_argument("--no-progress", action="store_true",
                    help="no progress bars (they are off anyway when the output is not a terminal)")
+
+
+def frame_bar(desc: str, *, enabled: bool) -> tqdm:
+    """A progress bar counting frames (off when not ``enabled`` or when not on a terminal)."""
+    from tqdm import tqdm
+
+    return tqdm(desc=desc, unit="frame", leave=False, disable=None if enabled else True)
 
 
 def add_verbosity(p: argparse.ArgumentParser, *, command: bool = False) -> None:

@@ -126,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
     res = detect_run(args.dataset, args.detector, options=options, out_dir=args.out,
                      camera_file=args.camera_info, layout_file=args.layout, progress=not args.no_progress)
     frames = res.frames
-    print(f"{len(frames)} frames, {res.n_ok} ok, {len(res.detections)} detections -> {res.path}")
+    print(res.summary())
     for r in frames.itertuples():
         if not r.ok:
             print(f"  frame {r.frame_id}: {r.reason}")

@@ -6,12 +6,11 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from deckpose.cli.common_options import HelpFormatter, add_progress
+from deckpose.cli.common_options import HelpFormatter, add_progress, frame_bar
 from deckpose.cli.exit_codes import frames_exit_code
 
 if TYPE_CHECKING:
     import pandas as pd
-    from tqdm import tqdm
 
     from deckpose.estimate import registry
 
@@ -69,17 +68,16 @@ def run(args: argparse.Namespace) -> int:
 
     from deckpose.camera_info import read_camera_info
     from deckpose.errors import ConfigError
-    from deckpose.estimate.run import estimate_run, estimate_table
+    from deckpose.estimate.run import EstimateRunResult, estimate_run, estimate_table
     from deckpose.layout import DeckLayout, read_layout
     from deckpose.output_folder import ensure_writable
     from deckpose.tables import read_table, write_table
 
     spec = _method_spec(args)
     if args.run is not None:
-        with _bar(args, spec) as bar:
+        with frame_bar(f"estimate ({spec.label})", enabled=not args.no_progress) as bar:
             res = estimate_run(args.run, spec, detector=getattr(args, "detector", None), sigma_px=args.sigma_px,
                                radius_m=args.radius, progress=bar.update)
-        df, out = res.table, res.path
     else:
         if args.detections is None or args.camera is None or args.output is None:
             raise ConfigError("give DETECTIONS --camera CAMERA.yaml -o OUTPUT, or --run RUN --detector NAME")
@@ -96,21 +94,13 @@ def run(args: argparse.Namespace) -> int:
         out = Path(args.output)
         ensure_writable(out.parent)  # before the work, not after it
         table = read_table(args.detections, "detections")
-        with _bar(args, spec) as bar:
+        with frame_bar(f"estimate ({spec.label})", enabled=not args.no_progress) as bar:
             df = estimate_table(table, camera, layout, spec, sigma_px=args.sigma_px,
                                 source=str(args.detections), progress=bar.update)
         write_table(df, out, "estimates")
-    n_ok = int(df["ok"].sum()) if len(df) else 0
-    print(f"{len(df)} frames, {n_ok} ok, {len(df) - n_ok} failed -> {out}{_mean_note(df)}")
-    return frames_exit_code(len(df), n_ok, strict=args.strict)
-
-
-def _bar(args: argparse.Namespace, spec: registry.MethodSpec) -> tqdm:
-    """The progress bar of an estimate (off with --no-progress or when not a terminal)."""
-    from tqdm import tqdm
-
-    return tqdm(desc=f"estimate ({spec.label})", unit="frame", disable=True if args.no_progress else None,
-                leave=False)
+        res = EstimateRunResult(out, df)
+    print(res.summary() + _mean_note(res.table))
+    return frames_exit_code(res.n_frames, res.n_ok, strict=args.strict)
 
 
 def _mean_note(df: pd.DataFrame) -> str:

@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from deckpose.atomic_io import atomic_open
-from deckpose.cli.common_options import HelpFormatter, add_progress, add_workers, workers
+from deckpose.cli.common_options import HelpFormatter, add_progress, add_workers, frame_bar, workers
 from deckpose.errors import ConfigError, DeckposeError
 
 if TYPE_CHECKING:
@@ -201,8 +201,6 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     dict of str to Path
         ``report``, ``tables``, ``errors`` and (when written) ``mcap`` and ``published``.
     """
-    from tqdm import tqdm
-
     from deckpose import __version__
     from deckpose.detect.run import detect_run
     from deckpose.estimate.registry import parse_method
@@ -218,8 +216,6 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     total = 5 + (options.publish_dir is not None)
     seconds: dict[str, float] = {}
 
-    def bar(desc: str) -> tqdm:
-        return tqdm(desc=desc, unit="frame", leave=False, disable=None if options.progress else True)
 
     first = STAGES.index(options.from_stage)
 
@@ -247,7 +243,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         say(2, total, f"detect beacons ({', '.join(options.detectors)})")
         for det in options.detectors:  # a stage whose every frame failed still ran: the report says so
             res = detect_run(run_dir, det, progress=options.progress)
-            print(f"{len(res.frames)} frames, {res.n_ok} ok, {len(res.detections)} detections -> {res.path}")
+            print(res.summary())
         seconds["detect"] = time.perf_counter() - t
         log.info("stage detect: %.1f s", seconds["detect"])
     t = time.perf_counter()
@@ -256,9 +252,9 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         for det in options.detectors:
             for method in options.methods:
                 spec = parse_method(method)
-                with bar(f"estimate ({spec.label})") as b:
+                with frame_bar(f"estimate ({spec.label})", enabled=options.progress) as b:
                     est = estimate_run(run_dir, spec, detector=det, progress=b.update)
-                print(f"{est.n_frames} frames, {est.n_ok} ok, {est.n_frames - est.n_ok} failed -> {est.path}")
+                print(est.summary())
         seconds["estimate"] = time.perf_counter() - t
         log.info("stage estimate: %.1f s", seconds["estimate"])
     t = time.perf_counter()

@@ -285,7 +285,7 @@ def test_exit_codes(setup, tmp_path, capsys, monkeypatch):
     def boom(*a, **k):
         raise RuntimeError("an internal failure\nover two lines")
 
-    monkeypatch.setattr(stage, "estimate_frames", boom)
+    monkeypatch.setattr(stage, "estimate_batch", boom)
     assert main(base) == 1
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "RuntimeError: an internal failure over two lines" in err
