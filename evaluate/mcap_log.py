@@ -1,4 +1,4 @@
-"""MCAP logs of a run for Foxglove: images, calibration, annotations, transforms, errors.
+"""MCAP logs of a run for Foxglove: images, calibration, annotations, transforms, scene, errors.
 
 Topics (Foxglove protobuf schemas, zstd-compressed chunks):
 
@@ -9,32 +9,51 @@ Topics (Foxglove protobuf schemas, zstd-compressed chunks):
 * ``/annotations/truth`` and ``/annotations/<detector>`` (``foxglove.ImageAnnotations``):
   projected and detected beacon centres with their ids, in preview pixels;
 * ``/tf`` (``foxglove.FrameTransforms``): ``world -> deck`` (truth), ``world -> camera``
-  and ``world -> deck_est/<detector>--<method>`` per estimate;
+  and ``world -> deck_est/<detector>--<method>`` per solved estimate;
+* ``/scene`` (``foxglove.SceneUpdate``): the deck, ring and beacons, the camera frustum and
+  each estimator's deck (:mod:`deckpose.evaluate.mcap_scene`);
 * ``/errors/<detector>--<method>`` (JSON): the per-frame errors, for Foxglove's Plot panel.
 
-Timestamps come from the motion time base (``stamp_ns``). A run replays one
-motion series for every camera, height and lighting, which would repeat stamps,
-so each replay is shifted after the previous one (:func:`log_stamps`); every
-message keeps the motion time in ``t_s`` (JSON) and the true stamp in the frame
-tables. Log and publish times are always given explicitly.
+Log times (:func:`log_stamps`) are on a capture epoch. A dataset whose ``stamp_ns`` is
+already on one (at or after 2000-01-01) is logged at ``stamp_ns``. A rendered dataset's
+``stamp_ns`` is motion time (from 0), and a run replays one motion series for every
+camera, height and lighting, which repeats stamps; its frames are logged from the
+manifest's ``capture_epoch_ns`` (when it has one) or :data:`DEFAULT_CAPTURE_EPOCH_NS`,
+each replay after the previous one. Every JSON message keeps ``stamp_ns`` and the motion
+time ``t_s``; the ``deckpose.time`` metadata record states the rule. Log and publish
+times are always given explicitly.
 
-The layout and the messages follow what the Foxglove app reads (checked with the
-app's reader libraries by ``tools/foxglove_check``): image annotation points use
-the top-left corner of the top-left pixel as origin (Foxglove's convention, half
-a pixel off OpenCV's pixel centres); JSON channels carry a JSON Schema with a
-typed ``properties`` entry per field (the app's parser requires them).
+The file also holds metadata records (``deckpose.run``: seed, command, dataset name;
+``deckpose.config``: the resolved render config; ``deckpose.versions``; ``deckpose.time``)
+and attachments (each camera's ``camera_info`` YAML, the manifest and, when it exists,
+the run's report).
+
+The messages follow what the Foxglove app reads (checked with the app's reader
+libraries by ``tools/foxglove_check``, and drawn by Foxglove Studio 1.48 in
+``tools/foxglove_viewer``): image annotation points use the top-left corner of the
+top-left pixel as origin (Foxglove's convention, half a pixel off OpenCV's pixel
+centres); JSON channels carry a JSON Schema with a typed ``properties`` entry per field
+(the app's parser requires them).
 """
 
 from __future__ import annotations
 
 import json
 import math
-import re
+from collections.abc import Sequence
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
 import pandas as pd
+from deckpose.evaluate.mcap_scene import (
+    ESTIMATE_RGBA,
+    camera_entity,
+    deck_entity,
+    estimate_entity,
+    scene_update,
+)
 from foxglove_schemas_protobuf.CameraCalibration_pb2 import CameraCalibration
 from foxglove_schemas_protobuf.Color_pb2 import Color
 from foxglove_schemas_protobuf.CompressedImage_pb2 import CompressedImage
@@ -55,10 +74,20 @@ from deckpose import run_folder as rl
 from deckpose.atomic_io import atomic_path
 from deckpose.camera import CameraModel
 from deckpose.errors import InputDataError
+from deckpose.layout import DeckLayout
 from deckpose.rotation import R_from_zyx
+
+#: Capture time of motion time 0 for a dataset whose stamps are motion time and whose manifest
+#: gives no ``capture_epoch_ns``: 2024-01-01T00:00:00Z, integer nanoseconds.
+DEFAULT_CAPTURE_EPOCH_NS = 1_704_067_200_000_000_000
+#: Stamps at or after 2000-01-01T00:00:00Z (integer nanoseconds) count as capture times already.
+EPOCH_FLOOR_NS = 946_684_800_000_000_000
 
 TRUTH_RGBA = (0.1, 0.9, 0.2, 1.0)
 DETECTION_RGBA = (1.0, 0.3, 0.1, 1.0)
+#: Point sizes, preview pixels: the truth's larger, so it rings the detection drawn over it.
+TRUTH_POINT_PX = 12.0
+DETECTION_POINT_PX = 6.0
 
 
 class McapLog:
@@ -89,6 +118,14 @@ class McapLog:
                             "jsonschema")
         self._w.add_message(cid, log_time=stamp_ns, publish_time=stamp_ns,
                             data=json.dumps(obj, allow_nan=False).encode())
+
+    def metadata(self, name: str, data: dict[str, str]) -> None:
+        """A metadata record: ``name`` and string key-value pairs."""
+        self._w.add_metadata(name, data)
+
+    def attachment(self, name: str, media_type: str, data: bytes, stamp_ns: int) -> None:
+        """An attachment (a file's bytes), created and logged at ``stamp_ns``."""
+        self._w.add_attachment(create_time=stamp_ns, log_time=stamp_ns, name=name, media_type=media_type, data=data)
 
     def finish(self) -> None:
         self._w.finish()
@@ -137,7 +174,8 @@ def calibration_msg(camera: CameraModel, scale: float, stamp_ns: int, width: int
 
 
 def annotations_msg(points_px: np.ndarray, ids: np.ndarray, sx: float, sy: float, stamp_ns: int,
-                    rgba: tuple[float, float, float, float], label: str) -> ImageAnnotations:
+                    rgba: tuple[float, float, float, float], label: str, *,
+                    thickness_px: float = DETECTION_POINT_PX) -> ImageAnnotations:
     """Points (with id labels) in preview pixels, in Foxglove's image coordinates.
 
     Parameters
@@ -150,6 +188,8 @@ def annotations_msg(points_px: np.ndarray, ids: np.ndarray, sx: float, sy: float
         Preview pixels per full-resolution pixel along u and v.
     stamp_ns : int
         Annotation timestamp, integer nanoseconds (the image's).
+    thickness_px : float
+        Point diameter, preview pixels.
 
     Foxglove puts the origin at the top-left corner of the top-left pixel, so a
     full-resolution pixel centre ``u`` lands at ``(u + 0.5) * sx`` in the preview.
@@ -157,7 +197,7 @@ def annotations_msg(points_px: np.ndarray, ids: np.ndarray, sx: float, sy: float
     pts = [Point2(x=float((u + 0.5) * sx), y=float((v + 0.5) * sy)) for u, v in points_px]
     ann = ImageAnnotations()
     ann.points.append(PointsAnnotation(timestamp=_ts(stamp_ns), type=PointsAnnotation.Type.POINTS, points=pts,
-                                       outline_color=_color(rgba), fill_color=_color(rgba), thickness=6.0))
+                                       outline_color=_color(rgba), fill_color=_color(rgba), thickness=thickness_px))
     for p, i in zip(pts, ids):
         ann.texts.append(TextAnnotation(timestamp=_ts(stamp_ns), position=Point2(x=p.x + 6, y=p.y - 6),
                                         text=f"{label}{int(i)}" if i >= 0 else f"{label}?", font_size=12.0,
@@ -172,15 +212,31 @@ def _transform(parent: str, child: str, R: np.ndarray, t: np.ndarray, stamp_ns: 
                           rotation=Quaternion(x=float(x), y=float(y), z=float(z), w=float(w)))
 
 
-def log_stamps(frames: pd.DataFrame) -> pd.Series:
-    """Distinct, monotone log times, integer nanoseconds, one per frame.
+def log_stamps(frames: pd.DataFrame, epoch_ns: int = DEFAULT_CAPTURE_EPOCH_NS) -> pd.Series:
+    """Log times, integer nanoseconds since the Unix epoch, one per frame.
 
-    A dataset replays its motion series for every camera, height and lighting
-    (the render plan nests motion samples innermost), so ``stamp_ns`` repeats.
-    Within each (camera, height) group, in frame-id order, a replay ends where
-    ``stamp_ns`` stops increasing; replays are laid end to end, one second apart,
-    each keeping its own stamp spacing.
+    Parameters
+    ----------
+    frames : DataFrame
+        The frames table (``frame_id``, ``camera``, ``camera_height_m``, ``stamp_ns``).
+    epoch_ns : int
+        Capture time of motion time 0, integer nanoseconds since the Unix epoch; used
+        only when the stamps are motion time.
+
+    Returns
+    -------
+    Series of int64, indexed like ``frames``
+        ``stamp_ns`` itself where every stamp is a capture time already (at or after
+        :data:`EPOCH_FLOOR_NS`). Otherwise the stamps are motion time, which a dataset
+        replays for every camera, height and lighting (the render plan nests motion
+        samples innermost): within each (camera, height) group, in frame-id order, a
+        replay ends where ``stamp_ns`` stops increasing; replays are laid end to end
+        from ``epoch_ns``, one second apart, each keeping its own stamp spacing, so
+        the log times are distinct and increase with the frame order.
     """
+    s_all = frames["stamp_ns"].to_numpy(np.int64)
+    if len(frames) and int(s_all.min()) >= EPOCH_FLOOR_NS:
+        return pd.Series(s_all, index=frames.index, dtype=np.int64)
     order = frames.sort_values(["camera", "camera_height_m", "frame_id"], kind="stable")
     s = order["stamp_ns"].to_numpy(np.int64)
     cam = order["camera"].to_numpy()
@@ -189,13 +245,28 @@ def log_stamps(frames: pd.DataFrame) -> pd.Series:
     starts[1:] = (s[1:] <= s[:-1]) | (cam[1:] != cam[:-1]) | (height[1:] != height[:-1])
     replay = np.cumsum(starts) - 1
     out = pd.Series(0, index=frames.index, dtype=np.int64)
-    offset = 0
+    offset = int(epoch_ns)
     for r in range(int(replay.max()) + 1 if len(order) else 0):
         sel = replay == r
         st = s[sel]
         out.loc[order.index[sel]] = st - st[0] + offset
         offset += int(st[-1] - st[0]) + 1_000_000_000  # one second between replays
     return out
+
+
+def capture_epoch(manifest: dict[str, Any]) -> tuple[int, str]:
+    """Capture time of motion time 0 (integer ns since the Unix epoch) and where it came from.
+
+    The manifest's ``capture_epoch_ns`` when it has one (an int at or after
+    :data:`EPOCH_FLOOR_NS`), else :data:`DEFAULT_CAPTURE_EPOCH_NS`.
+    """
+    value = manifest.get("capture_epoch_ns")
+    if value is None:
+        return DEFAULT_CAPTURE_EPOCH_NS, "default"
+    if isinstance(value, bool) or not isinstance(value, int) or value < EPOCH_FLOOR_NS:
+        raise InputDataError(f"manifest capture_epoch_ns must be integer nanoseconds since the Unix epoch, "
+                             f"at or after 2000-01-01, got {value!r}")
+    return value, "manifest"
 
 
 def errors_json_schema(errors: pd.DataFrame, title: str = "deckpose.FrameErrors") -> dict:
@@ -217,6 +288,7 @@ def errors_json_schema(errors: pd.DataFrame, title: str = "deckpose.FrameErrors"
         props[str(name)] = {"type": kind}
     props.update(frame_id={"type": "integer"},
                  t_s={"type": "number", "description": "motion time, s"},
+                 stamp_ns={"type": "integer", "description": "the frame's stamp_ns (frames.parquet), ns"},
                  detector={"type": "string"}, method={"type": "string"})
     return {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": title,
             "type": "object", "properties": props}
@@ -226,14 +298,83 @@ def _finite(d: dict) -> dict:
     return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in d.items()}
 
 
+def _scene_size_m(manifest: dict[str, Any], layout: DeckLayout) -> float:
+    """Half the side of the deck plate: the render config's rule (1.4 x the ring radius by default)."""
+    from deckpose.render import RenderConfig, config_from_dict
+
+    config = manifest.get("config")
+    cfg = (config_from_dict(config, "manifest config") if isinstance(config, dict)
+           else RenderConfig(cameras=(), heights_m=(), layout=layout))
+    return cfg.deck_half_size_m()
+
+
+def _versions(manifest: dict[str, Any]) -> dict[str, str]:
+    import importlib.metadata
+
+    from deckpose import __version__
+
+    out = {str(k): str(v) for k, v in dict(manifest.get("versions") or {}).items()}
+    out["deckpose (log)"] = __version__
+    for pkg in ("mcap", "foxglove-schemas-protobuf"):
+        try:
+            out[pkg] = importlib.metadata.version(pkg)
+        except importlib.metadata.PackageNotFoundError:
+            pass
+    return out
+
+
+def _write_records(log: McapLog, run: rl.RunPaths, manifest: dict[str, Any], cameras: list[str],
+                   command: Sequence[str], epoch: tuple[int, str], start_ns: int) -> None:
+    """The log's metadata records and attachments (see the module docstring)."""
+    log.metadata("deckpose.run", {"name": str(manifest.get("name", "")), "seed": str(manifest.get("seed", "")),
+                                  "dataset_format": str(manifest.get("format", "")),
+                                  "command": json.dumps(list(command))})
+    log.metadata("deckpose.config", {"config": json.dumps(manifest.get("config") or {}, sort_keys=True),
+                                     "layout": json.dumps(manifest.get("layout") or {}, sort_keys=True)})
+    log.metadata("deckpose.versions", _versions(manifest))
+    epoch_ns, source = epoch
+    log.metadata("deckpose.time", {
+        "capture_epoch_ns": str(epoch_ns), "capture_epoch_source": source,
+        "rule": "stamp_ns is a capture time: log time = stamp_ns" if source == "stamps" else
+                "stamp_ns is motion time: log time = capture_epoch_ns + the replay's offset + "
+                "(stamp_ns - the replay's first stamp_ns); replays (camera, height, lighting) one second apart"})
+    for name in cameras:
+        path = run.camera_file(name)
+        if path.is_file():
+            log.attachment(rl.camera_relpath(name), "application/yaml", path.read_bytes(), start_ns)
+    if run.manifest.is_file():
+        log.attachment(run.manifest.name, "application/json", run.manifest.read_bytes(), start_ns)
+    report = run.report_dir / "report.md"
+    if report.is_file():
+        log.attachment(report.relative_to(run.root).as_posix(), "text/markdown", report.read_bytes(), start_ns)
+
+
 def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px: int = 1920,
-                  errors: pd.DataFrame | None = None) -> Path:
-    """Write the run's MCAP log (atomically) and return its path."""
+                  errors: pd.DataFrame | None = None, command: Sequence[str] = ()) -> Path:
+    """Write the run's MCAP log (atomically) and return its path.
+
+    Parameters
+    ----------
+    run : RunPaths
+        A run with detections (and, for ``/tf`` estimates and the estimators' decks, estimates).
+    out_path : Path, optional
+        Where to write (default ``RUN/log.mcap``).
+    preview_px : int
+        Long side of the image previews, pixels (16..4096).
+    errors : DataFrame, optional
+        Per-frame errors (``deckpose evaluate``'s), logged on ``/errors/<detector>--<method>``.
+    command : sequence of str
+        The command line that made the log, recorded in the ``deckpose.run`` metadata.
+    """
     if not 16 <= preview_px <= 4096:
         raise InputDataError(f"preview_px must be within 16..4096 (viewers cannot show larger textures), got {preview_px}")
     frames = rl.read_frames(run)
     beacons = rl.read_beacons(run)
-    cameras = rl.read_cameras(run, sorted(frames["camera"].unique()))
+    manifest = rl.read_manifest(run)
+    layout = rl.read_layout(run)
+    deck_half_m = _scene_size_m(manifest, layout)
+    camera_names = sorted(frames["camera"].unique())
+    cameras = rl.read_cameras(run, camera_names)
     dets = {d: rl.read_detections(run, d) for d in run.detectors()}
     dets = {d: df.set_index("frame_id") for d, df in dets.items()}
     pairs = run.estimate_pairs()
@@ -244,11 +385,16 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
         err_schema = errors_json_schema(errors)
         for (d, m), g in errors.groupby(["detector", "method"]):
             err_by_pair[(d, m)] = g.set_index("frame_id")
-    stamps = log_stamps(frames)
+    if len(frames) and int(frames["stamp_ns"].min()) >= EPOCH_FLOOR_NS:
+        epoch = (0, "stamps")
+    else:
+        epoch = capture_epoch(manifest)
+    stamps = log_stamps(frames, epoch[0])
     beacons_by_frame = {f: g for f, g in beacons.groupby("frame_id")}
     out = Path(out_path) if out_path else run.mcap
     with atomic_path(out) as tmp, open(tmp, "wb") as fh:
         log = McapLog(fh)
+        _write_records(log, run, manifest, camera_names, command, epoch, int(stamps.min()) if len(stamps) else 0)
         for i in np.argsort(stamps.to_numpy(), kind="stable"):
             row = frames.iloc[i]
             f = int(row["frame_id"])
@@ -266,7 +412,8 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
             if b is not None:
                 vis = b[b["visible"].astype(bool)]
                 log.proto("/annotations/truth", annotations_msg(vis[["u_px", "v_px"]].to_numpy(float),
-                                                                vis["beacon_id"].to_numpy(), sx, sy, ts, TRUTH_RGBA, "T"), ts)
+                                                                vis["beacon_id"].to_numpy(), sx, sy, ts, TRUTH_RGBA, "T",
+                                                                thickness_px=TRUTH_POINT_PX), ts)
             for d, ddf in dets.items():
                 sel = ddf.loc[[f]] if f in ddf.index else ddf.iloc[0:0]
                 log.proto(f"/annotations/{d}", annotations_msg(sel[["u_px", "v_px"]].to_numpy(float),
@@ -277,7 +424,8 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
                                              np.array([row["surge_m"], row["sway_m"], row["heave_m"]]), ts))
             tfs.transforms.append(_transform("world", "camera", rl.R_world_from_cam(row),
                                              np.array([row["cam_x_m"], row["cam_y_m"], row["cam_z_m"]]), ts))
-            for (d, m), edf in ests.items():
+            entities = [deck_entity(layout, deck_half_m, ts), camera_entity(cam, float(row["camera_height_m"]), ts)]
+            for k, ((d, m), edf) in enumerate(ests.items()):
                 if f not in edf.index or not bool(edf.loc[f, "ok"]):
                     continue
                 e = edf.loc[f]
@@ -286,61 +434,16 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
                 tx = row["cam_x_m"] + (e["surge_m"] if np.isfinite(e["surge_m"]) else 0.0)
                 ty = row["cam_y_m"] + (e["sway_m"] if np.isfinite(e["sway_m"]) else 0.0)
                 tz = row["cam_z_m"] - e["height_m"]
-                tfs.transforms.append(_transform("world", f"deck_est/{d}{rl.SEPARATOR}{m}", R_est,
-                                                 np.array([tx, ty, tz]), ts))
+                frame_est = f"deck_est/{d}{rl.SEPARATOR}{m}"
+                tfs.transforms.append(_transform("world", frame_est, R_est, np.array([tx, ty, tz]), ts))
+                entities.append(estimate_entity(frame_est, layout.radius_m, ESTIMATE_RGBA[k % len(ESTIMATE_RGBA)], ts))
             log.proto("/tf", tfs, ts)
+            log.proto("/scene", scene_update(entities, ts), ts)
             for (d, m), edf in err_by_pair.items():
                 if f in edf.index:
                     rec = edf.loc[f]
                     obj = {k: (v.item() if hasattr(v, "item") else v) for k, v in rec.items()}
-                    obj.update(frame_id=f, t_s=float(row["t_s"]), detector=d, method=m)
+                    obj.update(frame_id=f, t_s=float(row["t_s"]), stamp_ns=int(row["stamp_ns"]), detector=d, method=m)
                     log.json(f"/errors/{d}{rl.SEPARATOR}{m}", _finite(obj), ts, err_schema)
         log.finish()
     return out
-
-
-def plot_path(topic: str, field: str) -> str:
-    """A Foxglove message path ``<topic>.<field>``; topics outside ``/[A-Za-z0-9_-]`` are quoted.
-
-    The app's message-path grammar reads an unquoted topic as slash-separated ids
-    of ``[A-Za-z0-9_-]``, so a topic with any other character (a dot, a space) must
-    be written as a double-quoted string, backslashes and double quotes escaped.
-    """
-    if re.fullmatch(r"(/[A-Za-z0-9_-]*)+", topic):
-        return f"{topic}.{field}"
-    quoted = topic.replace("\\", "\\\\").replace('"', '\\"')
-    return f'"{quoted}".{field}'
-
-
-def foxglove_layout(detectors: list[str], pairs: list[tuple[str, str]]) -> dict:
-    """A Foxglove layout: image with annotations, 3D view of the frames, error plots.
-
-    Keys follow the app's panel configs: ``imageMode`` (image, calibration and a
-    ``{topic: {visible}}`` annotation map) for the Image panel; ``followTf`` and
-    ``scene.transforms`` (axis and label settings) for the 3D panel; ``paths`` of
-    message paths for the Plot panel; and ``playbackConfig``, which the app reads.
-    """
-    annotations = {"/annotations/truth": {"visible": True}}
-    annotations.update({f"/annotations/{d}": {"visible": True} for d in detectors})
-    paths = []
-    for d, m in pairs:
-        for q in ("roll_err_deg", "pitch_err_deg", "yaw_err_deg", "height_err_m"):
-            paths.append({"value": plot_path(f"/errors/{d}{rl.SEPARATOR}{m}", q), "enabled": True,
-                          "timestampMethod": "receiveTime", "label": f"{d}+{m} {q}"})
-    return {
-        "configById": {
-            "Image!deckpose": {"imageMode": {"imageTopic": "/camera/image",
-                                             "calibrationTopic": "/camera/calibration",
-                                             "annotations": annotations}},
-            "3D!deckpose": {"followTf": "world",
-                            "scene": {"transforms": {"showLabel": True, "axisScale": 3}}},
-            "Plot!errors": {"paths": paths, "showLegend": True, "xAxisVal": "timestamp"},
-        },
-        "globalVariables": {},
-        "userNodes": {},
-        "playbackConfig": {"speed": 1.0},
-        "layout": {"direction": "row", "first": "Image!deckpose",
-                   "second": {"direction": "column", "first": "3D!deckpose", "second": "Plot!errors",
-                              "splitPercentage": 50},
-                   "splitPercentage": 55},
-    }

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
@@ -75,8 +76,12 @@ def compute_errors(run: rl.RunPaths) -> pd.DataFrame:
     return pd.concat(parts, ignore_index=True)
 
 
-def evaluate_run(run: rl.RunPaths, *, mcap: bool = True, preview_px: int = 1920) -> dict[str, Path]:
-    """Write errors, resolution tables, the MCAP log and its Foxglove layout; return their paths."""
+def evaluate_run(run: rl.RunPaths, *, mcap: bool = True, preview_px: int = 1920,
+                 command: Sequence[str] = ()) -> dict[str, Path]:
+    """Write errors, resolution tables, the MCAP log and its Foxglove layout; return their paths.
+
+    ``command`` (the command line that asked for it) is recorded in the log's metadata.
+    """
     errors = compute_errors(run)
     out = run.evaluation_dir
     write_table(errors, run.errors, "errors")
@@ -86,9 +91,10 @@ def evaluate_run(run: rl.RunPaths, *, mcap: bool = True, preview_px: int = 1920)
         fh.write(resolution_markdown(table))
     paths = {"errors": run.errors, "tables": out / "resolution_tables.md"}
     if mcap:
-        from deckpose.evaluate.mcap_log import foxglove_layout, write_run_log
+        from deckpose.evaluate.foxglove_layout import foxglove_layout
+        from deckpose.evaluate.mcap_log import write_run_log
 
-        paths["mcap"] = write_run_log(run, errors=errors, preview_px=preview_px)
+        paths["mcap"] = write_run_log(run, errors=errors, preview_px=preview_px, command=command)
         layout_path = run.root / "foxglove_layout.json"
         with atomic_open(layout_path, "w") as fh:
             json.dump(foxglove_layout(run.detectors(), run.estimate_pairs()), fh, indent=1)

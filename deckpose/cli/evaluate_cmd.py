@@ -42,7 +42,9 @@ def run_evaluate(args: argparse.Namespace) -> int:
     run = run_paths(args.run)
     if run.root.is_dir():
         claim_output(run.root, what="evaluate")
-    paths = evaluate_run(run, mcap=not args.no_mcap, preview_px=args.preview_px)
+    command = ["deckpose", "evaluate", str(args.run), *(["--no-mcap"] if args.no_mcap else []),
+               "--preview-px", str(args.preview_px)]
+    paths = evaluate_run(run, mcap=not args.no_mcap, preview_px=args.preview_px, command=command)
     for k, v in paths.items():
         print(f"{k}: {v}")
     return 0

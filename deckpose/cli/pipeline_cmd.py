@@ -260,7 +260,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     t = time.perf_counter()
     if runs("evaluate"):
         say(4, total, "evaluate against the ground truth" + (", write the MCAP log" if options.mcap else ""))
-        for key, path in evaluate_run(paths, mcap=options.mcap).items():
+        for key, path in evaluate_run(paths, mcap=options.mcap, command=options.command).items():
             print(f"{key}: {path}")
         seconds["evaluate"] = time.perf_counter() - t
         log.info("stage evaluate: %.1f s", seconds["evaluate"])

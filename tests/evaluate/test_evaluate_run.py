@@ -86,7 +86,8 @@ def test_evaluate_writes_tables_and_mcap_with_every_topic(run):
             count += 1
     expected = {"/camera/image": "foxglove.CompressedImage", "/camera/calibration": "foxglove.CameraCalibration",
                 "/annotations/truth": "foxglove.ImageAnnotations", "/annotations/fake": "foxglove.ImageAnnotations",
-                "/tf": "foxglove.FrameTransforms", "/errors/fake--thesis": "deckpose.FrameErrors"}
+                "/tf": "foxglove.FrameTransforms", "/scene": "foxglove.SceneUpdate",
+                "/errors/fake--thesis": "deckpose.FrameErrors"}
     assert set(topics) == set(expected)
     for t, name in expected.items():
         assert len(topics[t]) == 12 and all(s == name for s, _, _ in topics[t])
@@ -104,7 +105,7 @@ def test_evaluate_writes_tables_and_mcap_with_every_topic(run):
     err = topics["/errors/fake--thesis"][0][2]
     assert "roll_err_deg" in err and "t_s" in err
     layout = json.loads((run / "foxglove_layout.json").read_text())
-    assert layout["configById"]["Image!deckpose"]["imageMode"]["imageTopic"] == "/camera/image"
+    assert layout["configById"]["ImageViewPanel!deckpose"]["cameraTopic"] == "/camera/image"
 
 
 def test_report(run):

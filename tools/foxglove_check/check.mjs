@@ -448,6 +448,8 @@ async function checkLog(path) {
       frame.parentOf = new Map([...(frame.parentOf ?? []), ...checkTransforms(list, where)]);
     } else if (ANNOTATION_SCHEMAS.has(schemaName)) {
       frame.annotations.push({ topic, msg: decoded, where });
+    } else if (schemaName === "foxglove.SceneUpdate") {
+      frame.scenes = [...(frame.scenes ?? []), { msg: decoded, where }];
     }
   }
 
@@ -469,6 +471,15 @@ async function checkLog(path) {
       }
       if (image.width != undefined && (image.width !== cal.width || image.height !== cal.height)) {
         problem(where, `image is ${image.width}x${image.height}, calibration says ${cal.width}x${cal.height}`, "size mismatch");
+      }
+    }
+    for (const sc of frame.scenes ?? []) {
+      // The 3D panel places an entity with its frame's transform: a frame /tf does not have at
+      // this instant draws nothing (and shows an error in the panel's settings).
+      for (const e of sc.msg.entities ?? []) {
+        if (frame.parentOf && !frame.parentOf.has(e.frame_id)) {
+          problem(sc.where, `scene entity "${e.id}" is in frame "${e.frame_id}", which has no transform at this time`, "scene frame");
+        }
       }
     }
     if (image && frame.parentOf && !frame.parentOf.has(image.frameId)) {
@@ -545,7 +556,7 @@ async function checkLog(path) {
 // ---------------------------------------------------------------------------------------------
 // The layout.
 
-const PANEL_TYPES = new Set(["Image", "3D", "Plot", "RawMessages", "Tab", "StateTransitions", "Table", "Indicator", "Gauge", "Map", "Log"]);
+const PANEL_TYPES = new Set(["Image", "ImageViewPanel", "3D", "Plot", "RawMessages", "Tab", "StateTransitions", "Table", "Indicator", "Gauge", "Map", "Log"]);
 const SCENE_TRANSFORM_KEYS = new Set(["editable", "showLabel", "labelSize", "axisScale", "lineWidth", "lineColor", "enablePreloading"]);
 const TIMESTAMP_METHODS = new Set(["receiveTime", "headerStamp"]);
 const X_AXIS_VALS = new Set(["timestamp", "index", "custom", "currentCustom"]);
@@ -600,6 +611,28 @@ function parseMessagePath(path) {
   return { topic, names };
 }
 
+function migrateLegacyImageConfig(legacy, panel) {
+  // Studio 1.48's ImageViewPanel reads cameraTopic (string) and enabledMarkerTopics (string[]);
+  // the newer app's layout migration (migrateLegacyToNewImagePanels) turns them into an Image
+  // panel's imageMode.imageTopic and imageMode.annotations {topic: {visible: true}}.
+  if (typeof legacy.cameraTopic !== "string" || legacy.cameraTopic === "") {
+    problem(panel, "cameraTopic (the legacy image panel's image topic) must be a non-empty string");
+  }
+  const markers = legacy.enabledMarkerTopics ?? [];
+  if (!Array.isArray(markers) || !markers.every((t) => typeof t === "string")) {
+    problem(panel, "enabledMarkerTopics must be an array of topic names");
+  }
+  if (legacy.imageMode != undefined) {
+    warn(panel, "imageMode in a legacy ImageViewPanel config is dropped by the newer app's migration");
+  }
+  return {
+    imageMode: {
+      imageTopic: typeof legacy.cameraTopic === "string" && legacy.cameraTopic !== "" ? legacy.cameraTopic : undefined,
+      annotations: Object.fromEntries((Array.isArray(markers) ? markers : []).map((t) => [t, { visible: true }])),
+    },
+  };
+}
+
 function checkLayout(layout, log, referenced) {
   const where = "layout";
   if (typeof layout !== "object" || layout == undefined || Array.isArray(layout)) {
@@ -636,12 +669,18 @@ function checkLayout(layout, log, referenced) {
       problem(panel, `${role} topic ${topic} has schema ${schema}, not one of ${[...schemas].join(", ")}`);
     }
   };
-  for (const [id, config] of Object.entries(configs)) {
-    const type = id.split("!")[0];
+  for (const [id, original] of Object.entries(configs)) {
+    let type = id.split("!")[0];
+    let config = original;
     const panel = `layout ${id}`;
     if (!id.includes("!") || !PANEL_TYPES.has(type)) {
       problem(panel, `panel id must be "<Type>!<id>" with a known panel type, got "${id}"`);
       continue;
+    }
+    if (type === "ImageViewPanel") {
+      // Foxglove Studio 1.48's image panel; the newer app (and Lichtblick) migrate it on import.
+      config = migrateLegacyImageConfig(original, panel);
+      type = "Image";
     }
     if (type === "Image" || type === "3D") {
       const image = config.imageMode ?? {};
