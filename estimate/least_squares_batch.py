@@ -187,36 +187,69 @@ def solve_batch(A: FloatArray, b: FloatArray) -> tuple[FloatArray, BoolArray]:
     return (x[..., 0] if vec else x), ok
 
 
-def _trig(angles_rad: FloatArray) -> tuple[FloatArray, ...]:
-    """``cos, sin`` of roll, pitch, yaw of (..., 3) angles: six (...) arrays."""
-    a = angles_rad
-    return (np.cos(a[..., 0]), np.sin(a[..., 0]), np.cos(a[..., 1]), np.sin(a[..., 1]),
-            np.cos(a[..., 2]), np.sin(a[..., 2]))
+def _rotation_coefficients() -> FloatArray:
+    """``R_world_from_deck`` (ZYX) and its roll, pitch, yaw derivatives as linear maps of trig monomials.
+
+    Every entry of ``R = Rz(yaw) Ry(pitch) Rx(roll)`` and of its three derivatives is a sum of
+    products ``a * b * c`` with ``a`` in (1, cos roll, sin roll), ``b`` in (1, cos pitch, sin
+    pitch) and ``c`` in (1, cos yaw, sin yaw). The table (36, 27) maps the 27 monomials to the
+    36 entries of the stacked (4, 3, 3) matrices, so many poses' rotations and derivatives are
+    one product (:func:`rotation_and_derivatives_batch`). It is built here from the factors.
+    """
+    def mono(a: int, b: int, c: int, sign: float = 1.0) -> FloatArray:
+        v = np.zeros(27)
+        v[9 * a + 3 * b + c] = sign
+        return v
+
+    one, cos, sin = 0, 1, 2
+    # (roll factor, pitch factor, yaw factor, sign) terms of R's nine entries
+    R_terms = [
+        [(one, cos, cos, 1)], [(cos, one, sin, -1), (sin, sin, cos, 1)], [(cos, sin, cos, 1), (sin, one, sin, 1)],
+        [(one, cos, sin, 1)], [(cos, one, cos, 1), (sin, sin, sin, 1)], [(cos, sin, sin, 1), (sin, one, cos, -1)],
+        [(one, sin, one, -1)], [(sin, cos, one, 1)], [(cos, cos, one, 1)],
+    ]
+
+    def d(factor: int, axis: int) -> tuple[int, float]:
+        """Derivative of one factor of the given axis: d cos = -sin, d sin = cos, d 1 = 0."""
+        return {one: (one, 0.0), cos: (sin, -1.0), sin: (cos, 1.0)}[factor]
+
+    table = np.zeros((4, 9, 27))
+    for entry, terms in enumerate(R_terms):
+        for t in terms:
+            table[0, entry] += mono(t[0], t[1], t[2], t[3])
+            for axis in range(3):
+                f, s = d(t[axis], axis)
+                if s:
+                    u = list(t[:3])
+                    u[axis] = f
+                    table[1 + axis, entry] += mono(u[0], u[1], u[2], t[3] * s)
+    return table.reshape(36, 27)
 
 
-def _fill_rotation(R: FloatArray, cr: FloatArray, sr: FloatArray, cp: FloatArray, sp: FloatArray,
-                   cy: FloatArray, sy: FloatArray) -> None:
-    """Write ``R_world_from_deck`` (ZYX) of the given sines and cosines into ``R`` (..., 3, 3)."""
-    R[..., 0, 0] = cy * cp
-    R[..., 0, 1] = cy * sp * sr - sy * cr
-    R[..., 0, 2] = cy * sp * cr + sy * sr
-    R[..., 1, 0] = sy * cp
-    R[..., 1, 1] = sy * sp * sr + cy * cr
-    R[..., 1, 2] = sy * sp * cr - cy * sr
-    R[..., 2, 0] = -sp
-    R[..., 2, 1] = cp * sr
-    R[..., 2, 2] = cp * cr
+#: :func:`_rotation_coefficients`, transposed for a right-hand product: (27, 36).
+_ROTATION_TABLE = _rotation_coefficients().T.copy()
+
+
+def _trig_monomials(angles_rad: FloatArray) -> FloatArray:
+    """The 27 monomials ``a * b * c`` of :func:`_rotation_coefficients` for (F, 3) angles: (F, 27)."""
+    F = angles_rad.shape[0]
+    T = np.empty((F, 3, 3))
+    T[:, :, 0] = 1.0
+    np.cos(angles_rad, out=T[:, :, 1])
+    np.sin(angles_rad, out=T[:, :, 2])
+    return (T[:, 0, :, None, None] * T[:, 1, None, :, None] * T[:, 2, None, None, :]).reshape(F, 27)
 
 
 def rotation_batch(angles_rad: FloatArray) -> FloatArray:
     """``R_world_from_deck`` (ZYX) of (..., 3) roll, pitch, yaw: (..., 3, 3).
 
-    The values of :func:`deckpose.rotation.R_from_zyx`, written out (no stacking or
-    matrix products), as :func:`rotation_and_derivatives_batch` computes them.
+    The values of :func:`deckpose.rotation.R_from_zyx`, from the same monomial table as
+    :func:`rotation_and_derivatives_batch`.
     """
-    R = np.empty(angles_rad.shape[:-1] + (3, 3))
-    _fill_rotation(R, *_trig(angles_rad))
-    return R
+    a = np.asarray(angles_rad, dtype=float)
+    flat = a.reshape(-1, 3)
+    R = _trig_monomials(flat) @ _ROTATION_TABLE[:, :9]
+    return R.reshape(a.shape[:-1] + (3, 3))
 
 
 def rotation_and_derivatives_batch(angles_rad: FloatArray) -> FloatArray:
@@ -227,64 +260,31 @@ def rotation_and_derivatives_batch(angles_rad: FloatArray) -> FloatArray:
     angles_rad : (F, 3) array of float
         Roll, pitch, yaw.
     """
-    cr, sr, cp, sp, cy, sy = _trig(angles_rad)
-    out = np.empty((angles_rad.shape[0], 4, 3, 3))
-    R, dr, dp, dy = out[:, 0], out[:, 1], out[:, 2], out[:, 3]
-    _fill_rotation(R, cr, sr, cp, sp, cy, sy)
-    dr[:, :, 0] = 0.0
-    dr[:, 0, 1] = cy * sp * cr + sy * sr
-    dr[:, 0, 2] = -cy * sp * sr + sy * cr
-    dr[:, 1, 1] = sy * sp * cr - cy * sr
-    dr[:, 1, 2] = -sy * sp * sr - cy * cr
-    dr[:, 2, 1] = cp * cr
-    dr[:, 2, 2] = -cp * sr
-    dp[:, 0, 0] = -cy * sp
-    dp[:, 0, 1] = cy * cp * sr
-    dp[:, 0, 2] = cy * cp * cr
-    dp[:, 1, 0] = -sy * sp
-    dp[:, 1, 1] = sy * cp * sr
-    dp[:, 1, 2] = sy * cp * cr
-    dp[:, 2, 0] = -cp
-    dp[:, 2, 1] = -sp * sr
-    dp[:, 2, 2] = -sp * cr
-    dy[:, 0] = -R[:, 1]
-    dy[:, 1] = R[:, 0]
-    dy[:, 2] = 0.0
-    return out
+    return (_trig_monomials(angles_rad) @ _ROTATION_TABLE).reshape(-1, 4, 3, 3)
 
 
-def _project(params: FloatArray, points_deck_m: FloatArray, R_world_from_cam: FloatArray,
-             jacobian: bool) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
-    """Component-major projection: ``x, y, depth`` (F, M) and ``dP`` (F, 3, 6, M) = d(camera point)/d(params).
+#: Sign of the translation parameters in the camera-frame offset: (surge, sway, -height).
+_TRANSLATION_SIGN = np.array([1.0, 1.0, -1.0])
 
-    ``x, y`` are the normalised image coordinates; ``dP`` is None without ``jacobian``.
-    """
-    F, M = params.shape[0], points_deck_m.shape[0]
+
+def _camera_points(params: FloatArray, points_deck_m: FloatArray, R_world_from_cam: FloatArray,
+                   jacobian: bool) -> tuple[FloatArray, FloatArray | None]:
+    """Camera-frame points (F, M, 3) and, with ``jacobian``, their derivatives (F, M, 3, 6)."""
     R_cw = np.swapaxes(R_world_from_cam, 1, 2)
-    tw = np.stack([params[:, 3], params[:, 4], -params[:, 5]], axis=1)
-    d = (R_cw @ tw[:, :, None])[:, :, 0]
-    if not jacobian:  # the rotation alone, not its derivatives
-        Q = (R_cw @ rotation_batch(params[:, :3])) @ points_deck_m.T  # (F, 3, M) camera-frame points
-        Z = Q[:, 2] + d[:, 2, None]
-        invZ = 1.0 / Z
-        return (Q[:, 0] + d[:, 0, None]) * invZ, (Q[:, 1] + d[:, 1, None]) * invZ, Z, None
+    d = R_cw @ (params[:, 3:] * _TRANSLATION_SIGN)[:, :, None]  # (F, 3, 1)
+    if not jacobian:
+        Rs = R_cw @ rotation_batch(params[:, :3])
+        return np.swapaxes(Rs @ points_deck_m.T + d, 1, 2), None
     Rs = R_cw[:, None] @ rotation_and_derivatives_batch(params[:, :3])  # (F, 4, 3, 3)
-    QT = (Rs.reshape(-1, 3) @ points_deck_m.T).reshape(F, 4, 3, M)  # camera-frame points, derivatives
-    Z = QT[:, 0, 2] + d[:, 2, None]
-    invZ = 1.0 / Z
-    x = (QT[:, 0, 0] + d[:, 0, None]) * invZ
-    y = (QT[:, 0, 1] + d[:, 1, None]) * invZ
-    dP = np.empty((F, 3, 6, M))
-    dP[:, :, :3, :] = QT[:, 1:].transpose(0, 2, 1, 3)
-    dP[:, :, 3:, :] = (R_cw * np.array([1.0, 1.0, -1.0]))[:, :, :, None]
-    return x, y, Z, dP
-
-
-def _image_jacobian(x: FloatArray, y: FloatArray, Z: FloatArray, dP: FloatArray
-                    ) -> tuple[FloatArray, FloatArray]:
-    """d(x, y)/d(params) as two (F, 6, M) arrays."""
-    invZ = 1.0 / Z[:, None, :]
-    return (dP[:, 0] - x[:, None, :] * dP[:, 2]) * invZ, (dP[:, 1] - y[:, None, :] * dP[:, 2]) * invZ
+    F, M = params.shape[0], points_deck_m.shape[0]
+    # Q[f, m, c, k] = sum_j P[m, j] Rs[f, k, c, j]: component c of the point (k = 0) and of its
+    # derivatives by roll, pitch, yaw (k = 1..3), point-major so that no large array is transposed.
+    Q = (points_deck_m @ Rs.transpose(0, 3, 2, 1).reshape(F, 3, 12)).reshape(F, M, 3, 4)
+    Pc = Q[:, :, :, 0] + d[:, None, :, 0]
+    dP = np.empty((F, M, 3, 6))
+    dP[:, :, :, :3] = Q[:, :, :, 1:]
+    dP[:, :, :, 3:] = (R_cw * _TRANSLATION_SIGN)[:, None]
+    return Pc, dP
 
 
 def project_normalised_batch(
@@ -305,20 +305,14 @@ def project_normalised_batch(
     J : (F, M, 2, 6) array of float or None
     depth_m : (F, M) array of float
     """
-    x, y, Z, dP = _project(params, points_deck_m, R_world_from_cam, jacobian)
-    xy = np.stack([x, y], axis=2)
+    Pc, dP = _camera_points(params, points_deck_m, R_world_from_cam, jacobian)
+    Z = Pc[:, :, 2]
+    invZ = 1.0 / Z[:, :, None]
+    xy = Pc[:, :, :2] * invZ
     if dP is None:
         return xy, None, Z
-    Jx, Jy = _image_jacobian(x, y, Z, dP)
-    return xy, np.stack([Jx, Jy], axis=1).transpose(0, 3, 1, 2), Z
-
-
-def _apply(L: FloatArray, vx: FloatArray, vy: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """``L @ (vx, vy)`` per point: ``L`` (F, M, 2, 2); ``v`` (F, M) or Jacobian rows (F, 6, M)."""
-    l00, l01, l10, l11 = L[..., 0, 0], L[..., 0, 1], L[..., 1, 0], L[..., 1, 1]
-    if vx.ndim == 3:
-        l00, l01, l10, l11 = l00[:, None], l01[:, None], l10[:, None], l11[:, None]
-    return l00 * vx + l01 * vy, l10 * vx + l11 * vy
+    J = (dP[:, :, :2, :] - xy[:, :, :, None] * dP[:, :, 2:3, :]) * invZ[:, :, :, None]
+    return xy, J, Z
 
 
 @overload
@@ -333,21 +327,14 @@ def _whitened(params: FloatArray, obs: FrameObservations, jacobian: Literal[Fals
 
 def _whitened(params: FloatArray, obs: FrameObservations, jacobian: bool = True
               ) -> tuple[FloatArray, FloatArray | None, BoolArray, FloatArray]:
-    """Whitened residuals (F, 2, M), whitened Jacobian (F, 6, 2, M), all-in-front (F,), raw residuals (F, 2, M)."""
-    x, y, Z, dP = _project(params, obs.points_deck_m, obs.R_world_from_cam, jacobian)
+    """Whitened residuals (F, M, 2), whitened Jacobian (F, M, 2, 6), all-in-front (F,), raw residuals (F, M, 2)."""
+    xy, J, Z = project_normalised_batch(params, obs.points_deck_m, obs.R_world_from_cam, jacobian=jacobian)
     front = np.all(Z > 0, axis=1)
-    F, M = x.shape
-    res = np.empty((F, 2, M))
-    res[:, 0] = x - obs.xy[:, :, 0]
-    res[:, 1] = y - obs.xy[:, :, 1]
-    r = np.empty((F, 2, M))
-    r[:, 0], r[:, 1] = _apply(obs.sqrt_info, res[:, 0], res[:, 1])
-    if dP is None:
+    res = xy - obs.xy
+    r = (obs.sqrt_info @ res[:, :, :, None])[:, :, :, 0]
+    if J is None:
         return r, None, front, res
-    Jx, Jy = _image_jacobian(x, y, Z, dP)
-    Jw = np.empty((F, 6, 2, M))
-    Jw[:, :, 0], Jw[:, :, 1] = _apply(obs.sqrt_info, Jx, Jy)
-    return r, Jw, front, res
+    return r, obs.sqrt_info @ J, front, res
 
 
 def chi2_batch(params: FloatArray, obs: FrameObservations) -> FloatArray:
@@ -358,10 +345,11 @@ def chi2_batch(params: FloatArray, obs: FrameObservations) -> FloatArray:
 
 
 def _normal_equations(r: FloatArray, Jw: FloatArray) -> tuple[FloatArray, FloatArray]:
-    """``J^T J`` (F, 6, 6) and ``J^T r`` (F, 6) from whitened residuals (F, 2, M) and Jacobian (F, 6, 2, M)."""
-    F, _, M = r.shape
-    A = Jw.reshape(F, 6, 2 * M)
-    return A @ np.swapaxes(A, 1, 2), (A @ r.reshape(F, 2 * M, 1))[:, :, 0]
+    """``J^T J`` (F, 6, 6) and ``J^T r`` (F, 6) from whitened residuals (F, M, 2) and Jacobian (F, M, 2, 6)."""
+    F, M = r.shape[0], r.shape[1]
+    A = Jw.reshape(F, 2 * M, 6)
+    At = A.transpose(0, 2, 1)
+    return At @ A, (At @ r.reshape(F, 2 * M, 1))[:, :, 0]
 
 
 def evaluate_fit_batch(params: FloatArray, obs: FrameObservations,
@@ -369,63 +357,74 @@ def evaluate_fit_batch(params: FloatArray, obs: FrameObservations,
                        converged: BoolArray | None = None) -> FitBatch:
     """The fit quantities at ``params`` (F, 6) without iterating."""
     r, Jw, front, res = _whitened(params, obs)
-    assert Jw is not None
     H, g = _normal_equations(r, Jw)
     chi2 = np.where(front, np.sum(r * r, axis=(1, 2)), np.inf)
-    res_px = np.stack(_apply(obs.px_from_norm, res[:, 0], res[:, 1]), axis=2)
+    res_px = (obs.px_from_norm @ res[:, :, :, None])[:, :, :, 0]
     F = params.shape[0]
-    return FitBatch(np.array(params, dtype=float), chi2, H, np.swapaxes(r, 1, 2), res_px, g,
+    return FitBatch(np.array(params, dtype=float), chi2, H, r, res_px, g,
                     np.zeros(F, dtype=np.int64) if iterations is None else iterations,
                     np.ones(F, dtype=bool) if converged is None else converged)
+
+
+_DIAGONAL = (np.arange(6), np.arange(6))
 
 
 def levenberg_marquardt_batch(params0: FloatArray, obs: FrameObservations, *,
                               max_iterations: int = 30) -> FitBatch:
     """Minimise each frame's whitened reprojection error from ``params0`` (F, 6).
 
-    Frame by frame the same iteration as
-    :func:`estimate.least_squares.levenberg_marquardt`: damping ``1e-4`` scaled by
-    10 down on success and up on failure, stop when every step is below
-    :data:`STEP_TOL_SIGMA` standard deviations, when the damping exceeds 1e8, or
-    after ``max_iterations``. A frame whose start puts a point behind the camera
-    (or gives non-finite residuals) gets ``chi2 = inf`` and NaN information.
+    Levenberg–Marquardt, frame by frame: damping ``1e-4`` scaled by 10 down on
+    success and up on failure, stop when every step is below :data:`STEP_TOL_SIGMA`
+    standard deviations, when the damping exceeds 1e8, or after ``max_iterations``.
+    A frame whose start puts a point behind the camera (or gives non-finite
+    residuals) gets ``chi2 = inf`` and NaN information. Frames still iterating are
+    computed together; the others drop out of the stack.
     """
     F = params0.shape[0]
     p = np.array(params0, dtype=float)
     r, Jw, front, _ = _whitened(p, obs)
     start_ok = front & _rows_ok(r)
-    cost = np.where(start_ok, np.sum(r * r, axis=(1, 2)), np.inf)
+    cost = np.where(start_ok, (r * r).sum(axis=(1, 2)), np.inf)
     lam = np.full(F, 1e-4)
     it = np.zeros(F, dtype=np.int64)
     converged = np.zeros(F, dtype=bool)
     active = np.flatnonzero(start_ok)
-    while active.size:
-        it[active] += 1
-        H, g = _normal_equations(r[active], Jw[active])
-        dH = np.diagonal(H, axis1=1, axis2=2).copy()
-        A = H.copy()
-        A[:, np.arange(6), np.arange(6)] += lam[active, None] * dH
-        neg_step, solved = solve_batch(A, g)
-        step = -neg_step
-        p_new = p[active] + step
-        sub = obs.take(active)
-        r_new, J_new, front_new, _ = _whitened(p_new, sub)
-        with np.errstate(invalid="ignore"):
-            cost_new = np.where(front_new, np.sum(r_new * r_new, axis=(1, 2)), np.inf)
-            blown = ~np.isfinite(cost_new) & ~np.isfinite(step.sum(axis=1))
-            small = np.max(np.abs(step) * np.sqrt(np.abs(dH)), axis=1) < STEP_TOL_SIGMA
-            better = cost_new <= cost[active]
-        accept = solved & ~blown & better
-        acc = active[accept]
-        p[acc], r[acc], Jw[acc], cost[acc] = p_new[accept], r_new[accept], J_new[accept], cost_new[accept]
-        lam[acc] = np.maximum(lam[acc] * 0.1, 1e-12)
-        reject = solved & ~blown & ~better
-        lam[active[reject & ~small]] *= 10.0
-        done_small = solved & ~blown & small
-        converged[active[done_small]] = True
-        stop = ~solved | blown | done_small | (reject & ~small & (lam[active] > 1e8))
-        stop |= it[active] >= max_iterations
-        active = active[~stop]
+    everyone = active.size == F  # no frame has stopped: no indexing by ``active``
+    with np.errstate(invalid="ignore", over="ignore"):
+        while active.size:
+            if everyone:
+                sub, r_a, J_a, lam_a, cost_a = obs, r, Jw, lam, cost
+                it += 1
+            else:
+                sub, r_a, J_a, lam_a, cost_a = obs.take(active), r[active], Jw[active], lam[active], cost[active]
+                it[active] += 1
+            H, g = _normal_equations(r_a, J_a)
+            dH = H[:, _DIAGONAL[0], _DIAGONAL[1]]
+            H[:, _DIAGONAL[0], _DIAGONAL[1]] += lam_a[:, None] * dH
+            neg_step, solved = solve_batch(H, g)
+            p_new = (p if everyone else p[active]) - neg_step
+            r_new, J_new, front_new, _ = _whitened(p_new, sub)
+            cost_new = np.where(front_new, (r_new * r_new).sum(axis=(1, 2)), np.inf)
+            small = (np.abs(neg_step) * np.sqrt(np.abs(dH))).max(axis=1) < STEP_TOL_SIGMA
+            better = cost_new <= cost_a
+            ok = solved & (np.isfinite(cost_new) | np.isfinite(neg_step.sum(axis=1)))  # not blown up
+            accept = ok & better
+            if everyone and accept.all():
+                p, r, Jw, cost = p_new, r_new, J_new, cost_new
+                lam = np.maximum(lam * 0.1, 1e-12)
+                stop = small
+            else:
+                acc = active[accept]
+                p[acc], r[acc], Jw[acc], cost[acc] = p_new[accept], r_new[accept], J_new[accept], cost_new[accept]
+                lam[acc] = np.maximum(lam[acc] * 0.1, 1e-12)
+                reject = ok & ~better
+                lam[active[reject & ~small]] *= 10.0
+                stop = ~ok | (ok & small) | (reject & ~small & (lam[active] > 1e8))
+            converged[active[ok & small]] = True
+            stop |= it[active] >= max_iterations
+            if stop.any():
+                active = active[~stop]
+                everyone = False
     fit = evaluate_fit_batch(p, obs, it, converged)
     if not start_ok.all():
         bad = ~start_ok
