@@ -26,7 +26,7 @@ times are always given explicitly.
 The file also holds metadata records (``deckpose.run``: seed, command, dataset name;
 ``deckpose.config``: the resolved render config; ``deckpose.versions``; ``deckpose.time``)
 and attachments (each camera's ``camera_info`` YAML, the manifest and, when it exists,
-the run's report).
+the run's report): :mod:`deckpose.evaluate.mcap_records`.
 
 The messages follow what the Foxglove app reads (checked with the app's reader
 libraries by ``tools/foxglove_check``, and drawn by Foxglove Studio 1.48 in
@@ -47,6 +47,7 @@ from typing import Any
 import cv2
 import numpy as np
 import pandas as pd
+from deckpose.evaluate.mcap_records import write_records
 from deckpose.evaluate.mcap_scene import (
     ESTIMATE_RGBA,
     camera_entity,
@@ -308,47 +309,6 @@ def _scene_size_m(manifest: dict[str, Any], layout: DeckLayout) -> float:
     return cfg.deck_half_size_m()
 
 
-def _versions(manifest: dict[str, Any]) -> dict[str, str]:
-    import importlib.metadata
-
-    from deckpose import __version__
-
-    out = {str(k): str(v) for k, v in dict(manifest.get("versions") or {}).items()}
-    out["deckpose (log)"] = __version__
-    for pkg in ("mcap", "foxglove-schemas-protobuf"):
-        try:
-            out[pkg] = importlib.metadata.version(pkg)
-        except importlib.metadata.PackageNotFoundError:
-            pass
-    return out
-
-
-def _write_records(log: McapLog, run: rl.RunPaths, manifest: dict[str, Any], cameras: list[str],
-                   command: Sequence[str], epoch: tuple[int, str], start_ns: int) -> None:
-    """The log's metadata records and attachments (see the module docstring)."""
-    log.metadata("deckpose.run", {"name": str(manifest.get("name", "")), "seed": str(manifest.get("seed", "")),
-                                  "dataset_format": str(manifest.get("format", "")),
-                                  "command": json.dumps(list(command))})
-    log.metadata("deckpose.config", {"config": json.dumps(manifest.get("config") or {}, sort_keys=True),
-                                     "layout": json.dumps(manifest.get("layout") or {}, sort_keys=True)})
-    log.metadata("deckpose.versions", _versions(manifest))
-    epoch_ns, source = epoch
-    log.metadata("deckpose.time", {
-        "capture_epoch_ns": str(epoch_ns), "capture_epoch_source": source,
-        "rule": "stamp_ns is a capture time: log time = stamp_ns" if source == "stamps" else
-                "stamp_ns is motion time: log time = capture_epoch_ns + the replay's offset + "
-                "(stamp_ns - the replay's first stamp_ns); replays (camera, height, lighting) one second apart"})
-    for name in cameras:
-        path = run.camera_file(name)
-        if path.is_file():
-            log.attachment(rl.camera_relpath(name), "application/yaml", path.read_bytes(), start_ns)
-    if run.manifest.is_file():
-        log.attachment(run.manifest.name, "application/json", run.manifest.read_bytes(), start_ns)
-    report = run.report_dir / "report.md"
-    if report.is_file():
-        log.attachment(report.relative_to(run.root).as_posix(), "text/markdown", report.read_bytes(), start_ns)
-
-
 def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px: int = 1920,
                   errors: pd.DataFrame | None = None, command: Sequence[str] = ()) -> Path:
     """Write the run's MCAP log (atomically) and return its path.
@@ -394,7 +354,7 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
     out = Path(out_path) if out_path else run.mcap
     with atomic_path(out) as tmp, open(tmp, "wb") as fh:
         log = McapLog(fh)
-        _write_records(log, run, manifest, camera_names, command, epoch, int(stamps.min()) if len(stamps) else 0)
+        write_records(log, run, manifest, camera_names, command, epoch, int(stamps.min()) if len(stamps) else 0)
         for i in np.argsort(stamps.to_numpy(), kind="stable"):
             row = frames.iloc[i]
             f = int(row["frame_id"])
