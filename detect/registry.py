@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -217,6 +217,8 @@ def register(name: str) -> Callable[[DetectorFn], DetectorFn]:
         if name in _REGISTRY and _REGISTRY[name] is not fn:
             raise ConfigError(f"a detector named {name!r} is already registered")
         _REGISTRY[name] = fn
+        if _LOADING:
+            _PLUGIN_OF[name] = _LOADING[-1]
         return fn
 
     return deco
@@ -225,6 +227,7 @@ def register(name: str) -> Callable[[DetectorFn], DetectorFn]:
 def unregister(name: str) -> None:
     """Remove detector ``name`` (for tests and interactive sessions)."""
     _REGISTRY.pop(name, None)
+    _PLUGIN_OF.pop(name, None)
 
 
 def _load_builtins() -> None:
@@ -240,11 +243,44 @@ def _load_builtins() -> None:
         ep.load()
 
 
+#: The plugin (module name or absolute file path) that registered each detector it registered.
+_PLUGIN_OF: dict[str, str] = {}
+#: The plugins being imported by :func:`load_plugin` now (innermost last).
+_LOADING: list[str] = []
+
+
+def plugins_for(detectors: Iterable[str]) -> tuple[str, ...]:
+    """The plugins that registered ``detectors``, for a worker process to import (no duplicates).
+
+    A module name or an absolute file path each, as :func:`load_plugin` takes it.
+
+    Raises
+    ------
+    ConfigError
+        A detector registered by a script's own ``__main__`` (no other process can import it).
+    """
+    out: list[str] = []
+    for d in detectors:
+        p = _PLUGIN_OF.get(d)
+        if p is None:
+            module = getattr(get(d), "__module__", "") or ""
+            if module == "__main__":
+                raise ConfigError(f"detector {d!r} is registered by the running script itself, which "
+                                  "worker processes cannot import; move it into a module or use workers=1")
+            if module.startswith("deckpose.") or module in _BUILTIN_MODULES:
+                continue
+            p = module  # registered on import of an installed module: the workers import it too
+        if p not in out:
+            out.append(p)
+    return tuple(out)
+
+
 def load_plugin(module: str) -> None:
     """Import a user module that registers detectors with :func:`register`.
 
     ``module`` is a module name (found on ``sys.path`` or in the current folder)
-    or the path of a Python file (``./mypeak.py``).
+    or the path of a Python file (``./mypeak.py``). File paths are kept absolute, so
+    a worker process started in another folder finds the same file.
     """
     import sys
     from pathlib import Path
@@ -259,15 +295,22 @@ def load_plugin(module: str) -> None:
                 raise ConfigError(f"cannot import detector plugin {module!r}: not a Python file")
             mod = importlib.util.module_from_spec(spec)
             sys.modules[path.stem] = mod
+            _LOADING.append(str(path.resolve()))
             try:
                 spec.loader.exec_module(mod)
             except BaseException:
                 sys.modules.pop(path.stem, None)  # no half-imported module stays behind
                 raise
+            finally:
+                _LOADING.pop()
             return
         if "" not in sys.path and str(Path.cwd()) not in sys.path:
             sys.path.insert(0, str(Path.cwd()))  # a module in the current folder
-        importlib.import_module(module)
+        _LOADING.append(module)
+        try:
+            importlib.import_module(module)
+        finally:
+            _LOADING.pop()
     except ConfigError:
         raise
     except Exception as exc:

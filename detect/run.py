@@ -16,6 +16,7 @@ import json
 import logging
 import os
 import platform
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -24,13 +25,14 @@ import pandas as pd
 from deckpose.detect.frame_detection import FrameDetections, detect_frame
 from deckpose.detect.identify import IdentifyOptions
 from deckpose.detect.registry import DetectorOptions
-from deckpose.detect.sources import FrameSet, load_frame
+from deckpose.detect.sources import FrameSet, FrameSource, load_frame
 from deckpose.detect.tables import detection_rows, write_tables
 
 from deckpose.atomic_io import atomic_open
+from deckpose.camera import CameraModel
 from deckpose.camera_info import write_camera_info
 from deckpose.errors import ConfigError
-from deckpose.layout import layout_to_dict
+from deckpose.layout import DeckLayout, layout_to_dict
 from deckpose.run_folder import DETECTIONS_FORMAT, RunPaths
 
 log = logging.getLogger(__name__)
@@ -76,6 +78,7 @@ def detect_run(
     camera_file: str | os.PathLike[str] | None = None,
     layout_file: str | os.PathLike[str] | None = None,
     progress: bool = False,
+    workers: int = 1,
 ) -> DetectRunResult:
     """The detect stage: detect and identify in every frame of a dataset or an image folder.
 
@@ -96,6 +99,9 @@ def detect_run(
     camera_file, layout_file : path, optional, keyword-only
         ROS camera_info and layout YAML of an image folder.
     progress : bool, keyword-only
+    workers : int, keyword-only
+        Worker processes that decode and detect frames side by side; the tables are the
+        same for any number, but for the timing columns.
 
     Returns
     -------
@@ -129,7 +135,7 @@ def detect_run(
     # (a dataset's own folder when detections go into it: a render still writing it is refused)
     claim_output(Path(out_dir) if out_dir else frameset.root, what="detect")
     dets, frames = detect_frames(frameset, detector, options=options, identify_options=identify_options,
-                                 progress=progress)
+                                 progress=progress, workers=workers)
     path = write_run(out_dir, frameset, detector, dets, frames, options, identify_options)
     return DetectRunResult(path, dets, frames)
 
@@ -141,14 +147,16 @@ def detect_frames(
     options: DetectorOptions = DetectorOptions(),
     identify_options: IdentifyOptions = IdentifyOptions(),
     progress: bool = False,
+    workers: int = 1,
 ) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Detect in every frame; returns ``(detections table, frames table)``."""
+    """Detect in every frame (``workers`` processes); returns ``(detections table, frames table)``."""
     return detect_frames_with(
         frameset,
         [detector],
         options=options,
         identify_options=identify_options,
         progress=progress,
+        workers=workers,
     )[detector]
 
 
@@ -159,8 +167,20 @@ def detect_frames_with(
     options: DetectorOptions = DetectorOptions(),
     identify_options: IdentifyOptions = IdentifyOptions(),
     progress: bool = False,
+    workers: int = 1,
 ) -> dict[str, tuple[pd.DataFrame, pd.DataFrame]]:
     """Run several detectors on every frame, decoding each image once.
+
+    Parameters
+    ----------
+    frameset : FrameSet
+    detectors : list of str
+    options : DetectorOptions, keyword-only
+    identify_options : IdentifyOptions, keyword-only
+    progress : bool, keyword-only
+    workers : int, keyword-only
+        Worker processes that decode and detect frames side by side (1 = in this
+        process). The tables are the same for any number, but for the timing columns.
 
     Returns
     -------
@@ -169,39 +189,20 @@ def detect_frames_with(
     """
     from tqdm import tqdm
 
+    if workers < 1:
+        raise ConfigError(f"workers must be >= 1, got {workers}")
     det_parts: dict[str, list[pd.DataFrame]] = {d: [] for d in detectors}
     frame_rows: dict[str, list[dict[str, Any]]] = {d: [] for d in detectors}
     desc = f"detect {','.join(detectors)}"
-    for src in tqdm(frameset.sources, desc=desc, unit="frame", disable=None if progress else True):
-        frame = load_frame(src, frameset.cameras[src.camera_name])
-        for detector in detectors:
-            if isinstance(frame, str):
-                fd = FrameDetections.failed(src.frame_id, detector, frame)
-            else:
-                fd = detect_frame(
-                    frame,
-                    detector,
-                    frameset.layout,
-                    options=options,
-                    identify_options=identify_options,
-                )
-            log.debug("frame %d, %s: %s", src.frame_id, detector,
-                      "ok" if fd.ok else f"failed: {fd.reason}")
-            det_parts[detector].append(detection_rows(fd))
-            frame_rows[detector].append(
-                {
-                    "frame_id": src.frame_id,
-                    "ok": fd.ok,
-                    "reason": fd.reason,
-                    "n_detections": len(fd.detections),
-                    "seconds": fd.seconds,
-                    "cpu_seconds": fd.cpu_seconds,
-                    "n_identified": int((fd.detections.beacon_ids >= 0).sum()),
-                    "camera": src.camera_name,
-                    "stamp_ns": src.stamp_ns,
-                    "image": os.path.relpath(src.image_path, frameset.root),
-                }
-            )
+    job = _DetectJob(frameset.cameras, frameset.layout, frameset.root, tuple(detectors), options,
+                     identify_options)
+    with tqdm(total=len(frameset.sources), desc=desc, unit="frame", disable=None if progress else True) as bar:
+        for chunk in _detect_chunks(job, frameset.sources, workers):
+            for per_frame in chunk:
+                for detector, (rows, frame_row) in zip(detectors, per_frame):
+                    det_parts[detector].append(rows)
+                    frame_rows[detector].append(frame_row)
+            bar.update(len(chunk))
     out = {}
     for detector in detectors:
         parts = [d for d in det_parts[detector] if len(d)]  # (concatenating empties is deprecated)
@@ -211,6 +212,87 @@ def detect_frames_with(
             else detection_rows(FrameDetections.failed(-1, detector, "none"))
         )
         out[detector] = (dets, pd.DataFrame(frame_rows[detector]))
+    return out
+
+
+@dataclass(frozen=True)
+class _DetectJob:
+    """What a worker needs to detect frames (sent once per chunk; small)."""
+
+    cameras: dict[str, CameraModel]
+    layout: DeckLayout
+    root: Path
+    detectors: tuple[str, ...]
+    options: DetectorOptions
+    identify_options: IdentifyOptions
+    plugins: tuple[str, ...] = ()
+
+
+#: Frames a worker detects per task: enough to hide the hand-over, few enough to balance.
+CHUNK_FRAMES = 4
+
+_FrameResult = list[tuple[pd.DataFrame, dict[str, Any]]]
+
+#: The plugins this (worker) process has imported for :func:`_detect_chunk`.
+_IMPORTED_PLUGINS: set[str] = set()
+
+
+def _detect_chunks(job: _DetectJob, sources: tuple[FrameSource, ...], workers: int
+                   ) -> Iterator[list[_FrameResult]]:
+    """Each chunk's per-frame results, in input order, from this process or ``workers`` processes."""
+    chunks = [sources[i:i + CHUNK_FRAMES] for i in range(0, len(sources), CHUNK_FRAMES)]
+    if workers == 1 or len(chunks) <= 1:
+        for c in chunks:
+            yield _detect_chunk(job, c)
+        return
+    from concurrent.futures import ProcessPoolExecutor
+    from multiprocessing import get_context
+
+    from deckpose.detect import registry
+
+    job = dataclasses.replace(job, plugins=registry.plugins_for(job.detectors))
+    with ProcessPoolExecutor(max_workers=min(workers, len(chunks)), mp_context=get_context("spawn")) as pool:
+        results = pool.map(_detect_chunk, [job] * len(chunks), chunks)
+        try:
+            yield from results
+        except BaseException:
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+
+
+def _detect_chunk(job: _DetectJob, sources: tuple[FrameSource, ...]) -> list[_FrameResult]:
+    """Decode and detect each frame of ``sources``: per frame, per detector, its rows and frame row."""
+    if job.plugins:
+        from deckpose.detect import registry
+
+        for mod in job.plugins:
+            if mod not in _IMPORTED_PLUGINS:  # once per worker process
+                registry.load_plugin(mod)
+                _IMPORTED_PLUGINS.add(mod)
+    out: list[_FrameResult] = []
+    for src in sources:
+        frame = load_frame(src, job.cameras[src.camera_name])
+        per_frame: _FrameResult = []
+        for detector in job.detectors:
+            if isinstance(frame, str):
+                fd = FrameDetections.failed(src.frame_id, detector, frame)
+            else:
+                fd = detect_frame(frame, detector, job.layout, options=job.options,
+                                  identify_options=job.identify_options)
+            log.debug("frame %d, %s: %s", src.frame_id, detector, "ok" if fd.ok else f"failed: {fd.reason}")
+            per_frame.append((detection_rows(fd), {
+                "frame_id": src.frame_id,
+                "ok": fd.ok,
+                "reason": fd.reason,
+                "n_detections": len(fd.detections),
+                "seconds": fd.seconds,
+                "cpu_seconds": fd.cpu_seconds,
+                "n_identified": int((fd.detections.beacon_ids >= 0).sum()),
+                "camera": src.camera_name,
+                "stamp_ns": src.stamp_ns,
+                "image": os.path.relpath(src.image_path, job.root),
+            }))
+        out.append(per_frame)
     return out
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from deckpose.cli.common_options import add_output
+from deckpose.cli.common_options import add_output, add_workers, workers
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -58,6 +58,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         help="exit 4 when any frame failed (default: 0 when some succeeded, 3 when none did)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_workers(p, "detection (each decodes and detects its own frames; the tables do not depend on it)")
     p.set_defaults(func=run)
 
 
@@ -124,7 +125,8 @@ def run(args: argparse.Namespace) -> int:
         significance_sigma=args.significance_sigma,
     )
     res = detect_run(args.dataset, args.detector, options=options, out_dir=args.out,
-                     camera_file=args.camera_info, layout_file=args.layout, progress=not args.no_progress)
+                     camera_file=args.camera_info, layout_file=args.layout, progress=not args.no_progress,
+                     workers=workers(args))
     frames = res.frames
     print(res.summary())
     for r in frames.itertuples():

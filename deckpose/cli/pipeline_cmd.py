@@ -53,7 +53,7 @@ class PipelineOptions:
         Method labels (an estimator name, optionally ``+refine`` or ``+mean``), each run on
         every detector's detections.
     workers : int
-        Local render worker processes.
+        Local render and detection worker processes (detection: at least 1).
     scheduler : str or None
         Dask scheduler address for the render stage.
     mcap : bool
@@ -112,7 +112,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--method", type=_csv, default=",".join(DEFAULT_METHODS),
                    help="estimator name(s), comma-separated, each optionally with +refine or +mean "
                    "(posterior mean), e.g. thesis,pnp,pnp+mean")
-    add_workers(p, "local render")
+    add_workers(p, "local render and detection", zero="render and detect in this process")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler for the render stage")
     p.add_argument("--no-mcap", action="store_true", help="skip the MCAP log")
     p.add_argument("--publish", type=Path, default=None, metavar="DIR",
@@ -242,7 +242,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     if runs("detect"):
         say(2, total, f"detect beacons ({', '.join(options.detectors)})")
         for det in options.detectors:  # a stage whose every frame failed still ran: the report says so
-            res = detect_run(run_dir, det, progress=options.progress)
+            res = detect_run(run_dir, det, progress=options.progress, workers=max(1, options.workers))
             print(res.summary())
         seconds["detect"] = time.perf_counter() - t
         log.info("stage detect: %.1f s", seconds["detect"])
