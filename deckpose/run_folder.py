@@ -31,6 +31,7 @@ from deckpose.camera import CameraModel
 from deckpose.camera_info import camera_to_dict, read_camera_info
 from deckpose.errors import InputDataError
 from deckpose.layout import DeckLayout, layout_from_dict
+from deckpose.pose import CameraPose, ShipPose
 from deckpose.tables import read_table
 
 #: Format of a rendered (or synthetic) dataset, recorded in its manifest.
@@ -228,6 +229,14 @@ def R_world_from_cam(row: pd.Series) -> np.ndarray:
 def R_world_from_cam_all(frames: pd.DataFrame) -> np.ndarray:
     """The camera rotations of every frames-table row, (F, 3, 3) (columns r00..r22)."""
     return frames[[f"r{i}{j}" for i in range(3) for j in range(3)]].to_numpy(float).reshape(-1, 3, 3)
+
+
+def frame_poses(row: pd.Series) -> tuple[ShipPose, CameraPose]:
+    """The ship pose (``T_world_from_deck``) and camera pose (``T_world_from_cam``) of a frames-table row."""
+    ship = ShipPose(row["roll_rad"], row["pitch_rad"], row["yaw_rad"], row["heave_m"], row["surge_m"],
+                    row["sway_m"])
+    camera = CameraPose(R_world_from_cam(row), np.array([row["cam_x_m"], row["cam_y_m"], row["cam_z_m"]]))
+    return ship, camera
 
 
 def run_paths(root: str | os.PathLike[str]) -> RunPaths:

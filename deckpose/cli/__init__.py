@@ -26,6 +26,7 @@ SUBCOMMAND_MODULES: tuple[str, ...] = (
     "deckpose.cli.estimate_cmd",
     "deckpose.cli.crb_cmd",
     "deckpose.cli.evaluate_cmd",
+    "deckpose.cli.export_cmd",
     "deckpose.cli.thesis_tables_cmd",
     "deckpose.cli.estimator_tables_cmd",
 )

@@ -1,0 +1,71 @@
+"""``deckpose export``: a run as a BOP or COCO-keypoints dataset."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from deckpose.cli.common_options import HelpFormatter, add_output, add_progress, frame_bar
+
+#: The formats ``--format`` takes.
+FORMATS = ("bop", "coco")
+
+
+def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+    p = sub.add_parser(
+        "export",
+        help="write a run's images and ground truth as a BOP or COCO-keypoints dataset",
+        description=(
+            "Write RUN (a rendered dataset) into DIR in a standard format. "
+            "bop: the BOP toolkit's scene-wise format: DIR/models/obj_000001.ply (the deck, mm, "
+            "vertex i = beacon id i) with models_info.json, one scene per camera under DIR/test/ "
+            "(scene_camera.json: cam_K, depth_scale; scene_gt.json: cam_R_m2c, cam_t_m2c in mm = "
+            "T_cam_from_deck; rgb/ images named by frame id), test_targets_bop19.json and "
+            "dataset_info.md. BOP's camera has no lens distortion, so a run with a distorted camera "
+            "is refused; no depth, masks or scene_gt_info.json are written. "
+            "coco: DIR/deck_keypoints.json with one category 'deck' whose keypoints are the "
+            "beacons (bow, ring_1.., centre; skeleton: ring edges and spokes), per image one "
+            "annotation with [x, y, v] per beacon (v=2 visible, 1 in the image but seen from below, "
+            "0 outside with x=y=0), bbox and area of the labelled keypoints; images in DIR/images/. "
+            "Pixels: cam_K keeps OpenCV's convention (pixel centres at integers); COCO's keypoints "
+            "are x = u + 0.5, y = v + 0.5 (0, 0 the top-left corner of the image), distortion "
+            "included. Images are absolute symbolic links into RUN unless --copy-images."
+        ),
+        formatter_class=HelpFormatter,
+    )
+    p.add_argument("run", type=Path, help="run folder (made by deckpose render)")
+    p.add_argument("--format", required=True, choices=FORMATS, dest="format",
+                   help="bop (BOP scene-wise dataset) or coco (COCO keypoints)")
+    add_output(p, "dataset folder to write (created; files of an earlier export are replaced)",
+               required=True, metavar="DIR")
+    p.add_argument("--copy-images", action="store_true",
+                   help="copy the images instead of linking them (a self-contained folder to move "
+                        "or archive; slow for large frames)")
+    add_progress(p)
+    p.set_defaults(func=run_export)
+
+
+def run_export(args: argparse.Namespace) -> int:
+    from deckpose.evaluate.export_images import ImageMode
+    from deckpose.output_folder import claim_output
+    from deckpose.run_folder import require_dataset, run_paths
+
+    run = run_paths(args.run)
+    require_dataset(run)  # not a run folder: one line before the output folder is made
+    out = claim_output(args.output, what="export")
+    images = ImageMode.COPY if args.copy_images else ImageMode.SYMLINK
+    with frame_bar(f"export ({args.format})", enabled=not args.no_progress) as bar:
+        if args.format == "bop":
+            from deckpose.evaluate.export_bop import write_bop
+
+            bop = write_bop(run, out, images=images, progress=bar.update)
+            scenes = ", ".join(f"{s:06d} = {c}" for s, c in bop.scenes.items())
+            print(f"BOP dataset of {bop.n_images} images written to {bop.root} (scenes {scenes}; "
+                  f"model {bop.model})")
+        else:
+            from deckpose.evaluate.export_coco import write_coco
+
+            coco = write_coco(run, out, images=images, progress=bar.update)
+            print(f"COCO keypoints of {coco.n_images} images ({coco.n_annotations} annotations) "
+                  f"written to {coco.annotations}")
+    return 0
