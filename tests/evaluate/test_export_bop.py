@@ -8,13 +8,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from deckpose.evaluate.export_bop import write_bop
+from deckpose.evaluate.export_images import ImageMode
 from scipy.spatial.transform import Rotation
 
 from deckpose.camera import preset
 from deckpose.camera_info import write_camera_info
 from deckpose.errors import InputDataError
-from deckpose.evaluate.export_bop import write_bop
-from deckpose.evaluate.export_images import ImageMode
 from deckpose.layout import DeckLayout
 from deckpose.run_folder import run_paths
 from tests.evaluate.bop_format_check import project_bop, read_bop_dataset
@@ -98,7 +98,7 @@ def test_the_model_is_one_flat_surface_with_coloured_beacons(bop: Path) -> None:
     side = 2 * 1.4 * DeckLayout().radius_m * 1000.0
     assert mesh.area == pytest.approx(side**2, rel=1e-9)  # no overlap, no hole
     assert np.all(mesh.face_normals[:, 2] > 0.999)
-    colours = mesh.visual.vertex_colors[:, :3]  # type: ignore[union-attr]
+    colours = mesh.visual.vertex_colors[:, :3]
     lay = DeckLayout()
     np.testing.assert_array_equal(colours[0], np.round(np.array(lay.bow_rgb) * 255))
     np.testing.assert_array_equal(colours[1], np.round(np.array(lay.beacon_rgb) * 255))

@@ -10,16 +10,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-
 from deckpose.evaluate.export_coco import coco_keypoints, keypoint_names, skeleton, write_coco
+
 from deckpose.layout import DeckLayout, thesis_layout
 from deckpose.run_folder import run_paths
 from tests.evaluate.fake_run import make_fake_run
 from tests.tolerances import ROUNDOFF
 
 pytest.importorskip("pycocotools")
-from pycocotools.coco import COCO  # noqa: E402
-from pycocotools.cocoeval import COCOeval  # noqa: E402
+from pycocotools.coco import COCO
+from pycocotools.cocoeval import COCOeval
 
 
 @pytest.fixture(scope="module")
