@@ -1,0 +1,234 @@
+"""Statistics of the sensor model (:func:`deckpose.render.sensor.expose`) against its definition.
+
+The model: a pixel of mean ``mu`` DN reads ``clip(round(mu + sigma z), 0, 2**bits - 1)``
+with ``z`` standard normal and ``sigma**2 = g mu + (g r)**2`` (shot + read noise, ``g`` DN
+per electron, ``r`` the read noise in electrons). The reference moments below are that
+law's exact moments (a sum over the DN values), the same for the model before and after
+the rewrite of issue 20 (the noise realisation changed, not its law). Each sample moment
+over ``N`` values must lie within :data:`N_SE` standard errors of the reference, the
+standard errors computed from ``N`` and the law's own second and fourth moments.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import cv2
+import numpy as np
+import pytest
+from deckpose.render import sensor as sensor_module
+from deckpose.render.beacons import Splat
+from deckpose.render.config import SensorSpec
+from deckpose.render.sensor import expose
+from numpy.typing import NDArray
+from scipy.special import ndtr
+
+#: Standard errors a sample moment may lie from the reference: a false alarm has
+#: probability ~6e-7 per check (normal), a wrong model (1 % off in sigma at 1e6 values:
+#: ~7 standard errors of the variance) fails.
+N_SE = 5.0
+#: Flat-field size: 600 x 500 pixels (300 000 values per channel).
+SHAPE = (600, 500)
+LUMA = np.array([0.299, 0.587, 0.114])
+
+
+def law_moments(mu_dn: float, sigma_dn: float, dn_max: int) -> tuple[float, float, float]:
+    """Mean, variance and fourth central moment of ``clip(round(N(mu, sigma^2)), 0, dn_max)``."""
+    k = np.arange(dn_max + 1, dtype=float)
+    if sigma_dn == 0:
+        p = (k == np.clip(np.rint(mu_dn), 0, dn_max)).astype(float)
+    else:
+        upper = ndtr((k + 0.5 - mu_dn) / sigma_dn)
+        upper[-1] = 1.0
+        lower = np.concatenate([[0.0], upper[:-1]])
+        p = upper - lower
+    mean = float(p @ k)
+    var = float(p @ (k - mean) ** 2)
+    m4 = float(p @ (k - mean) ** 4)
+    return mean, var, m4
+
+
+def assert_moments(values: NDArray[np.floating], mu_dn: float, sigma_dn: float, dn_max: int,
+                   what: str) -> None:
+    """Sample mean and variance of ``values`` within N_SE standard errors of the law's."""
+    n = values.size
+    mean, var, m4 = law_moments(mu_dn, sigma_dn, dn_max)
+    se_mean = np.sqrt(var / n)
+    se_var = np.sqrt(max(m4 - var ** 2, 0.0) / n + 2 * var ** 2 / (n * (n - 1)))
+    got_mean = float(values.mean())
+    got_var = float(values.var(ddof=1))
+    assert abs(got_mean - mean) <= N_SE * se_mean + 1e-9 * max(mean, 1.0), (
+        f"{what}: mean {got_mean:.6g} DN, law {mean:.6g} +- {se_mean:.3g} (1 SE)")
+    assert abs(got_var - var) <= N_SE * se_var + 1e-9 * max(var, 1.0), (
+        f"{what}: variance {got_var:.6g} DN^2, law {var:.6g} +- {se_var:.3g} (1 SE)")
+
+
+def flat_field(sensor: SensorSpec, levels: tuple[float, float, float],
+               seed: int) -> tuple[NDArray[np.float64], list[float], list[float]]:
+    """A white raster exposed so channel c holds ``levels[c]`` x full well (mono: their luma).
+
+    Returns the image (float), and each channel's mean and sigma in DN under the model.
+    """
+    scale = (np.array(levels) / 255.0).astype(np.float32)
+    raster = np.full((*SHAPE, 3), 255, np.uint8)
+    img = expose(raster, scale, [], sensor, np.random.default_rng(seed)).astype(float)
+    dn_max = 2 ** sensor.bit_depth - 1
+    g = dn_max / sensor.full_well_e
+    e = 255.0 * scale.astype(float) * sensor.exposure * sensor.full_well_e  # electrons, per channel
+    if sensor.color == "mono":
+        e = np.array([e @ LUMA.astype(np.float32)])
+    mu = [float(x) * g for x in e]
+    sigma = [float(np.sqrt(x + sensor.read_noise_e ** 2)) * g if sensor.noise else 0.0 for x in e]
+    return img, mu, sigma
+
+
+#: Signal levels (fraction of the full well) per channel: dark / low / mid, and bright /
+#: near the full well (the clip at 2**bits - 1 shapes the law) / over it (every value clips).
+LEVELS = [(0.0, 0.002, 0.3), (0.6, 0.995, 1.2)]
+
+
+@pytest.mark.parametrize("bit_depth", [8, 12, 16])
+@pytest.mark.parametrize("levels", LEVELS)
+def test_rgb_flat_field_moments_follow_the_law(bit_depth: int,
+                                                levels: tuple[float, float, float]) -> None:
+    sensor = SensorSpec(bit_depth=bit_depth)
+    img, mu, sigma = flat_field(sensor, levels, seed=11)
+    assert img.shape == (*SHAPE, 3)
+    for c in range(3):
+        assert_moments(img[..., c], mu[c], sigma[c], 2 ** bit_depth - 1,
+                       f"{bit_depth}-bit channel {c} at {levels[c]} full well")
+
+
+@pytest.mark.parametrize("bit_depth", [8, 12, 16])
+@pytest.mark.parametrize("level", [0.0, 0.002, 0.3, 0.995, 1.2])
+def test_mono_flat_field_moments_follow_the_law(bit_depth: int, level: float) -> None:
+    sensor = SensorSpec(bit_depth=bit_depth, color="mono", read_noise_e=12.0)
+    img, mu, sigma = flat_field(sensor, (level, level, level), seed=12)
+    assert img.shape == SHAPE
+    assert_moments(img, mu[0], sigma[0], 2 ** bit_depth - 1,
+                   f"{bit_depth}-bit mono at {level} full well")
+
+
+@pytest.mark.parametrize(("bit_depth", "dtype"), [(8, np.uint8), (12, np.uint16), (16, np.uint16)])
+def test_dtype_range_and_saturation(bit_depth: int, dtype: type) -> None:
+    """Integer DN in the output type, 12-bit within 0..4095; far over full well all values clip."""
+    dn_max = 2 ** bit_depth - 1
+    sensor = SensorSpec(bit_depth=bit_depth, read_noise_e=50.0)
+    raster = np.full((40, 50, 3), 255, np.uint8)
+    over = expose(raster, np.full(3, 20.0 / 255, np.float32), [], sensor, np.random.default_rng(0))
+    assert over.dtype == dtype and np.all(over == dn_max)
+    dark = expose(np.zeros_like(raster), np.full(3, 1.0 / 255, np.float32), [], sensor,
+                  np.random.default_rng(0))
+    assert dark.dtype == dtype and dark.min() == 0  # negative reads clip at 0
+    mono = expose(raster, np.full(3, 0.999 / 255, np.float32), [],
+                  dataclasses.replace(sensor, color="mono"), np.random.default_rng(0))
+    assert mono.dtype == dtype and mono.shape == (40, 50) and mono.max() == dn_max
+
+
+@pytest.mark.parametrize("bit_depth", [8, 12, 16])
+@pytest.mark.parametrize("color", ["rgb", "mono"])
+def test_noise_free_image_is_the_rounded_mean(bit_depth: int, color: str) -> None:
+    """``noise: false``: every pixel is its mean DN rounded to the nearest integer, then clipped."""
+    sensor = SensorSpec(bit_depth=bit_depth, color=color, noise=False)
+    raster = np.random.default_rng(1).integers(0, 256, (64, 96, 3), np.uint8)
+    scale = np.array([0.9, 0.7, 1.1], np.float32) / 255
+    img = expose(raster, scale, [], sensor, np.random.default_rng(0))
+    dn_max = 2 ** bit_depth - 1
+    e_per_unit = scale.astype(float) * sensor.full_well_e  # electrons per raster unit
+    if color == "mono":
+        grey = cv2.cvtColor(raster, cv2.COLOR_RGB2GRAY).astype(float)  # the model's mono raster
+        mean_dn = grey * float(e_per_unit @ LUMA.astype(np.float32)) * dn_max / sensor.full_well_e
+    else:
+        mean_dn = raster * e_per_unit * dn_max / sensor.full_well_e
+    want = np.clip(np.rint(mean_dn), 0, dn_max)
+    # the model's float32 tables (one rounding: 2**-24 relative) may round a half either way
+    near_half = np.abs(mean_dn - np.floor(mean_dn) - 0.5) <= mean_dn * 2.0 ** -23
+    assert img.dtype == (np.uint8 if bit_depth == 8 else np.uint16)
+    np.testing.assert_array_equal(img[~near_half], want[~near_half])
+
+
+def test_same_seed_same_frame_and_strips_do_not_matter(monkeypatch: pytest.MonkeyPatch) -> None:
+    """A frame is a function of its generator's state and shape: not of the strip size."""
+    sensor = SensorSpec(bit_depth=16)
+    raster = np.random.default_rng(2).integers(0, 256, (300, 211, 3), np.uint8)
+    scale = np.full(3, 1.0 / 255, np.float32)
+    a = expose(raster, scale, [], sensor, np.random.default_rng(7))
+    b = expose(raster, scale, [], sensor, np.random.default_rng(7))
+    np.testing.assert_array_equal(a, b)
+    assert not np.array_equal(a, expose(raster, scale, [], sensor, np.random.default_rng(8)))
+    for elements in (1, 5000, 2 ** 22):  # one row per strip, a few rows, the whole frame
+        monkeypatch.setattr(sensor_module, "STRIP_ELEMENTS", elements)
+        again = expose(raster, scale, [], sensor, np.random.default_rng(7))
+        np.testing.assert_array_equal(again, a)
+    rng = np.random.default_rng(7)
+    first = expose(raster, scale, [], sensor, rng)
+    assert not np.array_equal(first, expose(raster, scale, [], sensor, rng))  # the state advanced
+
+
+def test_noise_is_white() -> None:
+    """Neighbours along a row, down a column (across strip boundaries) and across channels
+    are uncorrelated: each correlation within N_SE / sqrt(N) of zero."""
+    sensor = SensorSpec(bit_depth=16)
+    img, mu, _ = flat_field(sensor, (0.3, 0.3, 0.3), seed=13)
+    r = img - np.array(mu)
+    pairs = {
+        "along rows": (r[:, 1:], r[:, :-1]),
+        "down columns": (r[1:], r[:-1]),
+        "R-G": (r[..., 0], r[..., 1]),
+        "G-B": (r[..., 1], r[..., 2]),
+    }
+    for name, (x, y) in pairs.items():
+        rho = float(np.corrcoef(x.ravel(), y.ravel())[0, 1])
+        assert abs(rho) < N_SE / np.sqrt(x.size), f"{name}: correlation {rho:.2e}"
+
+
+def _gaussian_splat(row0: int, col0: int, size: int, sigma_px: float, peak: float) -> Splat:
+    yy, xx = np.mgrid[:size, :size] - (size - 1) / 2
+    patch = (peak * np.exp(-(xx ** 2 + yy ** 2) / (2 * sigma_px ** 2))).astype(np.float32)
+    rgb = np.array([1.0, 0.8, 0.6], np.float32)
+    return Splat(row0, col0, patch, rgb, 0, sigma_px, float(patch.sum()))
+
+
+def test_beacons_are_not_shifted_and_carry_their_shot_noise() -> None:
+    """Over K frames each pixel's mean is its expected signal (z-scores of mean 0, variance 1),
+    inside the beacon windows too, where sigma follows the beacon light; the mean image's
+    beacon centroid is the noise-free one."""
+    sensor = SensorSpec(bit_depth=16, read_noise_e=5.0, full_well_e=20000.0)
+    H, W, K = 64, 80, 60
+    raster = np.full((H, W, 3), 40, np.uint8)
+    scale = np.full(3, 0.05 / 255, np.float32)  # background ~ 157 e per channel
+    splats = [_gaussian_splat(10, 12, 21, 2.2, 0.3), _gaussian_splat(30, 47, 25, 3.0, 0.5)]
+    g = (2 ** 16 - 1) / sensor.full_well_e
+    e = np.full((H, W, 3), 40.0 * float(scale[0]) * sensor.full_well_e)
+    for sp in splats:
+        n = sp.patch.shape[0]
+        light_e = sp.patch[..., None] * sp.rgb * sensor.full_well_e
+        e[sp.row0:sp.row0 + n, sp.col0:sp.col0 + n] += light_e
+    mu = e * g
+    sigma = np.sqrt(e + sensor.read_noise_e ** 2) * g
+    assert mu.max() + 6 * sigma.max() < 2 ** 16 - 1  # unsaturated, so the mean is unclipped
+    rng = np.random.default_rng(21)
+    frames = np.stack([expose(raster, scale, splats, sensor, rng) for _ in range(K)]).astype(float)
+    # 16-bit rounding adds 1/12 DN^2 to the variance: ~1e-5 of sigma^2 here, neglected
+    z = (frames.mean(axis=0) - mu) / (sigma / np.sqrt(K))
+    n = z.size
+    assert abs(z.mean()) < N_SE / np.sqrt(n), f"mean z {z.mean():.3g}"
+    assert abs(z.var() - 1.0) < N_SE * np.sqrt(2.0 / n), f"var z {z.var():.4f}"
+    in_beacon = (e - e.min()) > 0.2 * (e.max() - e.min())
+    zb = z[in_beacon]
+    assert abs(zb.mean()) < N_SE / np.sqrt(zb.size), f"mean z in beacons {zb.mean():.3g}"
+    assert abs(zb.var() - 1.0) < N_SE * np.sqrt(2.0 / zb.size), f"var z in beacons {zb.var():.4f}"
+    # centroid of the first beacon's light (channel sum, less the background) in the mean image
+    # vs in the expectation, within N_SE of its standard error (from sigma of the mean image)
+    win = (slice(10, 31), slice(12, 33))
+    background = mu[0, 0].sum()
+    light = frames.mean(axis=0)[win].sum(axis=2) - background
+    want = mu[win].sum(axis=2) - background
+    var_mean = (sigma[win] ** 2).sum(axis=2) / K
+    vv, uu = np.mgrid[win]
+    for coord in (uu, vv):
+        c_want = (want * coord).sum() / want.sum()
+        c_got = (light * coord).sum() / light.sum()
+        se = np.sqrt((var_mean * (coord - c_want) ** 2).sum()) / want.sum()
+        assert abs(c_got - c_want) < N_SE * se, (
+            f"centroid {c_got:.4f} px, want {c_want:.4f} +- {se:.1e}")
