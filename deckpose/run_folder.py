@@ -41,7 +41,7 @@ DETECTIONS_FORMAT = "deckpose-detections/1"
 #: Between the detector and the method in an estimates file name (``cog--pnp.parquet``).
 SEPARATOR = "--"
 #: The folders of the cameras' ROS camera_info files and of the frames' images.
-CAMERAS_DIR, IMAGES_DIR = "cameras", "images"
+CAMERAS_DIR, IMAGES_DIR, PREVIEWS_DIR = "cameras", "images", "previews"
 
 
 def camera_relpath(name: str) -> str:
@@ -52,6 +52,11 @@ def camera_relpath(name: str) -> str:
 def image_relpath(frame_id: int) -> str:
     """A frame's image, relative to the run folder (``images/000042.png``)."""
     return f"{IMAGES_DIR}/{frame_id:06d}.png"
+
+
+def preview_relpath(frame_id: int) -> str:
+    """A frame's 8-bit preview (:mod:`deckpose.preview`), relative to the run folder (``previews/000042.png``)."""
+    return f"{PREVIEWS_DIR}/{frame_id:06d}.png"
 
 
 def manifest_cameras(cameras: dict[str, CameraModel]) -> list[dict[str, Any]]:
@@ -88,6 +93,14 @@ class RunPaths:
     @property
     def images_dir(self) -> Path:
         return self.root / IMAGES_DIR
+
+    @property
+    def previews_dir(self) -> Path:
+        return self.root / PREVIEWS_DIR
+
+    def preview(self, frame_id: int) -> Path:
+        """The frame's preview image (written by the render stage since the preview existed)."""
+        return self.root / preview_relpath(frame_id)
 
     @property
     def detections_dir(self) -> Path:

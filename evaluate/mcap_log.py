@@ -76,6 +76,8 @@ from deckpose.atomic_io import atomic_path
 from deckpose.camera import CameraModel
 from deckpose.errors import InputDataError
 from deckpose.layout import DeckLayout
+from deckpose.preview import PREVIEW_PX, make_preview, preview_size
+from deckpose.preview import preview_scale as _preview_scale
 from deckpose.rotation import R_from_zyx
 
 #: Capture time of motion time 0 for a dataset whose stamps are motion time and whose manifest
@@ -142,21 +144,29 @@ def _color(rgba: tuple[float, float, float, float]) -> Color:
 
 def preview_scale(camera: CameraModel, preview_px: int) -> float:
     """Downscale factor (<= 1) that brings the long side to at most ``preview_px``."""
-    return min(1.0, preview_px / max(camera.width_px, camera.height_px))
+    return _preview_scale(camera.width_px, camera.height_px, preview_px)
 
 
-def preview_image(path: Path, scale: float) -> np.ndarray:
-    """Read an image (8/16-bit, mono or colour) and shrink it for viewing, 8-bit."""
-    img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+def preview_png(run: rl.RunPaths, frame_id: int, image: Path, camera: CameraModel, preview_px: int,
+                stored_preview_px: int | None) -> tuple[bytes, int, int]:
+    """A frame's preview as PNG bytes with its width and height, pixels.
+
+    The render stage's own preview (``previews/<frame_id>.png``) when it has this
+    ``preview_px`` (``stored_preview_px``, from the manifest), else made from the frame
+    (decoded once more) by the same rule, :func:`deckpose.preview.make_preview`.
+    """
+    w, h = preview_size(camera.width_px, camera.height_px, preview_px)
+    stored = run.preview(frame_id)
+    if stored_preview_px == preview_px and stored.is_file():
+        return stored.read_bytes(), w, h
+    img = cv2.imread(str(image), cv2.IMREAD_UNCHANGED)
     if img is None:
-        raise InputDataError(f"cannot read image {path}")
-    if img.dtype == np.uint16:
-        img = np.right_shift(img, 8).astype(np.uint8)
-    if scale < 1.0:
-        w = max(1, round(img.shape[1] * scale))
-        h = max(1, round(img.shape[0] * scale))
-        img = cv2.resize(img, (w, h), interpolation=cv2.INTER_AREA)
-    return img
+        raise InputDataError(f"cannot read image {image}")
+    small = make_preview(img, preview_px)
+    ok, png = cv2.imencode(".png", small)
+    if not ok:
+        raise InputDataError(f"cannot encode the preview of {image}")
+    return png.tobytes(), small.shape[1], small.shape[0]
 
 
 def calibration_msg(camera: CameraModel, scale: float, stamp_ns: int, width: int, height: int) -> CameraCalibration:
@@ -309,7 +319,7 @@ def _scene_size_m(manifest: dict[str, Any], layout: DeckLayout) -> float:
     return cfg.deck_half_size_m()
 
 
-def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px: int = 1920,
+def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px: int = PREVIEW_PX,
                   errors: pd.DataFrame | None = None, command: Sequence[str] = ()) -> Path:
     """Write the run's MCAP log (atomically) and return its path.
 
@@ -351,6 +361,7 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
         epoch = capture_epoch(manifest)
     stamps = log_stamps(frames, epoch[0])
     beacons_by_frame = {f: g for f, g in beacons.groupby("frame_id")}
+    stored_preview_px = manifest.get("preview_px")
     out = Path(out_path) if out_path else run.mcap
     with atomic_path(out) as tmp, open(tmp, "wb") as fh:
         log = McapLog(fh)
@@ -361,12 +372,10 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
             ts = int(stamps.iloc[i])
             cam = cameras[row["camera"]]
             scale = preview_scale(cam, preview_px)
-            img = preview_image(run.root / row["image"], scale)
-            h, w = img.shape[:2]
+            png, w, h = preview_png(run, f, run.root / row["image"], cam, preview_px, stored_preview_px)
             sx, sy = w / cam.width_px, h / cam.height_px
-            _, png = cv2.imencode(".png", img)
             log.proto("/camera/image", CompressedImage(timestamp=_ts(ts), frame_id="camera",
-                                                       data=png.tobytes(), format="png"), ts)
+                                                       data=png, format="png"), ts)
             log.proto("/camera/calibration", calibration_msg(cam, scale, ts, w, h), ts)
             b = beacons_by_frame.get(f)
             if b is not None:

@@ -13,6 +13,7 @@ from deckpose.evaluate.resolution_tables import resolution_markdown, resolution_
 from deckpose import run_folder as rl
 from deckpose.atomic_io import atomic_open
 from deckpose.errors import InputDataError
+from deckpose.preview import PREVIEW_PX
 from deckpose.tables import write_table
 
 
@@ -76,7 +77,7 @@ def compute_errors(run: rl.RunPaths) -> pd.DataFrame:
     return pd.concat(parts, ignore_index=True)
 
 
-def evaluate_run(run: rl.RunPaths, *, mcap: bool = True, preview_px: int = 1920,
+def evaluate_run(run: rl.RunPaths, *, mcap: bool = True, preview_px: int = PREVIEW_PX,
                  command: Sequence[str] = ()) -> dict[str, Path]:
     """Write errors, resolution tables, the MCAP log and its Foxglove layout; return their paths.
 

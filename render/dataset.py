@@ -5,6 +5,7 @@ Layout (the dataset contract)::
     DATASET/manifest.json            format, resolved config, seed, versions, layout, cameras
     DATASET/cameras/<name>.yaml      ROS camera_info per camera
     DATASET/images/<frame_id>.png    lossless 8- or 16-bit PNG (BGR on disk)
+    DATASET/previews/<frame_id>.png  the log's 8-bit preview (long side deckpose.preview.PREVIEW_PX)
     DATASET/frames.parquet           one row per frame
     DATASET/beacons.parquet          one row per frame x beacon
     DATASET/.parts/<frame_id>.json   per-frame ground truth, written after the image
@@ -42,7 +43,14 @@ from deckpose.camera_info import write_camera_info
 from deckpose.errors import ConfigError
 from deckpose.layout import layout_to_dict
 from deckpose.output_folder import LOCK_NAME
-from deckpose.run_folder import DATASET_FORMAT, RunPaths, image_relpath, manifest_cameras
+from deckpose.preview import PREVIEW_PX, make_preview
+from deckpose.run_folder import (
+    DATASET_FORMAT,
+    RunPaths,
+    image_relpath,
+    manifest_cameras,
+    preview_relpath,
+)
 from deckpose.tables import write_table
 
 log = logging.getLogger(__name__)
@@ -92,6 +100,11 @@ def render_one(cfg: RenderConfig, spec: FrameSpec, out_dir: str) -> int:
             if shutil.disk_usage(tmp.parent).free < img.nbytes:
                 raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(out / rel))
             raise OSError(f"OpenCV could not write {tmp}")
+    # the log's preview, made from the frame in memory (the log would decode the PNG again)
+    preview = make_preview(img if img.ndim == 2 else img[..., ::-1], PREVIEW_PX)
+    with atomic_path(out / preview_relpath(spec.frame_id)) as tmp:
+        if not cv2.imwrite(str(tmp), preview):
+            raise OSError(f"OpenCV could not write {tmp}")
     part = {"frame": frame_row(rf, rel), "beacons": beacon_rows(rf)}
     with atomic_open(_part_path(out, spec.frame_id), "w") as fh:
         json.dump(part, fh)
@@ -112,6 +125,7 @@ def _manifest(cfg: RenderConfig, plan: list[FrameSpec], complete: bool) -> dict[
         "sensor": sensor_block(cfg),
         "sensor_channels": 1 if cfg.sensor.color == "mono" else 3,
         "cameras": manifest_cameras(cams),
+        "preview_px": PREVIEW_PX,
     }
 
 
@@ -153,6 +167,7 @@ def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool) 
     for name, cam in cfg.cameras_by_name().items():
         write_camera_info(cam, run.camera_file(name))
     run.images_dir.mkdir(exist_ok=True)
+    run.previews_dir.mkdir(exist_ok=True)
     (out / ".parts").mkdir(exist_ok=True)
     _write_json(manifest, _manifest(cfg, plan, complete=False))
 

@@ -22,7 +22,11 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     )
     p.add_argument("run", type=Path, help="run folder")
     p.add_argument("--no-mcap", action="store_true", help="skip the MCAP log")
-    p.add_argument("--preview-px", type=int, default=1920, help="long side of the image previews in the log (<= 4096)")
+    from deckpose.preview import PREVIEW_PX
+
+    p.add_argument("--preview-px", type=int, default=PREVIEW_PX,
+                   help="long side of the image previews in the log (<= 4096); at the default the render "
+                        "stage's previews are used, another size decodes every frame again")
     p.set_defaults(func=run_evaluate)
     r = sub.add_parser(
         "report",

@@ -256,3 +256,38 @@ def test_plot_path_reads_back_as_its_topic(topic):
     assert _topic_of(path) == topic
     plain = not any(c in topic for c in '."\\')
     assert (path == f"{topic}.roll_err_deg") == plain
+
+
+def test_the_log_uses_the_render_stages_previews_and_decodes_no_frame(tmp_path, monkeypatch):
+    """With previews of the log's size stored at render time, no frame is decoded again and
+    the log's images are those previews; at another size each is made from the frame."""
+    import cv2
+    import numpy as np
+    from deckpose.evaluate import mcap_log
+
+    from deckpose.preview import make_preview
+    from deckpose.run_folder import RunPaths
+    from tests.evaluate.fake_run import make_fake_run
+
+    root = make_fake_run(tmp_path / "run", heights=(20.0,), n_per_cell=1)
+    run = RunPaths(root)
+    frames = pd.read_parquet(root / "frames.parquet")
+    run.previews_dir.mkdir()
+    for row in frames.itertuples():
+        full = cv2.imread(str(root / row.image), cv2.IMREAD_UNCHANGED)
+        assert cv2.imwrite(str(run.preview(int(row.frame_id))), make_preview(full, 256))
+    man = json.loads(run.manifest.read_text())
+    run.manifest.write_text(json.dumps({**man, "preview_px": 256}))
+    decoded = []
+    real_imread = cv2.imread
+    monkeypatch.setattr(mcap_log.cv2, "imread", lambda *a, **k: decoded.append(a[0]) or real_imread(*a, **k))
+    mcap_log.write_run_log(run, preview_px=256)
+    assert decoded == []
+    stored = [msg.data for _, msg in _decoded(root, "/camera/image")]
+    want = {run.preview(int(r.frame_id)).read_bytes() for r in frames.itertuples()}
+    assert len(stored) == len(frames) and set(stored) == want
+    mcap_log.write_run_log(run, preview_px=200)  # another size: made from the frames, by the same rule
+    assert len(decoded) == len(frames)
+    for _, msg in _decoded(root, "/camera/image"):
+        got = cv2.imdecode(np.frombuffer(msg.data, np.uint8), cv2.IMREAD_UNCHANGED)
+        assert max(got.shape[:2]) == 200

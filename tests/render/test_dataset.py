@@ -175,3 +175,32 @@ def test_parent_process_never_creates_a_gl_context(tmp_path: Path) -> None:
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=120)
     assert out.stdout.split() == ["False", "False"]
     assert len(list((tmp_path / "ds" / "images").glob("*.png"))) == 2
+
+
+def test_each_frame_has_its_preview_made_from_the_frame_in_memory(reference: Path) -> None:
+    """The log's preview is written at render time and equals the one made from the decoded frame."""
+    from deckpose.preview import PREVIEW_PX, make_preview
+    from deckpose.run_folder import RunPaths
+
+    man = json.loads((reference / "manifest.json").read_text())
+    assert man["preview_px"] == PREVIEW_PX
+    frames = pd.read_parquet(reference / "frames.parquet")
+    run = RunPaths(reference)
+    for row in frames.itertuples():
+        stored = cv2.imread(str(run.preview(int(row.frame_id))), cv2.IMREAD_UNCHANGED)
+        full = cv2.imread(str(reference / row.image), cv2.IMREAD_UNCHANGED)
+        assert stored is not None and full is not None
+        np.testing.assert_array_equal(stored, make_preview(full, PREVIEW_PX))
+
+
+def test_the_preview_rule_is_a_block_mean_and_keeps_the_top_8_bits() -> None:
+    from deckpose.preview import make_preview, preview_size
+
+    rng = np.random.default_rng(2)
+    img16 = rng.integers(0, 65536, (40, 60, 3), dtype=np.uint16)
+    small = make_preview(img16, 30)  # long side 60 -> 30: 2x2 blocks
+    assert preview_size(60, 40, 30) == (30, 20) and small.shape == (20, 30, 3) and small.dtype == np.uint8
+    top = (img16 >> 8).astype(float)
+    block_mean = top.reshape(20, 2, 30, 2, 3).mean(axis=(1, 3))
+    assert np.max(np.abs(small - block_mean)) <= 0.5 + 1e-9  # INTER_AREA: the mean, rounded
+    np.testing.assert_array_equal(make_preview(img16, 4096), top.astype(np.uint8))  # never enlarged
