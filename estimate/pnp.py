@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-from deckpose.estimate.least_squares import Fit, evaluate_fit, levenberg_marquardt
+from deckpose.estimate.least_squares import Fit, chi2_at, levenberg_marquardt
 from deckpose.estimate.observations import Observations
 from deckpose.estimate.pose_model import params_from_relative
 from deckpose.estimate.registry import EstimateOptions, register
@@ -78,12 +78,13 @@ def pnp_candidates(obs: Observations, R_world_from_cam: np.ndarray) -> tuple[lis
         return "PnP found no pose (degenerate beacon configuration)"
     # Refine the start with the lowest chi2 first; refine another only if it could compete
     # (its unrefined chi2 within ALT_MARGIN_CHI2 of the best refined one) and is not the same basin.
-    raw = sorted((evaluate_fit(s, obs, R_world_from_cam) for s in starts), key=lambda f: f.chi2)
-    fits: list[Fit] = [levenberg_marquardt(raw[0].params, obs, R_world_from_cam)]
-    for f0 in raw[1:]:
-        if _near(f0.params, fits[0].params) or not f0.chi2 < fits[0].chi2 + ALT_MARGIN_CHI2:
+    # (the starts' chi2 alone: no Jacobian is needed to rank them)
+    raw = sorted(((chi2_at(s, obs, R_world_from_cam), s) for s in starts), key=lambda cs: cs[0])
+    fits: list[Fit] = [levenberg_marquardt(raw[0][1], obs, R_world_from_cam)]
+    for chi2_0, p0 in raw[1:]:
+        if _near(p0, fits[0].params) or not chi2_0 < fits[0].chi2 + ALT_MARGIN_CHI2:
             continue
-        f = levenberg_marquardt(f0.params, obs, R_world_from_cam)
+        f = levenberg_marquardt(p0, obs, R_world_from_cam)
         if not any(_same(f.params, g.params) for g in fits):
             fits.append(f)
     return fits, extras
