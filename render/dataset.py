@@ -15,30 +15,35 @@ when its part file exists, and the part is written only after its image, so a ru
 killed at any moment loses at most the frames in flight; ``resume=True`` renders
 the rest and rebuilds the tables. Each frame's noise comes from its own seed, so
 the output does not depend on the number of workers or where they run.
+
+Local worker processes render and write their frames themselves (:func:`render_one`);
+Dask workers only render and encode (:func:`encode_frame`) and this process writes
+what they return (:func:`write_frame`), so a cluster needs no shared file system.
 """
 
 from __future__ import annotations
 
-import errno
+import contextlib
 import json
 import logging
 import os
 import platform
-import shutil
 import threading
-from collections.abc import Iterable
+from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
+from dataclasses import dataclass
 from importlib import metadata
 from multiprocessing import get_context
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, cast
 
 import cv2
 import pandas as pd
 from deckpose.render.config import RenderConfig, config_to_dict, load_config
 from deckpose.render.plan import FrameSpec, plan_frames
+from numpy.typing import NDArray
 
-from deckpose.atomic_io import atomic_open, atomic_path, remove_stale_temps
+from deckpose.atomic_io import atomic_open, remove_stale_temps
 from deckpose.camera_info import write_camera_info
 from deckpose.errors import ConfigError
 from deckpose.layout import layout_to_dict
@@ -52,6 +57,9 @@ from deckpose.run_folder import (
     preview_relpath,
 )
 from deckpose.tables import write_table
+
+if TYPE_CHECKING:
+    from distributed import Client
 
 log = logging.getLogger(__name__)
 
@@ -80,35 +88,78 @@ def _part_path(out_dir: Path, frame_id: int) -> Path:
     return out_dir / ".parts" / f"{frame_id:06d}.json"
 
 
-def render_one(cfg: RenderConfig, spec: FrameSpec, out_dir: str) -> int:
-    """Render one frame and write its image then its ground-truth part (worker entry point)."""
+@dataclass(frozen=True)
+class EncodedFrame:
+    """One rendered frame as the bytes of its files: what a worker hands back to be written.
+
+    ``image_png`` is ``images/<frame_id>.png`` (BGR on disk), ``preview_png`` is
+    ``previews/<frame_id>.png`` and ``part`` is the ``.parts/<frame_id>.json`` document
+    (the frame's ``frames.parquet`` row and ``beacons.parquet`` rows).
+    """
+
+    frame_id: int
+    image_png: bytes
+    preview_png: bytes
+    part: dict[str, Any]
+
+
+def _png(image: NDArray[Any], params: list[int], frame_id: int) -> bytes:
+    ok, buf = cv2.imencode(".png", image, params)
+    if not ok:
+        raise OSError(f"OpenCV could not encode frame {frame_id} as PNG")
+    return buf.tobytes()
+
+
+def encode_frame(cfg: RenderConfig, spec: FrameSpec) -> EncodedFrame:
+    """Render one frame and encode its image, preview and ground truth; writes nothing.
+
+    The Dask workers' task: what it returns is written by the process that owns the
+    output folder (:func:`write_frame`), so the workers need no access to it.
+    """
     from deckpose.render.frame import beacon_rows, frame_row, render_frame
     from deckpose.render.scene import DeckRenderer
 
-    out = Path(out_dir)
     key = (cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
     with _LOCK:  # one GL context per process; Dask may run several threads per worker
         if key not in _RENDERERS:
             _RENDERERS[key] = DeckRenderer(cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
         camera = cfg.cameras_by_name()[spec.camera_name]
         rf = render_frame(cfg, spec, camera, _RENDERERS[key])
-    rel = image_relpath(spec.frame_id)
     img = rf.frame.image
-    with atomic_path(out / rel) as tmp:
-        if not cv2.imwrite(str(tmp), img if img.ndim == 2 else img[..., ::-1], PNG_PARAMS):
-            # OpenCV says only that it failed: a full disk is the usual reason, so say so
-            if shutil.disk_usage(tmp.parent).free < img.nbytes:
-                raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(out / rel))
-            raise OSError(f"OpenCV could not write {tmp}")
+    bgr = img if img.ndim == 2 else img[..., ::-1]
+    image_png = _png(bgr, PNG_PARAMS, spec.frame_id)
     # the log's preview, made from the frame in memory (the log would decode the PNG again)
-    preview = make_preview(img if img.ndim == 2 else img[..., ::-1], PREVIEW_PX)
-    with atomic_path(out / preview_relpath(spec.frame_id)) as tmp:
-        if not cv2.imwrite(str(tmp), preview):
-            raise OSError(f"OpenCV could not write {tmp}")
-    part = {"frame": frame_row(rf, rel), "beacons": beacon_rows(rf)}
-    with atomic_open(_part_path(out, spec.frame_id), "w") as fh:
-        json.dump(part, fh)
-    return spec.frame_id
+    preview_png = _png(make_preview(bgr, PREVIEW_PX), [], spec.frame_id)
+    part = {"frame": frame_row(rf, image_relpath(spec.frame_id)), "beacons": beacon_rows(rf)}
+    return EncodedFrame(spec.frame_id, image_png, preview_png, part)
+
+
+def _write_bytes(path: Path, data: bytes) -> None:
+    try:
+        with atomic_open(path, "wb") as fh:
+            fh.write(data)
+    except OSError as exc:
+        if exc.filename is None and exc.errno is not None:  # a write or fsync names no file: name it
+            raise OSError(exc.errno, exc.strerror, str(path)) from exc
+        raise
+
+
+def write_frame(out_dir: Path, frame: EncodedFrame) -> int:
+    """Write a frame's image, then its preview, then its part (the commit marker); atomically.
+
+    Returns the frame id. A frame is done when its part exists, so a writer killed at
+    any moment leaves whole files and, at worst, a frame that ``resume`` renders again.
+    """
+    _write_bytes(out_dir / image_relpath(frame.frame_id), frame.image_png)
+    _write_bytes(out_dir / preview_relpath(frame.frame_id), frame.preview_png)
+    with atomic_open(_part_path(out_dir, frame.frame_id), "w") as fh:
+        json.dump(frame.part, fh)
+    return frame.frame_id
+
+
+def render_one(cfg: RenderConfig, spec: FrameSpec, out_dir: str) -> int:
+    """Render one frame and write it into ``out_dir`` (the local workers' entry point)."""
+    return write_frame(Path(out_dir), encode_frame(cfg, spec))
 
 
 def _manifest(cfg: RenderConfig, plan: list[FrameSpec], complete: bool) -> dict[str, Any]:
@@ -172,7 +223,7 @@ def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool) 
     _write_json(manifest, _manifest(cfg, plan, complete=False))
 
 
-def _run_local(cfg: RenderConfig, todo: list[FrameSpec], out: Path, workers: int) -> Iterable[int]:
+def _run_local(cfg: RenderConfig, todo: list[FrameSpec], out: Path, workers: int) -> Iterator[int]:
     if workers == 0:
         for spec in todo:
             yield render_one(cfg, spec, str(out))
@@ -188,17 +239,47 @@ def _run_local(cfg: RenderConfig, todo: list[FrameSpec], out: Path, workers: int
             raise
 
 
-def _run_dask(cfg: RenderConfig, todo: list[FrameSpec], out: Path, address: str) -> Iterable[int]:
+def _connect(address: str) -> Client:
     try:
         from distributed import Client
-        from distributed import as_completed as dask_completed
     except ImportError:
         raise ConfigError("--scheduler needs dask.distributed: pip install 'deckpose[cluster]'") from None
-    with Client(address) as client:
-        cfg_f = client.scatter(cfg, broadcast=True)
-        futures = client.map(render_one, [cfg_f] * len(todo), todo, [str(out)] * len(todo), pure=False)
-        for fut in dask_completed(futures):
-            yield fut.result()
+    try:
+        return Client(address)
+    except (OSError, ValueError) as exc:  # unreachable (OSError, TimeoutError) or malformed
+        raise ConfigError(f"cannot reach the Dask scheduler at {address!r} ({exc}); start one "
+                          "(dask scheduler) or give its address as --scheduler tcp://HOST:8786") from None
+
+
+def _run_dask(client: Client, cfg: RenderConfig, todo: list[FrameSpec], out: Path) -> Iterator[int]:
+    """Render on the cluster's workers and write here, as the frames come back.
+
+    The workers write nothing (:func:`encode_frame`), so they need no shared disk and
+    their working folder does not matter. At most two frames per worker thread are
+    submitted and not yet written, and each result is released once written: the
+    cluster holds at most that many encoded frames, this process one.
+    """
+    from distributed import as_completed as dask_completed
+
+    specs = iter(todo)
+    running = dask_completed()
+
+    def submit_up_to_window() -> None:
+        threads = cast("dict[str, int]", client.nthreads())  # a dict (a coroutine in async clients)
+        window = 2 * max(1, sum(threads.values()))  # asked each time: workers come and go
+        while running.count() < window:
+            spec = next(specs, None)
+            if spec is None:
+                return
+            running.add(client.submit(encode_frame, cfg, spec, pure=False))
+
+    submit_up_to_window()
+    for fut in running:
+        frame: EncodedFrame = fut.result()
+        fut.release()
+        submit_up_to_window()
+        yield write_frame(out, frame)
+        del frame
 
 
 def collect_tables(out: Path, plan: list[FrameSpec]) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -248,18 +329,19 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
         raise ConfigError(f"workers must be >= 0, got {workers}")
     plan = plan_frames(cfg)  # every config error surfaces here, before any frame
     out = Path(out_dir)
-    _prepare(cfg, plan, out, resume)
-    todo = [s for s in plan if not _part_path(out, s.frame_id).exists()]
-    log.info("%d of %d frames to render into %s (%s)", len(todo), len(plan), out,
-             f"scheduler {scheduler}" if scheduler else f"{workers} worker processes")
-    from tqdm import tqdm
+    with _connect(scheduler) if scheduler else contextlib.nullcontext() as client:  # before writing
+        _prepare(cfg, plan, out, resume)
+        todo = [s for s in plan if not _part_path(out, s.frame_id).exists()]
+        log.info("%d of %d frames to render into %s (%s)", len(todo), len(plan), out,
+                 f"scheduler {scheduler}" if scheduler else f"{workers} worker processes")
+        from tqdm import tqdm
 
-    bar = tqdm(total=len(plan), initial=len(plan) - len(todo), unit="frame", disable=None if progress else True,
-               desc=f"render {cfg.name}")
-    runner = _run_dask(cfg, todo, out, scheduler) if scheduler else _run_local(cfg, todo, out, workers)
-    for _ in runner:
-        bar.update(1)
-    bar.close()
+        bar = tqdm(total=len(plan), initial=len(plan) - len(todo), unit="frame",
+                   disable=None if progress else True, desc=f"render {cfg.name}")
+        runner = _run_dask(client, cfg, todo, out) if client is not None else _run_local(cfg, todo, out, workers)
+        for _ in runner:
+            bar.update(1)
+        bar.close()
     fdf, bdf = collect_tables(out, plan)
     write_table(fdf, RunPaths(out).frames, "frames")
     write_table(bdf, RunPaths(out).beacons, "beacons")

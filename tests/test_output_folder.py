@@ -133,21 +133,22 @@ def test_lock_file_records_holder(tmp_path):
 
 
 def test_a_full_disk_in_render_says_the_disk_is_full(tmp_path, monkeypatch, capsys):
-    # OpenCV only says it could not write; the message used to stop there
-    import deckpose.render.dataset as ds
-
+    # the disk fills while a frame's image is written: the error names no file (a write
+    # or fsync), and OpenCV, which used to write the frames, only said that it had failed
     cfg = tmp_path / "job.yaml"
     cfg.write_text("cameras: [{preset: 4mp, size: [64, 48]}]\nheights_m: [30]\n")
-    monkeypatch.setattr(ds.cv2, "imwrite", lambda *_a, **_k: False)
+    real_fsync = os.fsync
 
-    class Full:
-        free = 10
+    def fsync(fd: int) -> None:
+        if f"{os.sep}images{os.sep}" in os.readlink(f"/proc/self/fd/{fd}"):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        real_fsync(fd)
 
-    real = ds.shutil.disk_usage
-    monkeypatch.setattr(ds.shutil, "disk_usage", lambda p: Full if "images" in str(p) else real(p))
+    monkeypatch.setattr(os, "fsync", fsync)
     code = main(["render", str(cfg), "-o", str(tmp_path / "ds"), "--workers", "0", "--no-progress"])
     err = capsys.readouterr().err
     assert code == 1 and "the disk is full" in err and "same command again" in err
+    assert f"{tmp_path / 'ds' / 'images'}" in err, err  # the file it was writing
     assert "Traceback" not in err and err.count("\n") == 1
 
 

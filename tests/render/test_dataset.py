@@ -38,10 +38,18 @@ def _images(ds: Path) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in sorted((ds / "images").glob("*.png"))}
 
 
+def _files(ds: Path) -> dict[str, bytes]:
+    return {p.relative_to(ds).as_posix(): p.read_bytes() for p in sorted(ds.rglob("*")) if p.is_file()}
+
+
 def assert_same_dataset(a: Path, b: Path) -> None:
+    """The same tables and, byte for byte, the same files (images, previews, parts, manifest...)."""
     assert _images(a) == _images(b)
     for t in ("frames.parquet", "beacons.parquet"):
         pd.testing.assert_frame_equal(pd.read_parquet(a / t), pd.read_parquet(b / t))
+    fa, fb = _files(a), _files(b)
+    assert sorted(fa) == sorted(fb)
+    assert [k for k in fa if fa[k] != fb[k]] == []
 
 
 @pytest.fixture(scope="module")
@@ -129,12 +137,110 @@ def test_resume_after_sigkill(tmp_path: Path, egl_renderer_factory) -> None:
     assert_same_dataset(out, fresh)
 
 
-def test_dask_local_cluster(reference: Path, tmp_path: Path) -> None:
+_WORKER_WRITES: list[str] = []
+
+
+def _record_writes_under(root: str) -> None:
+    """(Run on a worker.) Record each file or folder this process writes, makes or renames under ``root``.
+
+    An audit hook sees every open, mkdir and rename made through Python, whatever the
+    path is relative to; hooks stay for the life of the process (a worker's).
+    """
+    write_flags = os.O_WRONLY | os.O_RDWR | os.O_CREAT
+
+    def hook(event: str, args: tuple) -> None:
+        if event == "open":
+            path, mode, flags = args
+            if not ((mode is not None and any(c in mode for c in "wax+")) or (mode is None and flags & write_flags)):
+                return
+            paths = [path]
+        elif event == "os.rename":
+            paths = list(args[:2])
+        elif event in ("os.mkdir", "os.remove"):
+            paths = [args[0]]
+        else:
+            return
+        for p in paths:
+            if isinstance(p, (str, bytes, os.PathLike)):
+                full = os.path.abspath(os.fsdecode(p))
+                if full == root or full.startswith(root + os.sep):
+                    _WORKER_WRITES.append(f"{event} {full}")
+
+    sys.addaudithook(hook)
+
+
+def _recorded_writes() -> list[str]:
+    return list(_WORKER_WRITES)
+
+
+@pytest.fixture(scope="module")
+def dask_cluster(tmp_path_factory: pytest.TempPathFactory):
+    """Two worker processes (one thread each) with their scratch space in a folder of their own."""
     distributed = pytest.importorskip("distributed")
-    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True, dashboard_address=None) as lc:
-        ds = render_dataset(config_from_dict(tiny_doc()), tmp_path / "dask", scheduler=lc.scheduler_address,
-                            progress=False)
+    scratch = tmp_path_factory.mktemp("dask-scratch")
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+                                  local_directory=str(scratch)) as lc, distributed.Client(lc) as client:
+        yield lc, client
+
+
+def test_dask_writes_into_a_relative_folder_and_the_workers_need_no_shared_disk(
+        reference: Path, dask_cluster, tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    # the workers used to write the frames into OUT under their own working folders, and
+    # the client then missed OUT/.parts/000000.json (FileNotFoundError)
+    lc, client = dask_cluster
+    here, there = tmp_path / "client", tmp_path / "workers"
+    here.mkdir()
+    there.mkdir()
+    client.run(os.chdir, str(there))
+    client.run(_record_writes_under, str(here))
+    monkeypatch.chdir(here)
+    ds = render_dataset(config_from_dict(tiny_doc()), "ds", scheduler=lc.scheduler_address, progress=False)
+    assert ds == Path("ds")
+    assert_same_dataset(reference, here / "ds")
+    assert list(there.iterdir()) == []  # nothing under the workers' working folder
+    writes = client.run(_recorded_writes)
+    assert len(writes) == 2 and all(w == [] for w in writes.values()), writes  # the client wrote it all
+
+
+def test_dask_run_survives_a_worker_killed_mid_run(reference: Path, dask_cluster, tmp_path: Path,
+                                                    monkeypatch: pytest.MonkeyPatch) -> None:
+    from deckpose.render import dataset
+
+    lc, client = dask_cluster
+    pids = client.run(os.getpid)
+    killed: list[str] = []
+    write_frame = dataset.write_frame
+
+    def kill_a_busy_worker_then_write(out_dir: Path, frame: dataset.EncodedFrame) -> int:
+        if not killed:  # on the first frame back: a worker that is rendering dies
+            busy = [w for w, keys in client.processing().items() if keys and w in pids]
+            assert busy, "no worker was rendering when the first frame came back"
+            os.kill(pids[busy[0]], signal.SIGKILL)
+            killed.append(busy[0])
+        return write_frame(out_dir, frame)
+
+    monkeypatch.setattr(dataset, "write_frame", kill_a_busy_worker_then_write)
+    ds = render_dataset(config_from_dict(tiny_doc()), tmp_path / "dask", scheduler=lc.scheduler_address,
+                        progress=False)
+    assert len(killed) == 1 and killed[0] not in client.run(os.getpid)
     assert_same_dataset(reference, ds)
+
+
+def test_an_unreachable_or_malformed_scheduler_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    dask = pytest.importorskip("dask")
+    pytest.importorskip("distributed")
+    from deckpose.cli import main
+
+    cfg = tmp_path / "job.yaml"
+    cfg.write_text(yaml.safe_dump(tiny_doc()))
+    with dask.config.set({"distributed.comm.timeouts.connect": "1s"}):
+        for address in ("tcp://127.0.0.1:1", "localhost"):
+            out = tmp_path / address.replace(":", "_").replace("/", "_")
+            code = main(["render", str(cfg), "-o", str(out), "--scheduler", address, "--no-progress"])
+            err = capsys.readouterr().err
+            assert code == 2 and "cannot reach the Dask scheduler" in err and address in err, err
+            assert "Traceback" not in err and err.count("\n") == 1
+            assert not (out / "manifest.json").exists()  # nothing written before the scheduler answered
 
 
 def test_osmesa_backend_renders_the_same_scene(reference: Path, tmp_path: Path) -> None:
