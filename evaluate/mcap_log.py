@@ -74,17 +74,12 @@ from scipy.spatial.transform import Rotation
 from deckpose import run_folder as rl
 from deckpose.atomic_io import atomic_path
 from deckpose.camera import CameraModel
+from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH_NS, EPOCH_FLOOR_NS, replay_starts_ns
 from deckpose.errors import InputDataError
 from deckpose.layout import DeckLayout
 from deckpose.preview import PREVIEW_PX, make_preview, preview_size
 from deckpose.preview import preview_scale as _preview_scale
 from deckpose.rotation import R_from_zyx
-
-#: Capture time of motion time 0 for a dataset whose stamps are motion time and whose manifest
-#: gives no ``capture_epoch_ns``: 2024-01-01T00:00:00Z, integer nanoseconds.
-DEFAULT_CAPTURE_EPOCH_NS = 1_704_067_200_000_000_000
-#: Stamps at or after 2000-01-01T00:00:00Z (integer nanoseconds) count as capture times already.
-EPOCH_FLOOR_NS = 946_684_800_000_000_000
 
 TRUTH_RGBA = (0.1, 0.9, 0.2, 1.0)
 DETECTION_RGBA = (1.0, 0.3, 0.1, 1.0)
@@ -255,13 +250,12 @@ def log_stamps(frames: pd.DataFrame, epoch_ns: int = DEFAULT_CAPTURE_EPOCH_NS) -
     starts = np.ones(len(order), dtype=bool)
     starts[1:] = (s[1:] <= s[:-1]) | (cam[1:] != cam[:-1]) | (height[1:] != height[:-1])
     replay = np.cumsum(starts) - 1
+    n_replays = int(replay.max()) + 1 if len(order) else 0
+    first = np.array([s[replay == r].min() for r in range(n_replays)], np.int64)
+    last = np.array([s[replay == r].max() for r in range(n_replays)], np.int64)
+    begin = replay_starts_ns(first, last, int(epoch_ns))
     out = pd.Series(0, index=frames.index, dtype=np.int64)
-    offset = int(epoch_ns)
-    for r in range(int(replay.max()) + 1 if len(order) else 0):
-        sel = replay == r
-        st = s[sel]
-        out.loc[order.index[sel]] = st - st[0] + offset
-        offset += int(st[-1] - st[0]) + 1_000_000_000  # one second between replays
+    out.loc[order.index] = s - first[replay] + begin[replay]
     return out
 
 

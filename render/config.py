@@ -27,6 +27,7 @@ from typing import Any
 from deckpose.render.camera_spec import CameraSpec, camera_spec
 
 from deckpose.camera import CameraModel
+from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH, epoch_ns
 from deckpose.errors import ConfigError
 from deckpose.layout import DeckLayout, layout_from_dict, layout_to_dict
 from deckpose.typed_config import check_range, coerce, from_mapping, load_yaml
@@ -192,6 +193,8 @@ class RenderConfig:
     seed: int = 0
     backend: Backend = Backend.EGL
     name: str = "dataset"
+    #: Capture time of the first frame, ISO 8601 with a time zone (:mod:`deckpose.capture_time`).
+    capture_epoch: str = DEFAULT_CAPTURE_EPOCH
 
     def deck_half_size_m(self) -> float:
         """Half the side of the square deck plate, metres."""
@@ -258,6 +261,7 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
                                  else "a list of camera heights, metres"))
     cfg = from_mapping(RenderConfig, doc, f"{source}:", convert=_SECTIONS)
     check_range(cfg.seed, f"{source}: seed", low=0)
+    epoch_ns(cfg.capture_epoch, f"{source}: capture_epoch")  # a time with a zone, this century
     half = cfg.deck_half_size_m()
     if half <= cfg.layout.radius_m + cfg.layout.beacon_radius_m:
         raise ConfigError(f"scene.deck_half_size_m={half} must exceed the ring radius "

@@ -8,6 +8,7 @@ so the images do not depend on how frames are spread over workers.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -15,6 +16,7 @@ import numpy as np
 import pandas as pd
 from deckpose.render.config import Lighting, MotionSource, MotionSpec, RenderConfig
 
+from deckpose.capture_time import epoch_ns, replay_starts_ns
 from deckpose.errors import ConfigError, DeckposeError
 from deckpose.motion import MotionSeries, read_series
 from deckpose.motion.thesis_series import thesis_motion_table
@@ -41,6 +43,10 @@ class FrameSpec:
     lighting : Lighting
     seed : int
         Seed of this frame's noise (from the config seed and the frame id).
+    capture_offset_ns : int
+        Capture time of motion time 0 for this frame's replay of the motion series,
+        nanoseconds since the Unix epoch (:mod:`deckpose.capture_time`); 0 = stamps
+        are motion time.
     """
 
     frame_id: int
@@ -51,6 +57,7 @@ class FrameSpec:
     t_s: float
     lighting: Lighting
     seed: int
+    capture_offset_ns: int = 0
 
     @property
     def camera_pose(self) -> CameraPose:
@@ -58,7 +65,8 @@ class FrameSpec:
 
     @property
     def stamp_ns(self) -> int:
-        return round(self.t_s * 1e9)
+        """Capture time, integer nanoseconds since the Unix epoch (motion time when no offset is set)."""
+        return self.capture_offset_ns + round(self.t_s * 1e9)
 
 
 def thesis_series(path: str | Path | None = None) -> MotionSeries:
@@ -176,4 +184,12 @@ def plan_frames(cfg: RenderConfig, series: MotionSeries | None = None) -> list[F
                     fid += 1
     if not frames:
         raise ConfigError("the config yields no frames")
-    return frames
+    return _on_capture_time(frames, len(idx), epoch_ns(cfg.capture_epoch))
+
+
+def _on_capture_time(frames: list[FrameSpec], per_replay: int, epoch: int) -> list[FrameSpec]:
+    """The frames with their replay's capture offset (replays of ``per_replay`` consecutive frames)."""
+    motion_ns = np.array([round(f.t_s * 1e9) for f in frames], np.int64).reshape(-1, per_replay)
+    first, last = motion_ns.min(axis=1), motion_ns.max(axis=1)  # (samples need not be in time order)
+    offsets = np.repeat(replay_starts_ns(first, last, epoch) - first, per_replay)
+    return [dataclasses.replace(f, capture_offset_ns=int(o)) for f, o in zip(frames, offsets)]
