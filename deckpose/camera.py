@@ -1,8 +1,18 @@
-"""Pinhole camera with OpenCV distortion, and the thesis's camera presets.
+"""Pinhole camera with OpenCV distortion (standard or fisheye), and the thesis's camera presets.
 
 Pixels follow OpenCV: ``u`` right, ``v`` down, pixel centres at integer
-coordinates, ``(u, v) = K @ (x/z, y/z, 1)`` before distortion. The camera frame
-is OpenCV's: x right, y down, z along the optical axis.
+coordinates, ``(u, v) = K @ (x_d, y_d, 1)`` with ``(x_d, y_d)`` the distorted
+normalised point of ``(x/z, y/z)``. The camera frame is OpenCV's: x right, y down,
+z along the optical axis.
+
+Distortion models (ROS names):
+
+* ``plumb_bob`` and ``rational_polynomial``: OpenCV's standard model
+  (:func:`cv2.projectPoints`), k1, k2, p1, p2[, k3[, k4, k5, k6]];
+* ``equidistant``: OpenCV's fisheye model (:mod:`cv2.fisheye`, Kannala-Brandt with
+  four coefficients): ``theta = atan(r)``, ``r = |(x/z, y/z)|``,
+  ``theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8)`` and
+  ``(x_d, y_d) = (theta_d / r) (x/z, y/z)``. It is never pinhole, even with k1..k4 = 0.
 """
 
 from __future__ import annotations
@@ -19,12 +29,32 @@ from deckpose.errors import ConfigError, check_shape
 
 FloatArray = NDArray[np.float64]
 
-#: Number of coefficients per OpenCV distortion model name (ROS spelling).
+#: Number of coefficients per distortion model name (ROS spelling), as camera files carry them.
 DISTORTION_MODELS: dict[str, tuple[int, ...]] = {
     "plumb_bob": (5,),
     "rational_polynomial": (8,),
+    "equidistant": (4,),
     "none": (0,),
 }
+
+#: The coefficient counts :class:`CameraModel` takes per model: the files' counts and OpenCV's
+#: shorter forms (plumb_bob's k1, k2, p1, p2; none for no distortion). ``opencv`` is OpenCV's
+#: standard model with thin-prism (12) or tilt (14) terms, which ROS does not name.
+MODEL_COUNTS: dict[str, tuple[int, ...]] = {
+    "plumb_bob": (5, 4, 0),
+    "rational_polynomial": (8, 0),
+    "equidistant": (4,),
+    "opencv": (12, 14),
+}
+
+#: Model of a coefficient count when none is named; a fisheye must be named (``equidistant``).
+_MODEL_OF_COUNT = {0: "plumb_bob", 4: "plumb_bob", 5: "plumb_bob", 8: "rational_polynomial",
+                   12: "opencv", 14: "opencv"}
+
+#: Newton iterations of the undistortion: enough for 1e-12 in normalised units.
+_UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-14)
+#: A fisheye undistortion is kept when re-projecting it lands this close to the pixel, pixels.
+_FISHEYE_BACK_PX = 1e-6
 
 #: The thesis's camera resolutions, (width_px, height_px).
 THESIS_RESOLUTIONS: dict[str, tuple[int, int]] = {
@@ -64,10 +94,15 @@ class CameraModel:
     K : (3, 3) array of float
         Camera matrix ``[[fx, s, cx], [0, fy, cy], [0, 0, 1]]``, pixels.
     dist_coeffs : (D,) array of float
-        OpenCV distortion coefficients, D = 0 (none), 5 (plumb_bob) or 8
-        (rational_polynomial).
+        OpenCV distortion coefficients: D = 0 (none), 4 or 5 (plumb_bob), 8
+        (rational_polynomial), 12 or 14 (OpenCV's thin-prism and tilt terms), or 4
+        (equidistant: k1..k4 of :mod:`cv2.fisheye`).
     name : str
         Free-form label (e.g. ``"8mp-thesis"``).
+    distortion_model : str
+        ROS name of the model: ``plumb_bob``, ``rational_polynomial``, ``equidistant``
+        or ``none`` (stored as ``plumb_bob`` without coefficients); empty (the default)
+        for the standard model the count implies (a fisheye must be named).
     """
 
     width_px: int
@@ -75,6 +110,7 @@ class CameraModel:
     K: FloatArray
     dist_coeffs: FloatArray = field(default_factory=lambda: np.zeros(0))
     name: str = ""
+    distortion_model: str = ""
 
     def __post_init__(self) -> None:
         if int(self.width_px) <= 0 or int(self.height_px) <= 0:
@@ -88,16 +124,31 @@ class CameraModel:
         if not np.allclose(K[2], [0.0, 0.0, 1.0]) or K[1, 0] != 0.0:
             raise ConfigError(f"camera matrix must be upper triangular with K[2] = [0,0,1], got\n{K}")
         d = _readonly(np.ravel(self.dist_coeffs))
-        if d.size not in (0, 4, 5, 8, 12, 14):
-            raise ConfigError(
-                f"distortion needs 0, 4, 5, 8, 12 or 14 coefficients (OpenCV), got {d.size}"
-            )
         if not np.all(np.isfinite(d)):
             raise ConfigError("distortion coefficients must be finite")
+        model = str(self.distortion_model).strip().lower()
+        if model == "none":
+            if np.any(d != 0.0):
+                raise ConfigError(f"distortion model none takes no coefficients, got {d.size} non-zero ones")
+            model, d = "plumb_bob", _readonly(np.zeros(0))
+        if not model:
+            if d.size not in _MODEL_OF_COUNT:
+                raise ConfigError(
+                    f"distortion needs 0, 4, 5, 8, 12 or 14 coefficients (OpenCV), got {d.size}"
+                )
+            model = _MODEL_OF_COUNT[d.size]
+        if model not in MODEL_COUNTS:
+            raise ConfigError(
+                f"unknown distortion model {model!r}; use one of {', '.join([*DISTORTION_MODELS])}"
+            )
+        if d.size not in MODEL_COUNTS[model]:
+            counts = " or ".join(map(str, sorted(MODEL_COUNTS[model])))
+            raise ConfigError(f"distortion model {model} takes {counts} coefficients, got {d.size}")
         object.__setattr__(self, "width_px", int(self.width_px))
         object.__setattr__(self, "height_px", int(self.height_px))
         object.__setattr__(self, "K", K)
         object.__setattr__(self, "dist_coeffs", d)
+        object.__setattr__(self, "distortion_model", model)
 
     @property
     def fx(self) -> float:
@@ -116,16 +167,14 @@ class CameraModel:
         return float(self.K[1, 2])
 
     @property
-    def has_distortion(self) -> bool:
-        return bool(np.any(self.dist_coeffs != 0.0))
+    def is_fisheye(self) -> bool:
+        """The equidistant (:mod:`cv2.fisheye`) model."""
+        return self.distortion_model == "equidistant"
 
     @property
-    def distortion_model(self) -> str:
-        """ROS name of the distortion model."""
-        n = self.dist_coeffs.size
-        return {0: "plumb_bob", 4: "plumb_bob", 5: "plumb_bob", 8: "rational_polynomial"}.get(
-            n, "opencv"
-        )
+    def has_distortion(self) -> bool:
+        """Pixels are not ``K @ (x/z, y/z, 1)``: non-zero coefficients, or a fisheye (always)."""
+        return self.is_fisheye or bool(np.any(self.dist_coeffs != 0.0))
 
     def project(self, points_cam: ArrayLike) -> FloatArray:
         """Project camera-frame points to pixels, with distortion.
@@ -146,6 +195,13 @@ class CameraModel:
         if not self.has_distortion:
             xy = P[:, :2] / P[:, 2:3]
             return xy @ self.K[:2, :2].T + self.K[:2, 2]
+        if self.is_fisheye:
+            # cv2.fisheye reads fx, fy, cx, cy from K and the skew from alpha = K[0,1] / fx
+            uv, _ = cv2.fisheye.projectPoints(
+                P.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), self.K, self.dist_coeffs,
+                alpha=self.K[0, 1] / self.K[0, 0],
+            )
+            return uv.reshape(-1, 2).astype(float)
         uv, _ = cv2.projectPoints(
             P.reshape(-1, 1, 3), np.zeros(3), np.zeros(3), self.K, self.dist_coeffs
         )
@@ -161,11 +217,15 @@ class CameraModel:
         Returns
         -------
         (N, 2) array of float, pixels
+            NaN where no ray in front of the camera reaches the pixel (a fisheye pixel
+            beyond the model's range, or one whose ray is 90 degrees or more off axis).
         """
         p = np.asarray(points_px, dtype=float)
         check_shape("points_px", p, (None, 2))
         if not self.has_distortion or p.shape[0] == 0:
             return p.copy()
+        if self.is_fisheye:
+            return self._undistort_fisheye(p)
         criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-12)
         src = p.reshape(-1, 1, 2)
         undistort_iter = getattr(cv2, "undistortPointsIter", None)
@@ -174,6 +234,25 @@ class CameraModel:
         else:  # OpenCV 5 folded the iterative variant into undistortPoints
             out = cv2.undistortPoints(src, self.K, self.dist_coeffs, R=None, P=self.K, criteria=criteria)
         return out.reshape(-1, 2).astype(float)
+
+    def _undistort_fisheye(self, p: FloatArray) -> FloatArray:
+        # K is removed here (cv2.fisheye.undistortPoints ignores the skew K[0,1]); its Newton
+        # solve of theta_d(theta) is checked by projecting back, which also rejects a theta
+        # past 90 degrees (tan changes sign) and pixels beyond a turning point of theta_d.
+        Kinv = np.linalg.inv(self.K)
+        xy_d = p @ Kinv[:2, :2].T + Kinv[:2, 2]
+        eye = np.eye(3)
+        xy = cv2.fisheye.undistortPoints(xy_d.reshape(-1, 1, 2), eye, self.dist_coeffs, R=eye, P=eye,
+                                         criteria=_UNDISTORT_CRITERIA).reshape(-1, 2).astype(float)
+        out = xy @ self.K[:2, :2].T + self.K[:2, 2]
+        with np.errstate(invalid="ignore", over="ignore"):
+            finite = np.isfinite(xy).all(axis=1) & (np.abs(xy) < 1e12).all(axis=1)
+            back = np.full_like(p, np.nan)
+            if finite.any():
+                back[finite] = self.project(np.column_stack([xy[finite], np.ones(int(finite.sum()))]))
+            good = finite & (np.abs(back - p) <= _FISHEYE_BACK_PX).all(axis=1)
+        out[~good] = np.nan
+        return out
 
     def in_image(self, points_px: ArrayLike) -> NDArray[np.bool_]:
         """Whether pixels lie inside the image, ``0 <= u <= W`` and ``0 <= v <= H``."""
@@ -191,7 +270,7 @@ class CameraModel:
         K = self.K.copy()
         K[0] *= sx
         K[1] *= sy
-        return CameraModel(width_px, height_px, K, self.dist_coeffs, self.name)
+        return CameraModel(width_px, height_px, K, self.dist_coeffs, self.name, self.distortion_model)
 
 
 def from_focal_angle(

@@ -7,7 +7,13 @@ Read:
 * a ``CameraInfo`` message as ``ros2 topic echo`` (``width``, ``k``, ``d``) or ROS 1's
   ``rostopic echo`` (``K``, ``D``) print it, the first message of the stream;
 * OpenCV ``FileStorage`` YAML (``%YAML:1.0`` or ``%YAML 1.2``, ``!!opencv-matrix``), as
-  OpenCV's calibration sample writes it, read with :class:`cv2.FileStorage`.
+  OpenCV's calibration sample writes it, read with :class:`cv2.FileStorage`. Such a file
+  names no model: four coefficients are plumb_bob's k1, k2, p1, p2 unless the file says
+  ``fisheye_model: 1`` (the calibration tutorial's fisheye output) or carries a
+  ``distortion_model`` string.
+
+Models: ``plumb_bob``, ``rational_polynomial``, ``equidistant`` (OpenCV's fisheye, also read
+as ``kannala_brandt``) and ``none``.
 
 Written: ROS ``camera_info`` YAML.
 """
@@ -35,6 +41,9 @@ log = logging.getLogger(__name__)
 #: order they are looked for (the calibration sample's first, then common alternatives).
 OPENCV_MATRIX_KEYS = ("camera_matrix", "cameraMatrix", "K", "M1")
 OPENCV_DISTORTION_KEYS = ("distortion_coefficients", "distCoeffs", "dist_coeffs", "D", "D1")
+#: Other names of a distortion model, read as the ROS name (Foxglove's CameraCalibration
+#: calls OpenCV's fisheye model ``kannala_brandt``).
+MODEL_ALIASES = {"kannala_brandt": "equidistant"}
 
 
 def _matrix(doc: dict[str, Any], key: str, rows: int, cols: int | None, source: str) -> np.ndarray:
@@ -67,33 +76,49 @@ def camera_from_dict(doc: object, source: str = "camera_info") -> CameraModel:
     except (TypeError, ValueError) as exc:
         raise CameraFileError(f"{source}: image_width/image_height must be integers") from exc
     K = _matrix(doc, "camera_matrix", 3, 3, source)
-    model = str(doc.get("distortion_model", "plumb_bob"))
+    raw_model = doc.get("distortion_model", "plumb_bob")
+    model = str(raw_model if raw_model is not None else "").strip().lower()
+    model = MODEL_ALIASES.get(model, model)
     dist = np.zeros(0)
     if "distortion_coefficients" in doc:
         dist = _matrix(doc, "distortion_coefficients", 1, None, source).ravel()
-    if model not in ("plumb_bob", "rational_polynomial", "none", "") and dist.size:
-        raise CameraFileError(
-            f"{source}: distortion_model {model!r} is not supported; use plumb_bob or rational_polynomial"
-        )
-    counts = DISTORTION_MODELS.get(model)
-    if model == "plumb_bob" and dist.size == 4:
+    if model not in DISTORTION_MODELS:
+        if dist.size:
+            raise CameraFileError(
+                f"{source}: distortion_model {model!r} is not supported; use plumb_bob, "
+                "rational_polynomial or equidistant (OpenCV's fisheye)")
+        model = "none"
+    if model == "equidistant":
+        if dist.size != 4:
+            raise CameraFileError(
+                f"{source}: distortion_model equidistant takes 4 coefficients (k1..k4 of OpenCV's "
+                f"fisheye model) but distortion_coefficients has {dist.size}" + _count_hint(dist.size))
+    elif not np.any(dist != 0):
+        dist = np.zeros(0)  # zeros of any count: no distortion
+    elif model == "plumb_bob" and dist.size == 4:
         # OpenCV reads four as k1, k2, p1, p2 (k3 = 0), a valid plumb_bob; but a fisheye
         # calibration's k1..k4 mislabelled plumb_bob has four too, and would be misread.
         log.warning("%s: distortion_model plumb_bob with 4 coefficients: read as k1, k2, p1, p2 "
-                    "(k3 = 0); if they come from a fisheye (equidistant) calibration they are "
-                    "k1..k4 of another model, which deckpose does not support", source)
-        counts = (4,)
-    if counts is not None and dist.size and np.any(dist != 0) and dist.size not in counts:
-        fits = [m for m, c in DISTORTION_MODELS.items() if dist.size in c]
+                    "(k3 = 0); if they are k1..k4 of a fisheye calibration, write "
+                    "distortion_model: equidistant", source)
+    elif dist.size not in DISTORTION_MODELS[model]:
+        counts = DISTORTION_MODELS[model]
         raise CameraFileError(
             f"{source}: distortion_model {model} takes {' or '.join(map(str, counts))} "
-            f"coefficients but distortion_coefficients has {dist.size}"
-            + (f"; for {dist.size} write distortion_model: {fits[0]}" if fits else "")
-        )
+            f"coefficients but distortion_coefficients has {dist.size}" + _count_hint(dist.size))
     try:
-        return CameraModel(width, height, K, dist, str(doc.get("camera_name", "")))
+        return CameraModel(width, height, K, dist, str(doc.get("camera_name", "")), model)
     except DeckposeError as exc:
         raise CameraFileError(f"{source}: {exc}") from exc
+
+
+def _count_hint(n: int) -> str:
+    """The fix for a coefficient count the named model does not take."""
+    if n == 4:
+        return ("; for 4 write distortion_model: equidistant (a fisheye's k1..k4) or plumb_bob "
+                "(k1, k2, p1, p2)")
+    fits = [m for m, c in DISTORTION_MODELS.items() if n in c and m != "none"]
+    return f"; for {n} write distortion_model: {fits[0]}" if fits else ""
 
 
 def read_camera_info(path: str | os.PathLike[str]) -> CameraModel:
@@ -155,8 +180,23 @@ def _from_message(doc: object) -> object:
 
 
 def _model_for_count(n: int) -> str:
-    """The distortion model of ``n`` coefficients (plumb_bob for any other count, which is then refused)."""
-    return next((m for m, counts in DISTORTION_MODELS.items() if n in counts), "plumb_bob")
+    """The standard model of ``n`` coefficients (plumb_bob for any other count, which is then refused).
+
+    Never ``equidistant``: a fisheye's four coefficients are told apart only by a model name.
+    """
+    return "rational_polynomial" if n in DISTORTION_MODELS["rational_polynomial"] else "plumb_bob"
+
+
+def _opencv_model(fs: Any, n: int) -> str:
+    """The model of a FileStorage file: its ``distortion_model`` string, ``fisheye_model: 1`` (as
+    OpenCV's calibration tutorial writes a fisheye calibration), or the count's standard model."""
+    named = fs.getNode("distortion_model")
+    if not named.empty() and named.isString():
+        return str(named.string())
+    fisheye = fs.getNode("fisheye_model")
+    if not fisheye.empty() and fisheye.isInt() and int(fisheye.real()) != 0:
+        return "equidistant"
+    return _model_for_count(n)
 
 
 def _is_opencv_storage(text: str) -> bool:
@@ -189,7 +229,7 @@ def _from_opencv_storage(text: str, source: str) -> dict[str, Any]:
             "image_height": int(size[1].real()),
             "camera_matrix": {"rows": int(K_mat.shape[0]), "cols": int(K_mat.shape[1]),
                               "data": [float(x) for x in K_mat.ravel()]},
-            "distortion_model": _model_for_count(d.size),
+            "distortion_model": _opencv_model(fs, int(d.size)),
             "distortion_coefficients": {"rows": 1, "cols": int(d.size), "data": [float(x) for x in d]},
         }
     finally:
