@@ -21,6 +21,7 @@ from deckpose.render.dataset import render_dataset
 
 from deckpose.camera_info import read_camera_info
 from deckpose.errors import ConfigError
+from deckpose.output_folder import LOCK_NAME
 from deckpose.run_folder import DATASET_FORMAT as FORMAT
 
 from .conftest import tiny_doc
@@ -39,7 +40,9 @@ def _images(ds: Path) -> dict[str, bytes]:
 
 
 def _files(ds: Path) -> dict[str, bytes]:
-    return {p.relative_to(ds).as_posix(): p.read_bytes() for p in sorted(ds.rglob("*")) if p.is_file()}
+    """Every file of a dataset but the lock (a killed ``deckpose render`` leaves its own)."""
+    return {p.relative_to(ds).as_posix(): p.read_bytes() for p in sorted(ds.rglob("*"))
+            if p.is_file() and p.name != LOCK_NAME}
 
 
 def assert_same_dataset(a: Path, b: Path) -> None:
