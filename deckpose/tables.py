@@ -1,10 +1,13 @@
 """Tabular files (CSV or Parquet, chosen by extension): read with clear errors, write atomically.
 
 A Parquet file carries, in its key-value metadata under ``deckpose``, what it holds
-(``kind``), the table format and deckpose version that wrote it, and each column's
-unit. Units are read off the column names, which carry them by the project's
-convention (``roll_deg``, ``height_m``, ``u_px``, ``stamp_ns``); a column without a
-unit suffix is a count, an id, a flag or a name.
+(``kind``), the table format and deckpose version that wrote it, each column's unit and,
+for the kinds :data:`SCHEMAS` documents, each column's description. Units come from the
+kind's schema (:mod:`deckpose.table_schemas`) and otherwise off the column names, which
+carry them by the project's convention (``roll_deg``, ``height_m``, ``u_px``,
+``stamp_ns``); a column without a unit is a count, an id, a flag, a ratio or a name.
+A kind in :data:`FIXED_KINDS` (the estimates) is written with exactly its schema's
+columns, order and types, or not at all.
 """
 
 from __future__ import annotations
@@ -12,20 +15,40 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pandas as pd
 
 from deckpose.atomic_io import atomic_path
 from deckpose.errors import InputDataError
+from deckpose.estimates_schema import ESTIMATE_COLUMNS
+from deckpose.table_schemas import (
+    BEACON_COLUMNS,
+    DETECT_FRAME_COLUMNS,
+    DETECTION_COLUMNS,
+    FRAME_COLUMNS,
+    Column,
+)
+
+if TYPE_CHECKING:
+    import pyarrow as pa
 
 TABLE_SUFFIXES = (".csv", ".parquet", ".pq")
 #: Version of the tables' layout, in each Parquet file's metadata.
-TABLE_FORMAT = "deckpose-table/1"
+TABLE_FORMAT = "deckpose-table/2"
 #: Column-name suffix -> unit (the longest matching suffix wins).
 UNIT_SUFFIXES: dict[str, str] = {
     "_deg": "deg", "_rad": "rad", "_m": "m", "_px": "px", "_px2": "px^2", "_s": "s", "_ns": "ns",
     "_e": "e-", "_dn": "DN", "_m_per_s": "m/s", "_dn_per_e": "DN/e-", "_kn": "kn", "_hz": "Hz",
 }
+
+#: Table kind (``write_table``'s ``what``) -> its documented columns.
+SCHEMAS: dict[str, tuple[Column, ...]] = {
+    "frames": FRAME_COLUMNS, "beacons": BEACON_COLUMNS, "detections": DETECTION_COLUMNS,
+    "detect frames": DETECT_FRAME_COLUMNS, "estimates": ESTIMATE_COLUMNS,
+}
+#: Kinds written with exactly their schema's columns, in order, with its types.
+FIXED_KINDS = frozenset({"estimates"})
 
 
 def column_units(columns: list[str]) -> dict[str, str]:
@@ -67,9 +90,18 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike[str], what: str = "tab
     """Write a table as CSV or Parquet (by extension) via a temporary file and rename.
 
     A Parquet file gets the ``deckpose`` metadata of the module docstring, ``what`` as its kind.
+
+    Raises
+    ------
+    InputDataError
+        ``df`` of a kind in :data:`FIXED_KINDS` lacks a column of its schema, has another, or
+        has them in another order (a programming error: build it with the schema's columns).
     """
     p = Path(path)
     ext = _check_suffix(p, what)
+    schema = SCHEMAS.get(what, ())
+    if what in FIXED_KINDS:
+        _check_columns(df, schema, what)
     with atomic_path(p) as tmp:
         if ext == ".csv":
             df.to_csv(tmp, index=False)
@@ -79,12 +111,36 @@ def write_table(df: pd.DataFrame, path: str | os.PathLike[str], what: str = "tab
 
             from deckpose import __version__
 
-            table = pa.Table.from_pandas(df, preserve_index=False)
-            meta = {"format": TABLE_FORMAT, "kind": what, "deckpose_version": __version__,
-                    "units": column_units([str(c) for c in df.columns])}
+            fixed = arrow_schema(schema) if what in FIXED_KINDS else None
+            table = pa.Table.from_pandas(df, schema=fixed, preserve_index=False)
+            names = [str(c) for c in df.columns]
+            known = {c.name: c for c in schema}
+            units = {n: u for n, u in column_units(names).items() if n not in known}
+            units.update({n: known[n].unit for n in names if n in known and known[n].unit})
+            meta = {"format": TABLE_FORMAT, "kind": what, "deckpose_version": __version__, "units": units,
+                    "descriptions": {n: known[n].description for n in names if n in known}}
             table = table.replace_schema_metadata({**(table.schema.metadata or {}),
                                                    b"deckpose": json.dumps(meta).encode()})
             pq.write_table(table, tmp)
+
+
+def arrow_schema(columns: tuple[Column, ...]) -> pa.Schema:
+    """The Arrow schema of documented columns (every field nullable: a failed row is null)."""
+    import pyarrow as pa
+
+    types = {"int64": pa.int64(), "float64": pa.float64(), "bool": pa.bool_(), "string": pa.string()}
+    return pa.schema([pa.field(c.name, types[c.dtype]) for c in columns])
+
+
+def _check_columns(df: pd.DataFrame, schema: tuple[Column, ...], what: str) -> None:
+    want = [c.name for c in schema]
+    got = [str(c) for c in df.columns]
+    if got != want:
+        missing = [c for c in want if c not in got]
+        extra = [c for c in got if c not in want]
+        raise InputDataError(f"the {what} table must have exactly its schema's columns in order "
+                             f"(deckpose.tables.SCHEMAS); missing {missing[:5]}, unexpected {extra[:5]}"
+                             + ("" if missing or extra else ", order differs"))
 
 
 def table_metadata(path: str | os.PathLike[str]) -> dict[str, object]:

@@ -24,6 +24,7 @@ from deckpose.estimate.least_squares_batch import FrameObservations, levenberg_m
 from deckpose.estimate.observations import Observations
 from deckpose.estimate.pose_model import relative_from_params
 
+from deckpose.estimates_schema import MAX_OUTLIER_IDS
 from deckpose.records import POSE_PARAMS, PoseEstimate
 from deckpose.rotation import wrap_angle_rad
 
@@ -282,7 +283,7 @@ def make_estimate(
     """Assemble the estimate with covariance, sigmas, reprojection RMS and honest flags."""
     base = {"n_points": float(len(obs)), "n_ignored": float(obs.n_ignored),
             "n_outliers_removed": float(len(removed)), "refined": float(refined)}
-    for k, i in enumerate(removed[:8]):
+    for k, i in enumerate(removed[:MAX_OUTLIER_IDS]):
         base[f"outlier_id_{k}"] = float(i)
     if isinstance(result, str):
         return PoseEstimate.failed(method, result, **base)

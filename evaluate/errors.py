@@ -90,7 +90,7 @@ def frame_errors(frames: pd.DataFrame, estimates: pd.DataFrame) -> pd.DataFrame:
     out["height_err_m"] = e["height_m"].to_numpy(float) - true_height
     out["surge_err_m"] = e["surge_m"].to_numpy(float) - (t["surge_m"] - t["cam_x_m"]).to_numpy(float)
     out["sway_err_m"] = e["sway_m"].to_numpy(float) - (t["sway_m"] - t["cam_y_m"]).to_numpy(float)
-    if "thesis_roll_deg" in e.columns:
+    if "thesis_roll_deg" in e.columns and e["thesis_roll_deg"].notna().any():  # (null for other methods)
         for q in ("roll", "pitch", "yaw"):
             out[f"thesis_{q}_err_deg"] = _wrap_deg(e[f"thesis_{q}_deg"].to_numpy(float) - t[f"thesis_{q}_deg"].to_numpy(float))
     for c in e.columns:

@@ -14,9 +14,9 @@ def test_a_parquet_table_carries_its_kind_version_and_units(tmp_path):
                        "u_px": [1.5, 2.5], "stamp_ns": [0, 10], "spot_flux_e": [3e3, 4e3],
                        "sea_drift_m_per_s": [0.1, 0.2], "ok": [True, False]})
     path = tmp_path / "t.parquet"
-    write_table(df, path, "estimates")
+    write_table(df, path, "motion series")
     meta = table_metadata(path)
-    assert meta["format"] == TABLE_FORMAT and meta["kind"] == "estimates"
+    assert meta["format"] == TABLE_FORMAT and meta["kind"] == "motion series"
     assert meta["deckpose_version"] == __version__
     assert meta["units"] == {"roll_deg": "deg", "height_m": "m", "u_px": "px", "stamp_ns": "ns",
                              "spot_flux_e": "e-", "sea_drift_m_per_s": "m/s"}

@@ -150,7 +150,7 @@ def test_posterior_mean_option(setup):
     res = pd.read_csv(out)
     assert res["ok"].all() and (res["posterior_mean"] == 1).all() and (res["refined"] == 1).all()
     for (pose, D), (_, row) in zip(truth, res.iterrows()):
-        assert abs(row.roll_deg - np.degrees(row.ml_roll_rad)) < 0.5 * row.sigma_roll_deg
+        assert abs(row.roll_deg - row.ml_roll_deg) < 0.5 * row.sigma_roll_deg
         assert abs(row.roll_deg - np.degrees(pose.roll_rad)) < 5 * row.sigma_roll_deg
         assert abs(row.height_m - D) < 5 * row.sigma_height_m
 
@@ -188,7 +188,7 @@ def test_frames_that_keep_the_ml_pose_are_counted(setup, capsys, monkeypatch):
                  "--method", "pnp+mean"]) == 0
     assert "6 ok frame(s) kept the maximum-likelihood pose (posterior_mean = 0)" in capsys.readouterr().out
     res = pd.read_csv(tmp / "e.csv")
-    np.testing.assert_allclose(np.radians(res.roll_deg), res.ml_roll_rad, rtol=1e-12)
+    np.testing.assert_allclose(res.roll_deg, res.ml_roll_deg, rtol=1e-12)
 
 
 def test_method_label_names_the_variant(setup, capsys):

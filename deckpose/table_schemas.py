@@ -1,0 +1,151 @@
+"""What each column of the run folder's tables means: name, type, unit, description.
+
+One :class:`Column` per column, one tuple per table kind (the ``kind`` that
+:func:`deckpose.tables.write_table` records). The estimates table's columns are in
+:mod:`deckpose.estimates_schema`; those of the dataset and detection tables are here.
+:func:`deckpose.tables.write_table` puts each known column's unit and description in a
+Parquet file's metadata, so a file explains itself; the estimates table is also held to
+its columns, order and types (the same for every method, so a run's estimates read
+together by glob).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+__all__ = ["BEACON_COLUMNS", "DETECTION_COLUMNS", "DETECT_FRAME_COLUMNS", "FRAME_COLUMNS", "Column",
+           "Dtype", "column", "pandas_dtype"]
+
+#: A column's type: its Arrow/Parquet type (``int64``, ``double``, ``bool``, ``string``).
+Dtype = Literal["int64", "float64", "bool", "string"]
+
+
+@dataclass(frozen=True)
+class Column:
+    """One documented column.
+
+    Attributes
+    ----------
+    name : str
+        The column's name (its unit suffix, if any, agrees with ``unit``).
+    dtype : {"int64", "float64", "bool", "string"}
+        Its Arrow/Parquet type (polars ``Int64``/``Float64``/``Boolean``/``String``,
+        DuckDB ``BIGINT``/``DOUBLE``/``BOOLEAN``/``VARCHAR``).
+    unit : str
+        Unit of its values (``deg``, ``m``, ``px^2``, ``rad m``); empty for counts,
+        ids, flags, ratios and names.
+    description : str
+        One line: what the value is, and where it is null.
+    nullable : bool
+        May be null. Null float values read as NaN in pandas; nullable integer and
+        boolean columns read as pandas ``Int64`` and ``boolean``.
+    extra : str
+        Estimates only: the :attr:`~deckpose.records.PoseEstimate.extras` key the
+        column holds (empty for the record's own fields).
+    """
+
+    name: str
+    dtype: Dtype
+    unit: str
+    description: str
+    nullable: bool = True
+    extra: str = ""
+
+
+def column(name: str, dtype: Dtype, unit: str, description: str, *, nullable: bool = True,
+           extra: str = "") -> Column:
+    """A :class:`Column` (a short spelling for the schema tables)."""
+    return Column(name, dtype, unit, description, nullable, extra)
+
+
+def pandas_dtype(col: Column) -> Literal["Int64", "int64", "boolean", "bool", "object", "float64"]:
+    """The pandas dtype that holds ``col`` (``Int64``/``boolean`` where integers or flags may be null)."""
+    if col.dtype == "int64":
+        return "Int64" if col.nullable else "int64"
+    if col.dtype == "bool":
+        return "boolean" if col.nullable else "bool"
+    return "object" if col.dtype == "string" else "float64"
+
+
+_C = column
+_ROTATION = tuple(
+    _C(f"r{i}{j}", "float64", "", f"R_world_from_cam[{i}, {j}]: the camera's attitude, row {i} column {j} "
+       "(camera axes OpenCV: x right, y down, z along the optical axis)", nullable=False)
+    for i in range(3) for j in range(3))
+
+#: ``frames.parquet``: one row per rendered frame, the ground truth of its scene.
+FRAME_COLUMNS: tuple[Column, ...] = (
+    _C("frame_id", "int64", "", "frame id, unique in the run", nullable=False),
+    _C("image", "string", "", "the frame's image, relative to the run folder", nullable=False),
+    _C("camera", "string", "", "camera name (cameras/<camera>.yaml)", nullable=False),
+    _C("stamp_ns", "int64", "ns", "capture time", nullable=False),
+    _C("t_s", "float64", "s", "time in the sea-state motion series", nullable=False),
+    _C("camera_height_m", "float64", "m", "nominal camera height of the frame's cell", nullable=False),
+    _C("roll_rad", "float64", "rad", "true deck roll (ZYX)", nullable=False),
+    _C("pitch_rad", "float64", "rad", "true deck pitch (ZYX)", nullable=False),
+    _C("yaw_rad", "float64", "rad", "true deck yaw (ZYX)", nullable=False),
+    _C("heave_m", "float64", "m", "true deck-centre displacement along world z (up)", nullable=False),
+    _C("surge_m", "float64", "m", "true deck-centre displacement along world x", nullable=False),
+    _C("sway_m", "float64", "m", "true deck-centre displacement along world y", nullable=False),
+    _C("thesis_roll_deg", "float64", "deg", "true roll in the thesis's convention (R = Rx Ry Rz)", nullable=False),
+    _C("thesis_pitch_deg", "float64", "deg", "true pitch in the thesis's convention", nullable=False),
+    _C("thesis_yaw_deg", "float64", "deg", "true yaw in the thesis's convention", nullable=False),
+    _C("lighting", "string", "", "lighting preset (night, day; synthetic-analytic for analytic spots)",
+       nullable=False),
+    _C("seed", "int64", "", "the frame's noise seed", nullable=False),
+    _C("n_visible", "int64", "", "beacons in the image and facing the camera", nullable=False),
+    *_ROTATION,
+    _C("cam_x_m", "float64", "m", "camera position, world x", nullable=False),
+    _C("cam_y_m", "float64", "m", "camera position, world y", nullable=False),
+    _C("cam_z_m", "float64", "m", "camera position, world z (up)", nullable=False),
+)
+
+#: ``beacons.parquet``: one row per frame x beacon, the true projection and spot model.
+BEACON_COLUMNS: tuple[Column, ...] = (
+    _C("frame_id", "int64", "", "frame id", nullable=False),
+    _C("beacon_id", "int64", "", "layout id (ring 0..n-1 from the bow, counter-clockwise; centre n)",
+       nullable=False),
+    _C("u_px", "float64", "px", "true centre in the distorted image, column (pixel centres at integers)",
+       nullable=False),
+    _C("v_px", "float64", "px", "true centre in the distorted image, row", nullable=False),
+    _C("visible", "bool", "", "in the image and facing the camera", nullable=False),
+    _C("in_image", "bool", "", "in front of the camera and inside the image", nullable=False),
+    _C("facing", "bool", "", "the beacon's lit side faces the camera", nullable=False),
+    _C("apparent_radius_px", "float64", "px", "the beacon's radius in the image"),
+    _C("spot_sigma_px", "float64", "px", "Gaussian-equivalent sigma of the spot's core (null: no spot)"),
+    _C("spot_flux_e", "float64", "e-", "electrons in the spot's core, summed over channels"),
+    _C("spot_background_e", "float64", "e-",
+       "mean background electrons per pixel within 2 sigma of the centre, summed over channels"),
+    _C("spot_peak_e", "float64", "e-", "expected electrons of the brightest pixel in the brightest channel"),
+)
+
+#: ``detections/<detector>.parquet``: one row per frame x detection.
+DETECTION_COLUMNS: tuple[Column, ...] = (
+    _C("frame_id", "int64", "", "frame id", nullable=False),
+    _C("beacon_id", "int64", "", "layout id the detection was identified as; -1 = unassigned", nullable=False),
+    _C("u_px", "float64", "px", "detected centre, distorted image column", nullable=False),
+    _C("v_px", "float64", "px", "detected centre, distorted image row", nullable=False),
+    _C("cov_uu", "float64", "px^2", "the centre's covariance, u-u entry", nullable=False),
+    _C("cov_uv", "float64", "px^2", "the centre's covariance, u-v entry", nullable=False),
+    _C("cov_vv", "float64", "px^2", "the centre's covariance, v-v entry", nullable=False),
+    _C("flux", "float64", "DN", "background-subtracted flux of the spot (digital numbers, summed over pixels)"),
+    _C("size_px", "float64", "px", "Gaussian-equivalent sigma of the spot"),
+    _C("score", "float64", "",
+       "detection confidence: flux over the background noise in the spot's area (signal-to-noise; larger = better)"),
+    _C("detector", "string", "", "the detector's name", nullable=False),
+)
+
+#: ``detections/<detector>.frames.parquet``: one row per frame, the detector's outcome.
+DETECT_FRAME_COLUMNS: tuple[Column, ...] = (
+    _C("frame_id", "int64", "", "frame id", nullable=False),
+    _C("ok", "bool", "", "detection and identification both succeeded", nullable=False),
+    _C("reason", "string", "", "why not (empty when ok)", nullable=False),
+    _C("n_detections", "int64", "", "detections in the frame", nullable=False),
+    _C("seconds", "float64", "s", "wall time of detection and identification"),
+    _C("cpu_seconds", "float64", "s", "CPU time of the same work (this thread)"),
+    _C("n_identified", "int64", "", "detections with a beacon id", nullable=False),
+    _C("camera", "string", "", "camera name"),
+    _C("stamp_ns", "int64", "ns", "capture time"),
+    _C("image", "string", "", "the frame's image, relative to the run folder"),
+)
