@@ -6,6 +6,7 @@ import os
 from dataclasses import dataclass
 
 import numpy as np
+from deckpose.render.lens import MAX_SIDE_PX, raster_camera
 
 from deckpose.camera import CameraModel, PixelForm, from_focal_angle, preset
 from deckpose.errors import ConfigError
@@ -18,7 +19,9 @@ class CameraSpec:
 
     ``size`` re-samples a preset to another resolution keeping its field of view;
     ``focal_angle_deg`` with ``size`` builds a camera from scratch; ``K`` (3x3) with
-    ``size`` gives full intrinsics; ``dist_coeffs`` adds OpenCV lens distortion.
+    ``size`` gives full intrinsics; ``dist_coeffs`` adds OpenCV lens distortion, of the
+    model ``distortion_model`` names (ROS names; empty: the standard model of the count,
+    ``equidistant``: OpenCV's fisheye, k1..k4).
     """
 
     preset: str | None = None
@@ -28,6 +31,7 @@ class CameraSpec:
     K: tuple[float, ...] | None = None
     dist_coeffs: tuple[float, ...] = ()
     name: str | None = None
+    distortion_model: str = ""
 
     def model(self) -> CameraModel:
         """The :class:`CameraModel` this spec describes."""
@@ -51,19 +55,18 @@ class CameraSpec:
             raise ConfigError(f"{where}: needs focal_angle_deg or K besides size")
         if K[0, 1] != 0.0:
             raise ConfigError(f"{where}: the renderer needs zero skew (K[0,1] = 0)")
-        return CameraModel(w, h, K, np.asarray(self.dist_coeffs, float), self.camera_name(w, h))
+        return CameraModel(w, h, K, np.asarray(self.dist_coeffs, float), self.camera_name(w, h),
+                           self.distortion_model)
 
     def camera_name(self, w: int, h: int) -> str:
         if self.name:
             return self.name
         base = self.preset or f"fa{self.focal_angle_deg or 'K'}"
+        if self.distortion_model.strip().lower() == "equidistant":
+            return f"{base}-{w}x{h}-fisheye"
         return f"{base}-{w}x{h}" + ("-dist" if any(self.dist_coeffs) else "")
 
 
-#: Longest frame side the renderer takes, pixels: OpenGL's framebuffer limit on Mesa
-#: (``GL_MAX_RENDERBUFFER_SIZE``; llvmpipe and most GPUs give 16384). The renderer draws
-#: a frame in horizontal tiles, so the width must fit and tall frames get more tiles.
-MAX_SIDE_PX = 16384
 #: Memory one rendered frame needs while the sensor model runs on it, bytes per pixel
 #: (float64 RGB planes and their temporaries; 64 MP frames take about 3 GiB).
 BYTES_PER_PX = 48
@@ -124,7 +127,7 @@ def camera_spec(doc: object, where: str) -> CameraSpec:
         cam = preset(spec.preset)
         _size([cam.width_px, cam.height_px], f"{where}.preset")
     try:
-        spec.model()  # validate now, not in a worker
+        raster_camera(spec.model())  # validate now, not in a worker: the intrinsics and the raster
     except ConfigError as exc:
         if str(exc).startswith(where):
             raise

@@ -13,9 +13,10 @@ from typing import Any
 import numpy as np
 from deckpose.render.beacons import beacon_splats
 from deckpose.render.config import RenderConfig
+from deckpose.render.lens import distort, raster_camera
 from deckpose.render.plan import FrameSpec
 from deckpose.render.scene import DeckRenderer, radiance_scale
-from deckpose.render.sensor import SpotRecord, distort, expose, spot_record
+from deckpose.render.sensor import SpotRecord, expose, spot_record
 
 from deckpose.camera import CameraModel
 from deckpose.projection import BeaconProjection, project_layout
@@ -47,7 +48,7 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
         This process's renderer (its GL context is created on first use).
     """
     cam_pose = spec.camera_pose
-    raster = renderer.render(camera, cam_pose, spec.ship, spec.t_s, spec.lighting)
+    raster = renderer.render(raster_camera(camera), cam_pose, spec.ship, spec.t_s, spec.lighting)
     raster = distort(raster, camera)
     poses = spec.blur_poses or (spec.ship,)
     splats = beacon_splats(cfg.layout, poses, cam_pose, camera, cfg.sensor)

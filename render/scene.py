@@ -40,8 +40,8 @@ from typing import Any
 
 import cv2
 import numpy as np
-from deckpose.render.camera_spec import MAX_SIDE_PX
 from deckpose.render.config import Backend, Lighting, SceneSpec, Shading
+from deckpose.render.lens import MAX_SIDE_PX
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel

@@ -2,9 +2,8 @@
 
 Order of operations for one frame:
 
-1. the rasterised pinhole image is warped to the distorted image with
-   ``cv2.remap`` (map from :func:`cv2.initInverseRectificationMap`: for every
-   distorted pixel, where it comes from in the pinhole image);
+1. the rasterised pinhole image is warped to the distorted image by
+   :func:`deckpose.render.lens.distort` (for every distorted pixel, the raster at its ray);
 2. beacon splats are added at their *distorted* projected centres (so ground
    truth and image agree, see :mod:`deckpose.render.beacons`);
 3. radiance is turned into electrons (``exposure * full_well_e`` for white),
@@ -36,40 +35,12 @@ from deckpose.render.beacons import Splat, add_splats
 from deckpose.render.config import SensorSpec
 from numpy.typing import NDArray
 
-from deckpose.camera import CameraModel
-
 #: Float32 values per processing strip: each of its three work buffers (1 MiB) stays in cache.
 STRIP_ELEMENTS = 2 ** 18
 _LUMA = np.array([0.299, 0.587, 0.114], np.float32)
 # cv2.randu bounds as (1,) arrays (OpenCV's stubs take arrays; a scalar works the same)
 _U_LOW, _U_HIGH = np.array([-1.0]), np.array([1.0])
 _ANGLE_LOW, _ANGLE_HIGH = np.array([0.0]), np.array([2.0 * math.pi])
-
-_MAP_CACHE: dict[tuple[object, ...], tuple[np.ndarray, np.ndarray]] = {}
-
-
-def distortion_maps(camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
-    """Maps for ``cv2.remap`` from the pinhole image to the distorted image (cached per camera)."""
-    key = (camera.width_px, camera.height_px, camera.K.tobytes(), camera.dist_coeffs.tobytes())
-    if key not in _MAP_CACHE:
-        _MAP_CACHE.clear()
-        # Float maps, then OpenCV's compact fixed-point form: asking initInverseRectificationMap
-        # for CV_16SC2 directly returned an uninitialised interpolation table here (OpenCV 5.0).
-        mx, my = cv2.initInverseRectificationMap(
-            camera.K, camera.dist_coeffs, np.eye(3), camera.K, (camera.width_px, camera.height_px),
-            cv2.CV_32FC1)
-        _MAP_CACHE[key] = cv2.convertMaps(mx, my, cv2.CV_16SC2)
-    return _MAP_CACHE[key]
-
-
-def distort(raster: NDArray[np.uint8], camera: CameraModel) -> NDArray[np.uint8]:
-    """Warp a pinhole raster into the camera's distorted image (identity without distortion)."""
-    if not camera.has_distortion:
-        return raster
-    m1, m2 = distortion_maps(camera)
-    return np.asarray(cv2.remap(raster, m1, m2, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE),
-                      dtype=np.uint8)
-
 
 def _mean_lut(scale_e: np.ndarray, dn_per_e: float) -> np.ndarray:
     """Mean DN of every raster value, per channel: a (1, 256, C) float32 ``cv2.LUT`` table."""

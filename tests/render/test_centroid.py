@@ -13,8 +13,9 @@ import numpy as np
 import pytest
 from deckpose.render.beacons import beacon_splats
 from deckpose.render.config import Lighting, SensorSpec
+from deckpose.render.lens import distort, raster_camera
 from deckpose.render.scene import radiance_scale
-from deckpose.render.sensor import distort, expose
+from deckpose.render.sensor import expose
 
 from deckpose.camera import CameraModel
 from deckpose.pose import CameraPose, ShipPose
@@ -59,7 +60,7 @@ def test_noise_free_centroid_matches_projection(egl_renderer_factory, bit_depth:
     errors = []
     for ship in (ShipPose(0.07, -0.05, 0.4, 0.3, 0.4, -0.6), ShipPose(-0.1, 0.08, -1.0, -0.5, -1.2, 0.9)):
         cam_pose = CameraPose.nadir(30.0)
-        raster = distort(renderer.render(base, cam_pose, ship, 0.0, Lighting.NIGHT), base)
+        raster = distort(renderer.render(raster_camera(base), cam_pose, ship, 0.0, Lighting.NIGHT), base)
         scale = radiance_scale(Lighting.NIGHT, cfg.scene.shading)
         splats = beacon_splats(cfg.layout, (ship,), cam_pose, base, sensor)
         rng = np.random.default_rng(0)

@@ -75,12 +75,12 @@ def test_lighting_presets_order_brightness(egl_renderer_factory) -> None:
 def test_distortion_remap_moves_raster_to_the_distorted_projection(egl_renderer_factory) -> None:
     """A small white square rendered pinhole, then warped with cv2.remap: its centroid lands on
     CameraModel.project (distorted) of its centre, not on the pinhole position."""
-    from deckpose.render.sensor import distort
+    from deckpose.render.lens import distort, raster_camera
 
     renderer = egl_renderer_factory(tiny_config())
     K = [[300.0, 0, 201.3], [0, 300.0, 148.8], [0, 0, 1]]
-    pinhole = CameraModel(400, 300, K)
     cam = CameraModel(400, 300, K, [-0.25, 0.08, 0.0, 0.0, 0.0])
+    pinhole = raster_camera(cam)
     pose = CameraPose.nadir(20.0)
     centre = (-6.0, 7.5)  # far off-axis, where the distortion is several pixels
     img = _white_square_image(renderer, pinhole, pose, centre, 0.2, 0.6)
@@ -89,21 +89,72 @@ def test_distortion_remap_moves_raster_to_the_distorted_projection(egl_renderer_
     vv, uu = np.mgrid[0:300, 0:400]
     got = np.array([(warped * uu).sum(), (warped * vv).sum()]) / warped.sum()
     P = (pose.T_cam_from_world @ np.r_[centre, 0.0, 1.0])[None, :3]
-    want, ideal = cam.project(P)[0], pinhole.project(P)[0]
+    want, ideal = cam.project(P)[0], CameraModel(400, 300, K).project(P)[0]
     assert np.linalg.norm(want - ideal) > 3.0
     print(f"\nraster centroid after distortion: {np.linalg.norm(got - want):.3f} px from the projection")
     np.testing.assert_allclose(got, want, atol=0.1)
 
 
-def test_distortion_maps_match_undistort() -> None:
-    """The remap table takes every distorted pixel to CameraModel.undistort of it (1/32 px fixed point)."""
+@pytest.mark.parametrize(("dist", "model"), [([-0.25, 0.08, 0.001, 0.0, 0.0], ""),
+                                             ([0.02, -0.01, 0.003, -0.001], "equidistant")])
+def test_distortion_maps_match_undistort(dist: list[float], model: str) -> None:
+    """The remap table takes every distorted pixel to the raster pixel of CameraModel.undistort of
+    it (1/32 px fixed point), and the raster holds every pixel's ray."""
     import cv2
-    from deckpose.render.sensor import distortion_maps
+    from deckpose.render.lens import distortion_maps, raster_camera
 
-    cam = CameraModel(200, 150, [[150.0, 0, 99.5], [0, 150.0, 74.5], [0, 0, 1]], [-0.25, 0.08, 0.001, 0.0, 0.0])
+    cam = CameraModel(200, 150, [[150.0, 0, 99.5], [0, 150.0, 74.5], [0, 0, 1]], dist, distortion_model=model)
+    pin = raster_camera(cam)
+    assert not pin.has_distortion
     m1, m2 = distortion_maps(cam)
     mx, my = cv2.convertMaps(m1, m2, cv2.CV_32FC1)
     vv, uu = np.mgrid[0:150:7, 0:200:9]
-    src = cam.undistort(np.c_[uu.ravel(), vv.ravel()])
+    ray = (cam.undistort(np.c_[uu.ravel(), vv.ravel()]) - cam.K[:2, 2]) / [cam.fx, cam.fy]  # zero skew
+    src = ray * [pin.fx, pin.fy] + pin.K[:2, 2]
     got = np.c_[mx[vv.ravel(), uu.ravel()], my[vv.ravel(), uu.ravel()]]
     np.testing.assert_allclose(got, src, atol=1 / 32 + 1e-3)
+    assert mx.min() >= 0 and my.min() >= 0 and mx.max() <= pin.width_px - 1 and my.max() <= pin.height_px - 1
+
+
+def test_raster_camera_grows_only_where_the_rays_need_it() -> None:
+    """Pincushion: the camera's own K and size; barrel and fisheye: a larger canvas at the same
+    focal length; a strong fisheye: the focal length lowered to keep the canvas at 4x the image."""
+    from deckpose.render.lens import MAX_RASTER_AREA, raster_camera
+
+    K = [[150.0, 0, 99.5], [0, 150.0, 74.5], [0, 0, 1]]
+    pincushion = raster_camera(CameraModel(200, 150, K, [0.1, 0.0, 0.0, 0.0, 0.0]))
+    assert (pincushion.width_px, pincushion.height_px) == (200, 150)
+    np.testing.assert_array_equal(pincushion.K, K)
+    barrel = raster_camera(CameraModel(200, 150, K, [-0.25, 0.08, 0.0, 0.0, 0.0]))
+    assert barrel.width_px > 200 and barrel.height_px > 150 and barrel.fx == 150.0
+    fisheye = CameraModel(200, 150, [[100.0, 0, 99.5], [0, 100.0, 74.5], [0, 0, 1]], [0.0] * 4,
+                          distortion_model="equidistant")  # corner ray: 125 px / 100 px = 1.25 rad, 72 deg
+    wide = raster_camera(fisheye)  # at f = 100 about 480 x 360 px (tan(1.25 rad) = 3.0), over 4x the image
+    assert 50.0 < wide.fx < 100.0 and wide.width_px * wide.height_px <= MAX_RASTER_AREA * 200 * 150 * 1.05
+
+
+@pytest.mark.parametrize("f_px", [20.0, 40.0])
+def test_raster_camera_refuses_rays_beyond_the_limit(f_px: float) -> None:
+    """A fisheye whose corners see 179 deg (f = 40 px) or 358 deg (f = 20 px) off the axis has no
+    pinhole raster: one line naming the limit."""
+    from deckpose.render.lens import MAX_RAY_ANGLE_DEG, raster_camera
+
+    from deckpose.errors import ConfigError
+
+    cam = CameraModel(200, 150, [[f_px, 0, 99.5], [0, f_px, 74.5], [0, 0, 1]], [0.0] * 4,
+                      distortion_model="equidistant", name="wide")
+    with pytest.raises(ConfigError, match=rf"camera wide: .*90 deg.*up to {MAX_RAY_ANGLE_DEG:g} deg") as err:
+        raster_camera(cam)
+    assert "\n" not in str(err.value)
+
+
+def test_raster_camera_refuses_a_fisheye_past_80_degrees() -> None:
+    """Corners at 85 deg: a pinhole could hold them (tan 85 deg = 11.4 focal lengths) but not usefully."""
+    from deckpose.render.lens import raster_camera
+
+    from deckpose.errors import ConfigError
+
+    f = np.hypot(99.5, 74.5) / np.radians(85.0)  # the corner pixel's radius over its ray angle
+    cam = CameraModel(200, 150, [[f, 0, 99.5], [0, f, 74.5], [0, 0, 1]], [0.0] * 4, distortion_model="equidistant")
+    with pytest.raises(ConfigError, match=r"200x150 equidistant camera: its edge pixels see rays 85\.0 deg off"):
+        raster_camera(cam)
