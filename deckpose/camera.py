@@ -264,6 +264,10 @@ class CameraModel:
             & (p[..., 1] <= self.height_px)
         )
 
+    def pinhole(self) -> CameraModel:
+        """The same ``K`` and size without lens distortion: the camera of undistorted pixels."""
+        return CameraModel(self.width_px, self.height_px, self.K, np.zeros(0), self.name)
+
     def with_size(self, width_px: int, height_px: int) -> CameraModel:
         """The same field of view at another resolution (K scaled per axis)."""
         sx, sy = width_px / self.width_px, height_px / self.height_px

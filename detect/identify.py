@@ -314,6 +314,13 @@ def identify_beacons(
     if N < min_ring:
         return _fail(N, f"only {N} blobs detected; identification needs >= {min_ring} ring beacons")
     pts = camera.undistort(pts_d)
+    usable = np.isfinite(pts).all(axis=1)
+    if not usable.all():  # no ray in front of the camera (a fisheye past 90 deg): never a beacon
+        rgb = None if rgb_flux is None else np.asarray(rgb_flux, dtype=float).reshape(-1, 3)[usable]
+        sub = identify_beacons(pts_d[usable], layout, camera, rgb_flux=rgb, options=options)
+        ids = np.full(N, UNASSIGNED, np.int64)
+        ids[usable] = sub.beacon_ids
+        return Identification(ids, sub.ok, sub.reason)
     on_ring = ransac_ellipse(pts, options, max_inliers=n + 2)
     if on_ring.sum() < min_ring:
         return _fail(

@@ -86,7 +86,7 @@ def flag_off_centre(
         The estimates, a flagged one with ``ok = False``, a reason and its numbers kept.
     """
     out = list(estimates)
-    cam0 = dataclasses.replace(camera, dist_coeffs=np.zeros(0))  # thesis inputs are undistorted
+    cam0 = camera.pinhole()  # thesis inputs are undistorted
     for i, (est, det, ref) in enumerate(zip(estimates, detections, references)):
         if not est.ok or not ref.ok or ref.covariance is None:
             continue

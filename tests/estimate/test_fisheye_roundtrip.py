@@ -79,3 +79,27 @@ def test_noisy_fisheye_pose_errors_match_the_reported_covariance() -> None:
     var = np.var(np.array(z), axis=0)
     # 200 samples: the variance's standard error is sqrt(2/200) = 0.1; 4 of them
     assert np.all(np.abs(var - 1.0) < 0.4), var
+
+
+@pytest.mark.parametrize("method", ["pnp", "conic", "thesis"])
+def test_a_detection_with_no_ray_in_front_is_left_out(method: str) -> None:
+    """A fisheye pixel past 90 deg (this camera's corner) undistorts to NaN: the estimators drop it
+    and fit the rest, frame by frame and batched, as they drop a NaN detection."""
+    from deckpose.records import Detections
+
+    ship, cam_pose = _poses(HEIGHTS_M["fisheye"])[0]
+    det = detections_for(LAYOUT, ship, cam_pose, FISHEYE)
+    assert np.isnan(FISHEYE.undistort(np.array([[2.0, 3.0]]))).all()
+    pts = np.vstack([det.points_px[:-1], [[2.0, 3.0]]])  # the last beacon seen in the corner
+    bad = Detections(pts, det.beacon_ids, det.covariance_px2)
+    opts = EstimateOptions(R_world_from_cam=cam_pose.R_world_from_cam)
+    single = run_estimator(method, bad, FISHEYE, LAYOUT, opts)
+    batched = estimate_batch(method, [bad, det], FISHEYE, LAYOUT, opts)
+    if method == "thesis":  # this deck is off the optical axis, which the thesis method refuses
+        assert all("off-centre" in e.reason for e in (single, *batched))
+        return
+    for e in (single, batched[0]):
+        assert e.ok, e.reason
+        assert len(det) - 1 not in set(np.asarray(e.inliers).tolist())  # the corner point
+        err = pose_error(e, ship, cam_pose)
+        assert np.all(np.abs(err[:3]) < ESTIMATOR_ROUNDTRIP_RAD), err
