@@ -96,6 +96,8 @@ def test_distortion_remap_moves_raster_to_the_distorted_projection(egl_renderer_
 
 
 @pytest.mark.parametrize(("dist", "model"), [([-0.25, 0.08, 0.001, 0.0, 0.0], ""),
+                                             ([-0.2, 0.05, 0.001, 0.0, 0.01, 0.04, -0.01, 0.003],
+                                              "rational_polynomial"),
                                              ([0.02, -0.01, 0.003, -0.001], "equidistant")])
 def test_distortion_maps_match_undistort(dist: list[float], model: str) -> None:
     """The remap table takes every distorted pixel to the raster pixel of CameraModel.undistort of
