@@ -49,9 +49,9 @@ def camera_relpath(name: str) -> str:
     return f"{CAMERAS_DIR}/{name}.yaml"
 
 
-def image_relpath(frame_id: int) -> str:
-    """A frame's image, relative to the run folder (``images/000042.png``)."""
-    return f"{IMAGES_DIR}/{frame_id:06d}.png"
+def image_relpath(frame_id: int, suffix: str = ".png") -> str:
+    """A frame's image, relative to the run folder (``images/000042.png``; ``.zst``: :mod:`deckpose.image_store`)."""
+    return f"{IMAGES_DIR}/{frame_id:06d}{suffix}"
 
 
 def preview_relpath(frame_id: int) -> str:

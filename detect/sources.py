@@ -23,11 +23,12 @@ import numpy as np
 from deckpose.camera import CameraModel
 from deckpose.camera_info import read_camera_info
 from deckpose.errors import InputDataError
+from deckpose.image_store import decode_image
 from deckpose.layout import DeckLayout, layout_from_dict, read_layout
 from deckpose.records import Frame
 from deckpose.run_folder import DATASET_FORMAT, RunPaths
 
-IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg", ".bmp", ".pgm", ".ppm")
+IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg", ".bmp", ".pgm", ".ppm", ".zst")
 
 
 @dataclass(frozen=True)
@@ -170,10 +171,10 @@ def read_image(path: Path) -> np.ndarray | str:
     """Decode an image file (colour as RGB); the reason as a string if it cannot be used."""
     if not path.is_file():
         return f"image file {path} does not exist"
-    data = np.fromfile(path, dtype=np.uint8)
-    img = cv2.imdecode(data, cv2.IMREAD_UNCHANGED) if data.size else None
-    if img is None:
-        return f"cannot decode image {path}: empty, truncated or not an image"
+    try:
+        img = decode_image(path.read_bytes(), str(path))
+    except InputDataError as exc:
+        return str(exc)
     if img.dtype not in (np.uint8, np.uint16):
         return f"image {path} has pixel type {img.dtype}; use 8- or 16-bit images"
     if img.ndim == 3 and img.shape[2] == 4:

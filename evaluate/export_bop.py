@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from deckpose.evaluate.deck_model import DeckMesh, deck_mesh, write_ply
 from deckpose.evaluate.export_frames import ExportFrames, deck_half_size_m, read_export_frames
-from deckpose.evaluate.export_images import ImageMode, place_images
+from deckpose.evaluate.export_images import ImageMode, export_suffix, place_images
 from numpy.typing import ArrayLike
 
 from deckpose.atomic_io import atomic_open
@@ -193,7 +193,7 @@ def write_bop(run: RunPaths, out: str | os.PathLike[str], *, images: ImageMode =
         scene_gt[sid][fid] = [gt[i]]
         src = frames.image_path[i]
         sources.append(src)
-        targets.append(root / SPLIT / f"{sid:06d}" / folder / f"{fid:06d}{src.suffix}")
+        targets.append(root / SPLIT / f"{sid:06d}" / folder / f"{fid:06d}{export_suffix(src)}")
     place_images(sources, targets, images, progress=progress)
     mesh = deck_mesh(frames.layout, deck_half_size_m(frames.manifest, frames.layout))
     model = root / "models" / f"obj_{DECK_OBJ_ID:06d}.ply"

@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 from deckpose.evaluate.export_frames import read_export_frames
-from deckpose.evaluate.export_images import ImageMode, place_images
+from deckpose.evaluate.export_images import ImageMode, export_suffix, place_images
 from numpy.typing import ArrayLike
 
 from deckpose.atomic_io import atomic_open
@@ -151,7 +151,7 @@ def write_coco(run: RunPaths, out: str | os.PathLike[str], *, images: ImageMode 
     frames = read_export_frames(run)
     root = Path(out)
     kps = coco_keypoints(frames.points_px, frames.in_image, frames.facing)
-    rel = [f"{IMAGES_DIR}/{fid:06d}{p.suffix}" for fid, p in zip(frames.frame_id.tolist(),
+    rel = [f"{IMAGES_DIR}/{fid:06d}{export_suffix(p)}" for fid, p in zip(frames.frame_id.tolist(),
                                                                   frames.image_path, strict=True)]
     place_images(list(frames.image_path), [root / r for r in rel], images, progress=progress)
     coco_images, annotations = [], []

@@ -16,8 +16,9 @@ from pathlib import Path
 
 from deckpose.atomic_io import atomic_path
 from deckpose.errors import InputDataError
+from deckpose.image_store import ImageFormat, decode_image, encode_image
 
-__all__ = ["ImageMode", "place_images"]
+__all__ = ["ImageMode", "export_suffix", "place_images"]
 
 
 class ImageMode(enum.Enum):
@@ -29,9 +30,20 @@ class ImageMode(enum.Enum):
     COPY = "copy"
 
 
+def export_suffix(source: Path) -> str:
+    """The suffix of ``source``'s image in an export: its own, but ``.png`` for a ``.zst`` frame.
+
+    A run stored with ``image_format: zstd`` (:mod:`deckpose.image_store`) is exported as
+    PNG, which the formats' tools read; such a frame is always written, never linked.
+    """
+    return ".png" if source.suffix == ImageFormat.ZSTD.suffix else source.suffix
+
+
 def _place(source: Path, target: Path, mode: ImageMode) -> None:
     with atomic_path(target) as tmp:
-        if mode is ImageMode.COPY:
+        if source.suffix == ImageFormat.ZSTD.suffix:
+            tmp.write_bytes(encode_image(decode_image(source.read_bytes(), str(source)), ImageFormat.PNG))
+        elif mode is ImageMode.COPY:
             shutil.copyfile(source, tmp)
         else:
             tmp.unlink()  # atomic_path made a file; the link takes its name, then os.replace

@@ -76,6 +76,7 @@ from deckpose.atomic_io import atomic_path
 from deckpose.camera import CameraModel
 from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH_NS, EPOCH_FLOOR_NS, replay_starts_ns
 from deckpose.errors import InputDataError
+from deckpose.image_store import decode_image
 from deckpose.layout import DeckLayout
 from deckpose.preview import PREVIEW_PX, make_preview, preview_size
 from deckpose.preview import preview_scale as _preview_scale
@@ -154,9 +155,9 @@ def preview_png(run: rl.RunPaths, frame_id: int, image: Path, camera: CameraMode
     stored = run.preview(frame_id)
     if stored_preview_px == preview_px and stored.is_file():
         return stored.read_bytes(), w, h
-    img = cv2.imread(str(image), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise InputDataError(f"cannot read image {image}")
+    if not image.is_file():
+        raise InputDataError(f"cannot read image {image}: no such file")
+    img = decode_image(image.read_bytes(), str(image))
     small = make_preview(img, preview_px)
     ok, png = cv2.imencode(".png", small)
     if not ok:

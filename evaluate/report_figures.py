@@ -19,6 +19,7 @@ from matplotlib.lines import Line2D
 from deckpose import run_folder as rl
 from deckpose.atomic_io import atomic_open
 from deckpose.errors import InputDataError
+from deckpose.image_store import decode_image
 
 __all__ = ["example_frame", "plot_centroid_vs_size", "plot_distributions", "plot_error_vs_height",
            "plot_error_vs_resolution"]
@@ -216,9 +217,10 @@ def plot_centroid_vs_size(ce_by_det: dict[str, pd.DataFrame], path: Path,
 
 def example_frame(run: rl.RunPaths, frame: pd.Series, beacons: pd.DataFrame,
                   dets: dict[str, pd.DataFrame], path: Path, max_px: int = 1200) -> None:
-    img = cv2.imread(str(run.root / frame["image"]), cv2.IMREAD_UNCHANGED)
-    if img is None:
-        raise InputDataError(f"cannot read image {run.root / frame['image']}")
+    image = run.root / frame["image"]
+    if not image.is_file():
+        raise InputDataError(f"cannot read image {image}: no such file")
+    img = decode_image(image.read_bytes(), str(image))
     if img.dtype == np.uint16:
         img = np.right_shift(img, 8).astype(np.uint8)
     if img.ndim == 3:

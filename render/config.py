@@ -29,6 +29,7 @@ from deckpose.render.camera_spec import CameraSpec, camera_spec
 from deckpose.camera import CameraModel
 from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH, epoch_ns
 from deckpose.errors import ConfigError
+from deckpose.image_store import ImageFormat
 from deckpose.layout import DeckLayout, layout_from_dict, layout_to_dict
 from deckpose.typed_config import check_range, coerce, from_mapping, load_yaml
 
@@ -195,6 +196,8 @@ class RenderConfig:
     name: str = "dataset"
     #: Capture time of the first frame, ISO 8601 with a time zone (:mod:`deckpose.capture_time`).
     capture_epoch: str = DEFAULT_CAPTURE_EPOCH
+    #: How frames are stored: ``png`` (any tool reads it) or ``zstd`` (:mod:`deckpose.image_store`).
+    image_format: ImageFormat = ImageFormat.PNG
 
     def deck_half_size_m(self) -> float:
         """Half the side of the square deck plate, metres."""

@@ -46,6 +46,7 @@ from numpy.typing import NDArray
 from deckpose.atomic_io import atomic_open, remove_stale_temps
 from deckpose.camera_info import write_camera_info
 from deckpose.errors import ConfigError
+from deckpose.image_store import encode_image
 from deckpose.layout import layout_to_dict
 from deckpose.output_folder import LOCK_NAME
 from deckpose.preview import PREVIEW_PX, make_preview
@@ -63,9 +64,6 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
-#: PNG settings: the SUB filter at the default zlib level (lossless; same size as OpenCV's
-#: default, about 1.5x faster to encode on noisy frames here).
-PNG_PARAMS: list[int] = [cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_SUB]
 _PACKAGES = ("deckpose", "numpy", "opencv-contrib-python-headless", "scikit-robot-pyrender", "PyOpenGL",
              "trimesh", "pandas", "pyarrow", "dask", "distributed")
 
@@ -92,13 +90,14 @@ def _part_path(out_dir: Path, frame_id: int) -> Path:
 class EncodedFrame:
     """One rendered frame as the bytes of its files: what a worker hands back to be written.
 
-    ``image_png`` is ``images/<frame_id>.png`` (BGR on disk), ``preview_png`` is
+    ``image`` is the file ``part["frame"]["image"]`` names (``images/<frame_id>.png``, BGR
+    on disk, or ``.zst``: :mod:`deckpose.image_store`), ``preview_png`` is
     ``previews/<frame_id>.png`` and ``part`` is the ``.parts/<frame_id>.json`` document
     (the frame's ``frames.parquet`` row and ``beacons.parquet`` rows).
     """
 
     frame_id: int
-    image_png: bytes
+    image: bytes
     preview_png: bytes
     part: dict[str, Any]
 
@@ -127,11 +126,12 @@ def encode_frame(cfg: RenderConfig, spec: FrameSpec) -> EncodedFrame:
         rf = render_frame(cfg, spec, camera, _RENDERERS[key])
     img = rf.frame.image
     bgr = img if img.ndim == 2 else img[..., ::-1]
-    image_png = _png(bgr, PNG_PARAMS, spec.frame_id)
+    image = encode_image(bgr, cfg.image_format)
     # the log's preview, made from the frame in memory (the log would decode the PNG again)
     preview_png = _png(make_preview(bgr, PREVIEW_PX), [], spec.frame_id)
-    part = {"frame": frame_row(rf, image_relpath(spec.frame_id)), "beacons": beacon_rows(rf)}
-    return EncodedFrame(spec.frame_id, image_png, preview_png, part)
+    part = {"frame": frame_row(rf, image_relpath(spec.frame_id, cfg.image_format.suffix)),
+            "beacons": beacon_rows(rf)}
+    return EncodedFrame(spec.frame_id, image, preview_png, part)
 
 
 def _write_bytes(path: Path, data: bytes) -> None:
@@ -150,7 +150,7 @@ def write_frame(out_dir: Path, frame: EncodedFrame) -> int:
     Returns the frame id. A frame is done when its part exists, so a writer killed at
     any moment leaves whole files and, at worst, a frame that ``resume`` renders again.
     """
-    _write_bytes(out_dir / image_relpath(frame.frame_id), frame.image_png)
+    _write_bytes(out_dir / frame.part["frame"]["image"], frame.image)
     _write_bytes(out_dir / preview_relpath(frame.frame_id), frame.preview_png)
     with atomic_open(_part_path(out_dir, frame.frame_id), "w") as fh:
         json.dump(frame.part, fh)

@@ -8,7 +8,12 @@ import pytest
 from deckpose.render.config import config_from_dict
 from deckpose.render.plan import plan_frames
 
-from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH_NS, REPLAY_GAP_NS, epoch_ns, replay_starts_ns
+from deckpose.capture_time import (
+    DEFAULT_CAPTURE_EPOCH_NS,
+    REPLAY_GAP_NS,
+    epoch_ns,
+    replay_starts_ns,
+)
 from deckpose.errors import ConfigError
 
 

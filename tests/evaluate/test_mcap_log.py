@@ -279,8 +279,8 @@ def test_the_log_uses_the_render_stages_previews_and_decodes_no_frame(tmp_path, 
     man = json.loads(run.manifest.read_text())
     run.manifest.write_text(json.dumps({**man, "preview_px": 256}))
     decoded = []
-    real_imread = cv2.imread
-    monkeypatch.setattr(mcap_log.cv2, "imread", lambda *a, **k: decoded.append(a[0]) or real_imread(*a, **k))
+    real_decode = mcap_log.decode_image
+    monkeypatch.setattr(mcap_log, "decode_image", lambda *a, **k: decoded.append(a[1]) or real_decode(*a, **k))
     mcap_log.write_run_log(run, preview_px=256)
     assert decoded == []
     stored = [msg.data for _, msg in _decoded(root, "/camera/image")]
