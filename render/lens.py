@@ -56,8 +56,10 @@ def _key(camera: CameraModel) -> tuple[object, ...]:
 
 def _rays(camera: CameraModel, points_px: NDArray[np.float64]) -> NDArray[np.float64]:
     """Normalised undistorted rays ``(x/z, y/z)`` of image pixels, (N, 2) (NaN where none)."""
-    Kinv = np.linalg.inv(camera.K)
-    return camera.undistort(points_px) @ Kinv[:2, :2].T + Kinv[:2, 2]
+    und = camera.undistort(points_px)
+    y = (und[:, 1] - camera.cy) / camera.fy  # K^-1, written out (a (N,2)@(2,2) matmul is slow)
+    x = (und[:, 0] - camera.cx - camera.K[0, 1] * y) / camera.fx
+    return np.column_stack([x, y])
 
 
 def _edge_px(width_px: int, height_px: int) -> NDArray[np.float64]:
@@ -146,7 +148,8 @@ def distortion_maps(camera: CameraModel) -> tuple[np.ndarray, np.ndarray]:
         for r0 in range(0, H, rows):
             r1 = min(H, r0 + rows)
             vv, uu = np.meshgrid(np.arange(r0, r1, dtype=float), u, indexing="ij")
-            src = _rays(camera, np.c_[uu.ravel(), vv.ravel()]) @ pin.K[:2, :2].T + pin.K[:2, 2]
+            ray = _rays(camera, np.column_stack([uu.ravel(), vv.ravel()]))
+            src = np.column_stack([pin.fx * ray[:, 0] + pin.cx, pin.fy * ray[:, 1] + pin.cy])  # no skew
             src = np.nan_to_num(src, nan=-1.0)  # no ray: the raster's border
             mx[r0:r1] = src[:, 0].reshape(r1 - r0, W)
             my[r0:r1] = src[:, 1].reshape(r1 - r0, W)
