@@ -85,7 +85,7 @@ def _readonly(a: ArrayLike) -> FloatArray:
 
 @dataclass(frozen=True)
 class CameraModel:
-    """Intrinsics of a pinhole camera with optional OpenCV distortion.
+    """Intrinsics of a camera with optional OpenCV lens distortion (standard or fisheye model).
 
     Attributes
     ----------
@@ -129,7 +129,8 @@ class CameraModel:
         model = str(self.distortion_model).strip().lower()
         if model == "none":
             if np.any(d != 0.0):
-                raise ConfigError(f"distortion model none takes no coefficients, got {d.size} non-zero ones")
+                raise ConfigError(f"distortion model none takes no (or only zero) coefficients, got {d.size} "
+                                  "with non-zero ones")
             model, d = "plumb_bob", _readonly(np.zeros(0))
         if not model:
             if d.size not in _MODEL_OF_COUNT:
