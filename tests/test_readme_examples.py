@@ -139,9 +139,12 @@ def test_readme_pipeline_example_runs_as_written(shrunk):
 
 def test_readme_stage_examples_run_as_written(shrunk):
     stages = [c for c in COMMANDS if c.endswith("runs/sweep") or " runs/sweep " in c]
-    assert [c.split()[1] for c in stages] == ["render", "detect", "estimate", "evaluate", "report"]
+    assert [c.split()[1] for c in stages] == ["render", "detect", "estimate", "evaluate", "report", "export",
+                                              "export"]
     for cmd in stages:
         _run(cmd, shrunk)
+    assert (shrunk / "exports" / "sweep_bop" / "models" / "obj_000001.ply").is_file()
+    assert (shrunk / "exports" / "sweep_coco" / "deck_keypoints.json").is_file()
     run = shrunk / "runs" / "sweep"
     assert len(pd.read_parquet(run / "detections" / "cog.parquet").frame_id.unique()) == 8
     assert pd.read_parquet(run / "estimates" / "cog--pnp.parquet").ok.all()
