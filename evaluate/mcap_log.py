@@ -165,6 +165,11 @@ def preview_png(run: rl.RunPaths, frame_id: int, image: Path, camera: CameraMode
     return png.tobytes(), small.shape[1], small.shape[0]
 
 
+#: Foxglove's names of distortion models where they differ from ROS's (``foxglove.CameraCalibration``
+#: knows ``plumb_bob``, ``rational_polynomial`` and ``kannala_brandt``, the equidistant fisheye).
+FOXGLOVE_DISTORTION_MODELS = {"equidistant": "kannala_brandt"}
+
+
 def calibration_msg(camera: CameraModel, scale: float, stamp_ns: int, width: int, height: int) -> CameraCalibration:
     """Calibration of the preview image: K scaled with the image (pixel centres kept)."""
     sx, sy = width / camera.width_px, height / camera.height_px
@@ -176,7 +181,9 @@ def calibration_msg(camera: CameraModel, scale: float, stamp_ns: int, width: int
     P = np.hstack([K, np.zeros((3, 1))])
     D = list(camera.dist_coeffs) if camera.dist_coeffs.size else [0.0] * 5
     return CameraCalibration(timestamp=_ts(stamp_ns), frame_id="camera", width=width, height=height,
-                             distortion_model=camera.distortion_model, D=D, K=list(K.ravel()),
+                             distortion_model=FOXGLOVE_DISTORTION_MODELS.get(camera.distortion_model,
+                                                                             camera.distortion_model),
+                             D=D, K=list(K.ravel()),
                              R=list(np.eye(3).ravel()), P=list(P.ravel()))
 
 

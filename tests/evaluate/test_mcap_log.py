@@ -291,3 +291,17 @@ def test_the_log_uses_the_render_stages_previews_and_decodes_no_frame(tmp_path, 
     for _, msg in _decoded(root, "/camera/image"):
         got = cv2.imdecode(np.frombuffer(msg.data, np.uint8), cv2.IMREAD_UNCHANGED)
         assert max(got.shape[:2]) == 200
+
+
+def test_a_fisheye_calibration_uses_foxgloves_model_name():
+    import numpy as np
+    from deckpose.evaluate.mcap_log import calibration_msg
+
+    from deckpose.camera import CameraModel
+
+    K = np.array([[300.0, 0, 160], [0, 300.0, 120], [0, 0, 1]])
+    fish = CameraModel(320, 240, K, np.array([0.01, -0.002, 0.0, 0.0]), "fish", distortion_model="equidistant")
+    msg = calibration_msg(fish, 0.5, 0, 160, 120)
+    assert msg.distortion_model == "kannala_brandt" and list(msg.D) == [0.01, -0.002, 0.0, 0.0]
+    plain = CameraModel(320, 240, K, np.zeros(5), "plain")
+    assert calibration_msg(plain, 0.5, 0, 160, 120).distortion_model == "plumb_bob"
