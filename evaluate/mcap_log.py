@@ -47,6 +47,7 @@ from typing import Any
 import cv2
 import numpy as np
 import pandas as pd
+from deckpose.evaluate.export_frames import deck_half_size_m
 from deckpose.evaluate.mcap_records import write_records
 from deckpose.evaluate.mcap_scene import (
     ESTIMATE_RGBA,
@@ -77,7 +78,6 @@ from deckpose.camera import CameraModel
 from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH_NS, EPOCH_FLOOR_NS, replay_starts_ns
 from deckpose.errors import InputDataError
 from deckpose.image_store import decode_image
-from deckpose.layout import DeckLayout
 from deckpose.preview import PREVIEW_PX, make_preview, preview_size
 from deckpose.preview import preview_scale as _preview_scale
 from deckpose.rotation import R_from_zyx
@@ -311,16 +311,6 @@ def _finite(d: dict) -> dict:
     return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in d.items()}
 
 
-def _scene_size_m(manifest: dict[str, Any], layout: DeckLayout) -> float:
-    """Half the side of the deck plate: the render config's rule (1.4 x the ring radius by default)."""
-    from deckpose.render import RenderConfig, config_from_dict
-
-    config = manifest.get("config")
-    cfg = (config_from_dict(config, "manifest config") if isinstance(config, dict)
-           else RenderConfig(cameras=(), heights_m=(), layout=layout))
-    return cfg.deck_half_size_m()
-
-
 def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px: int = PREVIEW_PX,
                   errors: pd.DataFrame | None = None, command: Sequence[str] = ()) -> Path:
     """Write the run's MCAP log (atomically) and return its path.
@@ -344,7 +334,7 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
     beacons = rl.read_beacons(run)
     manifest = rl.read_manifest(run)
     layout = rl.read_layout(run)
-    deck_half_m = _scene_size_m(manifest, layout)
+    deck_half_m = deck_half_size_m(manifest, layout)
     camera_names = sorted(frames["camera"].unique())
     cameras = rl.read_cameras(run, camera_names)
     dets = {d: rl.read_detections(run, d) for d in run.detectors()}
