@@ -92,12 +92,22 @@ def evaluate_run(run: rl.RunPaths, *, mcap: bool = True, preview_px: int = PREVI
         fh.write(resolution_markdown(table))
     paths = {"errors": run.errors, "tables": out / "resolution_tables.md"}
     if mcap:
-        from deckpose.evaluate.foxglove_layout import foxglove_layout
-        from deckpose.evaluate.mcap_log import write_run_log
-
-        paths["mcap"] = write_run_log(run, errors=errors, preview_px=preview_px, command=command)
-        layout_path = run.root / "foxglove_layout.json"
-        with atomic_open(layout_path, "w") as fh:
-            json.dump(foxglove_layout(run.detectors(), run.estimate_pairs()), fh, indent=1)
-        paths["layout"] = layout_path
+        paths.update(write_log(run, errors=errors, preview_px=preview_px, command=command))
     return paths
+
+
+def write_log(run: rl.RunPaths, *, errors: pd.DataFrame | None = None, preview_px: int = PREVIEW_PX,
+              command: Sequence[str] = ()) -> dict[str, Path]:
+    """Write the run's MCAP log and its Foxglove layout; return their paths (``mcap``, ``layout``).
+
+    The log attaches the run's report when there is one, so the pipeline writes it after
+    the report. ``errors`` (from :func:`compute_errors`) saves reading them again.
+    """
+    from deckpose.evaluate.foxglove_layout import foxglove_layout
+    from deckpose.evaluate.mcap_log import write_run_log
+
+    mcap = write_run_log(run, errors=errors, preview_px=preview_px, command=command)
+    layout_path = run.root / "foxglove_layout.json"
+    with atomic_open(layout_path, "w") as fh:
+        json.dump(foxglove_layout(run.detectors(), run.estimate_pairs()), fh, indent=1)
+    return {"mcap": mcap, "layout": layout_path}

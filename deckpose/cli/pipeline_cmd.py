@@ -206,14 +206,14 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     from deckpose.estimate.registry import parse_method
     from deckpose.estimate.run import estimate_run
     from deckpose.evaluate.report import write_report
-    from deckpose.evaluate.run import evaluate_run
+    from deckpose.evaluate.run import evaluate_run, write_log
     from deckpose.render.dataset import render_dataset
     from deckpose.run_folder import run_paths
 
     check_names(options)
     say = step or (lambda n, total, text: print(f"[{n}/{total}] {text}", flush=True))
     run_dir = Path(options.run_dir)
-    total = 5 + (options.publish_dir is not None)
+    total = 5 + bool(options.mcap) + (options.publish_dir is not None)
     seconds: dict[str, float] = {}
 
 
@@ -259,8 +259,9 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         log.info("stage estimate: %.1f s", seconds["estimate"])
     t = time.perf_counter()
     if runs("evaluate"):
-        say(4, total, "evaluate against the ground truth" + (", write the MCAP log" if options.mcap else ""))
-        for key, path in evaluate_run(paths, mcap=options.mcap, command=options.command).items():
+        say(4, total, "evaluate against the ground truth")
+        # (the MCAP log is written after the report, which it attaches)
+        for key, path in evaluate_run(paths, mcap=False, command=options.command).items():
             print(f"{key}: {path}")
         seconds["evaluate"] = time.perf_counter() - t
         log.info("stage evaluate: %.1f s", seconds["evaluate"])
@@ -285,10 +286,18 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     print(f"report: {write_report(paths)}")
     out = {"report": paths.report_dir / "report.md", "tables": paths.evaluation_dir / "resolution_tables.md",
            "errors": paths.errors}
+    if options.mcap and runs("evaluate"):
+        t_log = time.perf_counter()
+        say(6, total, "write the MCAP log (with the report attached)")
+        for key, path in write_log(paths, command=options.command).items():
+            print(f"{key}: {path}")
+        record["log_seconds"] = round(time.perf_counter() - t_log, 1)
+        with atomic_open(run_dir / PIPELINE_RECORD, "w") as fh:
+            json.dump(record, fh, indent=2)
     if options.mcap:
         out["mcap"] = paths.mcap
     if options.publish_dir is not None:
-        say(6, total, f"publish the report and tables -> {options.publish_dir}")
+        say(total, total, f"publish the report and tables -> {options.publish_dir}")
         out["published"] = publish_report(run_dir, Path(options.publish_dir))
     print(f"pipeline done in {time.perf_counter() - t_all:.0f} s (report {time.perf_counter() - t:.0f} s)",
           flush=True)

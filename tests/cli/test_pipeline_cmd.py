@@ -41,6 +41,12 @@ def test_pipeline_runs_every_stage_publishes_and_resumes(tmp_path: Path, capsys:
     assert record["methods"] == ["conic", "pnp+mean"] and record["detectors"] == ["cog"]
     assert record["command"][:4] == ["deckpose", "pipeline", str(cfg), str(run)]
     assert set(record["stage_seconds"]) >= {"render", "detect", "estimate", "evaluate"}
+    assert record["log_seconds"] >= 0  # the log is written after the report, which it attaches
+    from mcap.reader import make_reader
+
+    with open(run / "log.mcap", "rb") as fh:
+        attached = {a.name for a in make_reader(fh).iter_attachments()}
+    assert "report/report.md" in attached
     report = (pub / "report.md").read_text()
     assert report.startswith("# deckpose report: tiny\n")  # titled by the config, not the folder
     assert "## How this was made" in report and "config `tiny`" in report and "seed 3" in report
