@@ -199,6 +199,49 @@ def _write_json(path: Path, doc: dict[str, Any]) -> None:
         json.dump(doc, fh, indent=2, sort_keys=False)
 
 
+def _config_mismatch(out: Path, old: object, new: dict[str, Any]) -> str:
+    """Why a dataset cannot be resumed with ``new``: another config, or one an older deckpose wrote."""
+    if isinstance(old, dict):
+        added = sorted(_missing_keys(old, new))
+        if added and _without(new, added) == old:
+            return (f"{out} was rendered by an older deckpose (its config has no {', '.join(added)}); "
+                    "its frames cannot be mixed with this version's: render into a new folder")
+        changed = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
+        return (f"{out} was rendered from another config (differs in {', '.join(changed)}); "
+                "resume needs the same config and seed")
+    return f"{out} was rendered from another config; resume needs the same config and seed"
+
+
+def _missing_keys(old: dict[str, Any], new: dict[str, Any], prefix: str = "") -> list[str]:
+    """Keys (dotted) that ``new`` has and ``old`` lacks, at any depth of nested mappings."""
+    out = []
+    for k, v in new.items():
+        if k not in old:
+            out.append(prefix + k)
+        elif isinstance(v, dict) and isinstance(old[k], dict):
+            out += _missing_keys(old[k], v, f"{prefix}{k}.")
+        elif isinstance(v, list) and isinstance(old[k], list) and len(v) == len(old[k]):
+            for i, (a, b) in enumerate(zip(old[k], v)):
+                if isinstance(a, dict) and isinstance(b, dict):
+                    out += _missing_keys(a, b, f"{prefix}{k}[{i}].")
+    return out
+
+
+def _without(doc: Any, dotted: list[str]) -> Any:
+    """``doc`` without the keys ``dotted`` names (as :func:`_missing_keys` spells them)."""
+    import copy
+    import re
+
+    d = copy.deepcopy(doc)
+    for key in dotted:
+        node: Any = d
+        parts = re.findall(r"[^.\[\]]+|\[\d+\]", key)
+        for part in parts[:-1]:
+            node = node[int(part[1:-1])] if part.startswith("[") else node[part]
+        node.pop(parts[-1], None)
+    return d
+
+
 def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool) -> None:
     run = RunPaths(out)
     manifest = run.manifest
@@ -209,8 +252,9 @@ def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool) 
             raise ConfigError(f"{manifest} is unreadable ({exc}); render into a new folder") from exc
         if not resume:
             raise ConfigError(f"{out} already holds a dataset; pass --resume to finish it or pick a new folder")
-        if old.get("config") != json.loads(json.dumps(config_to_dict(cfg))):
-            raise ConfigError(f"{out} was rendered from another config; resume needs the same config and seed")
+        new = json.loads(json.dumps(config_to_dict(cfg)))
+        if old.get("config") != new:
+            raise ConfigError(_config_mismatch(out, old.get("config"), new))
     elif out.exists() and any(p.name != LOCK_NAME for p in out.iterdir()) and not resume:
         raise ConfigError(f"output folder {out} is not empty; choose a new or empty folder")
     out.mkdir(parents=True, exist_ok=True)

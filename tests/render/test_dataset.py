@@ -313,3 +313,24 @@ def test_the_preview_rule_is_a_block_mean_and_keeps_the_top_8_bits() -> None:
     block_mean = top.reshape(20, 2, 30, 2, 3).mean(axis=(1, 3))
     assert np.max(np.abs(small - block_mean)) <= 0.5 + 1e-9  # INTER_AREA: the mean, rounded
     np.testing.assert_array_equal(make_preview(img16, 4096), top.astype(np.uint8))  # never enlarged
+
+
+def test_resuming_a_dataset_of_an_older_version_says_so(tmp_path: Path) -> None:
+    """A dataset whose manifest config lacks keys this version writes (with any value) is not mixed."""
+    from deckpose.render.dataset import _prepare
+    from deckpose.render.plan import plan_frames
+
+    cfg = config_from_dict(tiny_doc())
+    out = tmp_path / "old"
+    out.mkdir()
+    from deckpose.render.config import config_to_dict
+
+    doc = json.loads(json.dumps(config_to_dict(cfg)))
+    old = {k: v for k, v in doc.items() if k not in ("capture_epoch", "image_format")}
+    old["cameras"] = [{k: v for k, v in c.items() if k != "distortion_model"} for c in doc["cameras"]]
+    (out / "manifest.json").write_text(json.dumps({"format": FORMAT, "config": old}))
+    with pytest.raises(ConfigError, match=r"older deckpose .*capture_epoch.*image_format.*new folder"):
+        _prepare(cfg, plan_frames(cfg), out, resume=True)
+    (out / "manifest.json").write_text(json.dumps({"format": FORMAT, "config": {**doc, "seed": 99}}))
+    with pytest.raises(ConfigError, match=r"another config \(differs in seed\)"):
+        _prepare(cfg, plan_frames(cfg), out, resume=True)
