@@ -100,7 +100,8 @@ def camera_from_dict(doc: object, source: str = "camera_info") -> CameraModel:
         # calibration's k1..k4 mislabelled plumb_bob has four too, and would be misread.
         log.warning("%s: distortion_model plumb_bob with 4 coefficients: read as k1, k2, p1, p2 "
                     "(k3 = 0); if they are k1..k4 of a fisheye calibration, write "
-                    "distortion_model: equidistant", source)
+                    "distortion_model: equidistant (in an OpenCV FileStorage file: fisheye_model: 1)",
+                    source)
     elif dist.size not in DISTORTION_MODELS[model]:
         counts = DISTORTION_MODELS[model]
         raise CameraFileError(

@@ -80,6 +80,11 @@ def read_table(path: str | os.PathLike[str], what: str = "table") -> pd.DataFram
     ext = _check_suffix(p, what)
     if not p.exists():
         raise InputDataError(f"{what} file {p} does not exist")
+    if p.is_dir():
+        inner = sorted(q.name for q in p.glob(f"*{ext}"))
+        inner.sort(key=lambda name: name != f"{what}{ext}")  # (deckpose detect -o DIR writes DIR/detections.parquet)
+        hint = f"; read {p / inner[0]}" if inner else ""
+        raise InputDataError(f"{p} is a folder, not a {what} file{hint}")
     try:
         return pd.read_csv(p) if ext == ".csv" else pd.read_parquet(p)
     except Exception as exc:  # pandas/pyarrow raise many exception types on corrupt files

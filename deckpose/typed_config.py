@@ -214,13 +214,14 @@ def from_mapping(
     """
     if doc is None:
         doc = {}
+    here = where.rstrip(":")  # "job.yaml:" names a file's top level; its messages read "job.yaml: ..."
     if not isinstance(doc, dict):
-        raise ConfigError(f"{where}: expected a mapping of keys, got {_describe(doc)}")
+        raise ConfigError(f"{here}: expected a mapping of keys, got {_describe(doc)}")
     fields = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
     unknown = [k for k in doc if k not in fields]
     if unknown:
         raise ConfigError(
-            f"{where}: unknown key(s) {sorted(map(str, unknown))}; valid keys are {sorted(fields)}"
+            f"{here}: unknown key(s) {sorted(map(str, unknown))}; valid keys are {sorted(fields)}"
         )
     hints = typing.get_type_hints(cls)
     kwargs: dict[str, Any] = {}
@@ -237,7 +238,7 @@ def from_mapping(
         and f.default_factory is dataclasses.MISSING  # type: ignore[misc]
     ]
     if missing:
-        raise ConfigError(f"{where}: required key(s) {missing} missing")
+        raise ConfigError(f"{here}: required key(s) {missing} missing")
     try:
         return cls(**kwargs)
     except ConfigError as exc:  # a check of the record itself: say where it came from

@@ -179,8 +179,9 @@ def detect_frames_with(
     identify_options : IdentifyOptions, keyword-only
     progress : bool, keyword-only
     workers : int, keyword-only
-        Worker processes that decode and detect frames side by side (1 = in this
-        process). The tables are the same for any number, but for the timing columns.
+        Worker processes that decode and detect frames side by side (0 or 1 = in this
+        process, as ``render``'s 0). The tables are the same for any number, but for the
+        timing columns.
 
     Returns
     -------
@@ -189,8 +190,8 @@ def detect_frames_with(
     """
     from tqdm import tqdm
 
-    if workers < 1:
-        raise ConfigError(f"workers must be >= 1, got {workers}")
+    if workers < 0:
+        raise ConfigError(f"workers must be >= 0 (0 or 1: detect in this process), got {workers}")
     det_parts: dict[str, list[pd.DataFrame]] = {d: [] for d in detectors}
     frame_rows: dict[str, list[dict[str, Any]]] = {d: [] for d in detectors}
     desc = f"detect {','.join(detectors)}"
@@ -241,7 +242,7 @@ def _detect_chunks(job: _DetectJob, sources: tuple[FrameSource, ...], workers: i
                    ) -> Iterator[list[_FrameResult]]:
     """Each chunk's per-frame results, in input order, from this process or ``workers`` processes."""
     chunks = [sources[i:i + CHUNK_FRAMES] for i in range(0, len(sources), CHUNK_FRAMES)]
-    if workers == 1 or len(chunks) <= 1:
+    if workers <= 1 or len(chunks) <= 1:
         for c in chunks:
             yield _detect_chunk(job, c)
         return

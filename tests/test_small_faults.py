@@ -54,3 +54,19 @@ def test_a_huge_cell_gives_a_short_message(tmp_path, capsys):
     code = main(["estimate", str(det), "--camera", str(cam), "-o", str(tmp_path / "o.csv")])
     err = capsys.readouterr().err
     assert code == 2 and "v_px" in err and len(err) < 1200 and err.count("\n") == 1
+
+
+def test_a_detect_output_folder_given_as_a_table_names_the_table_in_it(tmp_path):
+    # `deckpose detect FOLDER -o x.parquet` makes a folder; reading it as a table says where the table is
+    import pandas as pd
+    import pytest
+
+    from deckpose.errors import InputDataError
+    from deckpose.tables import read_table
+
+    out = tmp_path / "x.parquet"
+    out.mkdir()
+    pd.DataFrame({"a": [1]}).to_parquet(out / "detect_frames.parquet")
+    pd.DataFrame({"a": [1]}).to_parquet(out / "detections.parquet")
+    with pytest.raises(InputDataError, match=r"is a folder, not a detections file; read .*x\.parquet/detections\.parquet$"):
+        read_table(out, "detections")

@@ -58,7 +58,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[ty
         help="exit 4 when any frame failed (default: 0 when some succeeded, 3 when none did)",
     )
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    add_workers(p, "detection (each decodes and detects its own frames; the tables do not depend on it)")
+    add_workers(p, "detection (each decodes and detects its own frames; the tables do not depend on it)",
+                zero="detect in this process")
     p.set_defaults(func=run)
 
 

@@ -33,7 +33,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         formatter_class=HelpFormatter,
     )
     p.add_argument("detections", type=Path, nargs="?", help="detections table (.csv or .parquet)")
-    p.add_argument("--camera", type=Path, help="ROS camera_info YAML of the camera")
+    p.add_argument("--camera", type=Path, help="the camera: a ROS camera_info YAML, a 'ros2 topic echo' "
+                   "CameraInfo or an OpenCV FileStorage YAML; models plumb_bob, rational_polynomial and "
+                   "equidistant (fisheye; in FileStorage: fisheye_model: 1)")
     p.add_argument("-o", "--output", type=Path, help="output table (.csv or .parquet)")
     p.add_argument("--run", type=Path, help="a run folder: read RUN/detections/DETECTOR.parquet with each "
                    "frame's own camera and write RUN/estimates/DETECTOR--METHOD.parquet (METHOD with its "

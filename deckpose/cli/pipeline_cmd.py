@@ -53,7 +53,7 @@ class PipelineOptions:
         Method labels (an estimator name, optionally ``+refine`` or ``+mean``), each run on
         every detector's detections.
     workers : int
-        Local render and detection worker processes (detection: at least 1).
+        Local render and detection worker processes (0: in this process).
     scheduler : str or None
         Dask scheduler address for the render stage.
     mcap : bool
@@ -242,7 +242,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     if runs("detect"):
         say(2, total, f"detect beacons ({', '.join(options.detectors)})")
         for det in options.detectors:  # a stage whose every frame failed still ran: the report says so
-            res = detect_run(run_dir, det, progress=options.progress, workers=max(1, options.workers))
+            res = detect_run(run_dir, det, progress=options.progress, workers=options.workers)
             print(res.summary())
         seconds["detect"] = time.perf_counter() - t
         log.info("stage detect: %.1f s", seconds["detect"])

@@ -53,6 +53,13 @@ def test_a_plugin_detector_runs_in_the_workers(dataset_of_three_chunks, tmp_path
                                   pd.read_parquet(out2 / "detections.parquet"))
 
 
-def test_workers_below_one_are_refused(dataset_of_three_chunks):
-    with pytest.raises(ConfigError, match="workers must be >= 1"):
-        detect_frames(open_dataset(dataset_of_three_chunks), "cog", workers=0)
+def test_zero_workers_detect_in_this_process_and_negative_ones_are_refused(dataset_of_three_chunks, monkeypatch):
+    import deckpose.detect.run as run_mod
+
+    fs = open_dataset(dataset_of_three_chunks)
+    monkeypatch.setattr("concurrent.futures.ProcessPoolExecutor",
+                        lambda *a, **k: pytest.fail("workers=0 started a process pool"))
+    d0, _ = run_mod.detect_frames(fs, "cog", workers=0)
+    assert len(d0)
+    with pytest.raises(ConfigError, match="workers must be >= 0"):
+        detect_frames(fs, "cog", workers=-1)
