@@ -9,6 +9,15 @@ from typing import Any
 from deckpose.cli.common_options import add_output, add_progress, add_workers, workers
 
 
+def _config_keys() -> list[str]:
+    """The render config's top-level keys, read off its record (the one list of them)."""
+    import dataclasses
+
+    from deckpose.render.config import RenderConfig
+
+    return [f.name for f in dataclasses.fields(RenderConfig)]
+
+
 def register(subparsers: Any) -> None:
     """Add the ``render`` subcommand."""
     p = subparsers.add_parser(
@@ -17,6 +26,8 @@ def register(subparsers: Any) -> None:
         description="Render a dataset: images/, frames.parquet, beacons.parquet, manifest.json. "
                     "Example: deckpose render configs/smoke.yaml datasets/smoke "
                     "('deckpose render' alone renders the embedded smoke config into datasets/smoke)",
+        epilog=f"A config's top-level keys: {', '.join(_config_keys())}; the README's "
+               "'Rendering datasets' section explains each (configs/ has examples).",
     )
     p.add_argument("config", type=Path, nargs="?", default=None,
                    help="render config YAML (see configs/); default: the embedded smoke config")

@@ -17,6 +17,12 @@ def test_render_help(capsys: pytest.CaptureFixture[str]) -> None:
     assert exc.value.code == 0
     out = capsys.readouterr().out
     assert "--workers" in out and "--resume" in out and "--scheduler" in out and "--backend" in out
+    import dataclasses
+
+    from deckpose.render.config import RenderConfig
+
+    flat = " ".join(out.split())
+    assert all(f.name in flat for f in dataclasses.fields(RenderConfig))  # every config key is named
 
 
 def test_bad_config_exits_2_with_a_message(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
