@@ -44,7 +44,6 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 import pandas as pd
 from deckpose.evaluate.export_frames import deck_half_size_m
@@ -77,9 +76,8 @@ from deckpose.atomic_io import atomic_path
 from deckpose.camera import CameraModel
 from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH_NS, EPOCH_FLOOR_NS, replay_starts_ns
 from deckpose.errors import InputDataError
-from deckpose.image_store import decode_image
+from deckpose.image_store import ImageFormat, decode_image, encode_image
 from deckpose.preview import PREVIEW_PX, make_preview, preview_size
-from deckpose.preview import preview_scale as _preview_scale
 from deckpose.rotation import R_from_zyx
 
 TRUTH_RGBA = (0.1, 0.9, 0.2, 1.0)
@@ -138,11 +136,6 @@ def _color(rgba: tuple[float, float, float, float]) -> Color:
     return Color(r=rgba[0], g=rgba[1], b=rgba[2], a=rgba[3])
 
 
-def preview_scale(camera: CameraModel, preview_px: int) -> float:
-    """Downscale factor (<= 1) that brings the long side to at most ``preview_px``."""
-    return _preview_scale(camera.width_px, camera.height_px, preview_px)
-
-
 def preview_png(run: rl.RunPaths, frame_id: int, image: Path, camera: CameraModel, preview_px: int,
                 stored_preview_px: int | None) -> tuple[bytes, int, int]:
     """A frame's preview as PNG bytes with its width and height, pixels.
@@ -159,10 +152,7 @@ def preview_png(run: rl.RunPaths, frame_id: int, image: Path, camera: CameraMode
         raise InputDataError(f"cannot read image {image}: no such file")
     img = decode_image(image.read_bytes(), str(image))
     small = make_preview(img, preview_px)
-    ok, png = cv2.imencode(".png", small)
-    if not ok:
-        raise InputDataError(f"cannot encode the preview of {image}")
-    return png.tobytes(), small.shape[1], small.shape[0]
+    return encode_image(small, ImageFormat.PNG), small.shape[1], small.shape[0]
 
 
 #: Foxglove's names of distortion models where they differ from ROS's (``foxglove.CameraCalibration``
@@ -170,7 +160,7 @@ def preview_png(run: rl.RunPaths, frame_id: int, image: Path, camera: CameraMode
 FOXGLOVE_DISTORTION_MODELS = {"equidistant": "kannala_brandt"}
 
 
-def calibration_msg(camera: CameraModel, scale: float, stamp_ns: int, width: int, height: int) -> CameraCalibration:
+def calibration_msg(camera: CameraModel, stamp_ns: int, width: int, height: int) -> CameraCalibration:
     """Calibration of the preview image: K scaled with the image (pixel centres kept)."""
     sx, sy = width / camera.width_px, height / camera.height_px
     K = camera.K.copy()
@@ -363,12 +353,11 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
             f = int(row["frame_id"])
             ts = int(stamps.iloc[i])
             cam = cameras[row["camera"]]
-            scale = preview_scale(cam, preview_px)
             png, w, h = preview_png(run, f, run.root / row["image"], cam, preview_px, stored_preview_px)
             sx, sy = w / cam.width_px, h / cam.height_px
             log.proto("/camera/image", CompressedImage(timestamp=_ts(ts), frame_id="camera",
                                                        data=png, format="png"), ts)
-            log.proto("/camera/calibration", calibration_msg(cam, scale, ts, w, h), ts)
+            log.proto("/camera/calibration", calibration_msg(cam, ts, w, h), ts)
             b = beacons_by_frame.get(f)
             if b is not None:
                 vis = b[b["visible"].astype(bool)]

@@ -37,16 +37,14 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
-import cv2
 import pandas as pd
 from deckpose.render.config import RenderConfig, config_to_dict, load_config
 from deckpose.render.plan import FrameSpec, plan_frames
-from numpy.typing import NDArray
 
 from deckpose.atomic_io import atomic_open, remove_stale_temps
 from deckpose.camera_info import write_camera_info
 from deckpose.errors import ConfigError
-from deckpose.image_store import encode_image
+from deckpose.image_store import ImageFormat, encode_image
 from deckpose.layout import layout_to_dict
 from deckpose.output_folder import LOCK_NAME
 from deckpose.preview import PREVIEW_PX, make_preview
@@ -102,13 +100,6 @@ class EncodedFrame:
     part: dict[str, Any]
 
 
-def _png(image: NDArray[Any], params: list[int], frame_id: int) -> bytes:
-    ok, buf = cv2.imencode(".png", image, params)
-    if not ok:
-        raise OSError(f"OpenCV could not encode frame {frame_id} as PNG")
-    return buf.tobytes()
-
-
 def encode_frame(cfg: RenderConfig, spec: FrameSpec) -> EncodedFrame:
     """Render one frame and encode its image, preview and ground truth; writes nothing.
 
@@ -128,7 +119,7 @@ def encode_frame(cfg: RenderConfig, spec: FrameSpec) -> EncodedFrame:
     bgr = img if img.ndim == 2 else img[..., ::-1]
     image = encode_image(bgr, cfg.image_format)
     # the log's preview, made from the frame in memory (the log would decode the PNG again)
-    preview_png = _png(make_preview(bgr, PREVIEW_PX), [], spec.frame_id)
+    preview_png = encode_image(make_preview(bgr, PREVIEW_PX), ImageFormat.PNG)
     part = {"frame": frame_row(rf, image_relpath(spec.frame_id, cfg.image_format.suffix)),
             "beacons": beacon_rows(rf)}
     return EncodedFrame(spec.frame_id, image, preview_png, part)

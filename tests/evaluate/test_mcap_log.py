@@ -301,7 +301,7 @@ def test_a_fisheye_calibration_uses_foxgloves_model_name():
 
     K = np.array([[300.0, 0, 160], [0, 300.0, 120], [0, 0, 1]])
     fish = CameraModel(320, 240, K, np.array([0.01, -0.002, 0.0, 0.0]), "fish", distortion_model="equidistant")
-    msg = calibration_msg(fish, 0.5, 0, 160, 120)
+    msg = calibration_msg(fish, 0, 160, 120)
     assert msg.distortion_model == "kannala_brandt" and list(msg.D) == [0.01, -0.002, 0.0, 0.0]
     plain = CameraModel(320, 240, K, np.zeros(5), "plain")
-    assert calibration_msg(plain, 0.5, 0, 160, 120).distortion_model == "plumb_bob"
+    assert calibration_msg(plain, 0, 160, 120).distortion_model == "plumb_bob"
