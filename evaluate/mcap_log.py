@@ -14,7 +14,7 @@ Topics (Foxglove protobuf schemas, zstd-compressed chunks):
   each estimator's deck (:mod:`deckpose.evaluate.mcap_scene`);
 * ``/errors/<detector>--<method>`` (JSON): the per-frame errors, for Foxglove's Plot panel.
 
-Log times (:func:`log_stamps`) are on a capture epoch. A dataset whose ``stamp_ns`` is
+Log times (:func:`deckpose.capture_time.log_stamps`) are on a capture epoch. A dataset whose ``stamp_ns`` is
 already on one (at or after 2000-01-01) is logged at ``stamp_ns``. A rendered dataset's
 ``stamp_ns`` is motion time (from 0), and a run replays one motion series for every
 camera, height and lighting, which repeats stamps; its frames are logged from the
@@ -42,7 +42,6 @@ import json
 import math
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -74,7 +73,7 @@ from scipy.spatial.transform import Rotation
 from deckpose import run_folder as rl
 from deckpose.atomic_io import atomic_path
 from deckpose.camera import CameraModel
-from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH_NS, EPOCH_FLOOR_NS, replay_starts_ns
+from deckpose.capture_time import EPOCH_FLOOR_NS, capture_epoch, log_stamps
 from deckpose.errors import InputDataError
 from deckpose.image_store import ImageFormat, decode_image, encode_image
 from deckpose.preview import PREVIEW_PX, make_preview, preview_size
@@ -214,62 +213,6 @@ def _transform(parent: str, child: str, R: np.ndarray, t: np.ndarray, stamp_ns: 
     return FrameTransform(timestamp=_ts(stamp_ns), parent_frame_id=parent, child_frame_id=child,
                           translation=Vector3(x=float(t[0]), y=float(t[1]), z=float(t[2])),
                           rotation=Quaternion(x=float(x), y=float(y), z=float(z), w=float(w)))
-
-
-def log_stamps(frames: pd.DataFrame, epoch_ns: int = DEFAULT_CAPTURE_EPOCH_NS) -> pd.Series:
-    """Log times, integer nanoseconds since the Unix epoch, one per frame.
-
-    Parameters
-    ----------
-    frames : DataFrame
-        The frames table (``frame_id``, ``camera``, ``camera_height_m``, ``stamp_ns``).
-    epoch_ns : int
-        Capture time of motion time 0, integer nanoseconds since the Unix epoch; used
-        only when the stamps are motion time.
-
-    Returns
-    -------
-    Series of int64, indexed like ``frames``
-        ``stamp_ns`` itself where every stamp is a capture time already (at or after
-        :data:`EPOCH_FLOOR_NS`). Otherwise the stamps are motion time, which a dataset
-        replays for every camera, height and lighting (the render plan nests motion
-        samples innermost): within each (camera, height) group, in frame-id order, a
-        replay ends where ``stamp_ns`` stops increasing; replays are laid end to end
-        from ``epoch_ns``, one second apart, each keeping its own stamp spacing, so
-        the log times are distinct and increase with the frame order.
-    """
-    s_all = frames["stamp_ns"].to_numpy(np.int64)
-    if len(frames) and int(s_all.min()) >= EPOCH_FLOOR_NS:
-        return pd.Series(s_all, index=frames.index, dtype=np.int64)
-    order = frames.sort_values(["camera", "camera_height_m", "frame_id"], kind="stable")
-    s = order["stamp_ns"].to_numpy(np.int64)
-    cam = order["camera"].to_numpy()
-    height = order["camera_height_m"].to_numpy()
-    starts = np.ones(len(order), dtype=bool)
-    starts[1:] = (s[1:] <= s[:-1]) | (cam[1:] != cam[:-1]) | (height[1:] != height[:-1])
-    replay = np.cumsum(starts) - 1
-    n_replays = int(replay.max()) + 1 if len(order) else 0
-    first = np.array([s[replay == r].min() for r in range(n_replays)], np.int64)
-    last = np.array([s[replay == r].max() for r in range(n_replays)], np.int64)
-    begin = replay_starts_ns(first, last, int(epoch_ns))
-    out = pd.Series(0, index=frames.index, dtype=np.int64)
-    out.loc[order.index] = s - first[replay] + begin[replay]
-    return out
-
-
-def capture_epoch(manifest: dict[str, Any]) -> tuple[int, str]:
-    """Capture time of motion time 0 (integer ns since the Unix epoch) and where it came from.
-
-    The manifest's ``capture_epoch_ns`` when it has one (an int at or after
-    :data:`EPOCH_FLOOR_NS`), else :data:`DEFAULT_CAPTURE_EPOCH_NS`.
-    """
-    value = manifest.get("capture_epoch_ns")
-    if value is None:
-        return DEFAULT_CAPTURE_EPOCH_NS, "default"
-    if isinstance(value, bool) or not isinstance(value, int) or value < EPOCH_FLOOR_NS:
-        raise InputDataError(f"manifest capture_epoch_ns must be integer nanoseconds since the Unix epoch, "
-                             f"at or after 2000-01-01, got {value!r}")
-    return value, "manifest"
 
 
 def errors_json_schema(errors: pd.DataFrame, title: str = "deckpose.FrameErrors") -> dict:

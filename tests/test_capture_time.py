@@ -12,6 +12,7 @@ from deckpose.capture_time import (
     DEFAULT_CAPTURE_EPOCH_NS,
     REPLAY_GAP_NS,
     epoch_ns,
+    log_stamps,
     replay_starts_ns,
 )
 from deckpose.errors import ConfigError
@@ -64,8 +65,6 @@ def test_the_default_epoch_and_a_bad_one_in_a_config():
 
 
 def test_the_log_times_are_the_rendered_stamps():
-    from deckpose.evaluate.mcap_log import log_stamps
-
     plan = plan_frames(config_from_dict(_doc()))
     frames = pd.DataFrame({"frame_id": [f.frame_id for f in plan], "camera": [f.camera_name for f in plan],
                            "camera_height_m": [f.height_m for f in plan], "stamp_ns": [f.stamp_ns for f in plan]})

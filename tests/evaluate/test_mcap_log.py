@@ -17,13 +17,7 @@ from deckpose.evaluate.foxglove_layout import (
     foxglove_layout,
     plot_path,
 )
-from deckpose.evaluate.mcap_log import (
-    DEFAULT_CAPTURE_EPOCH_NS,
-    annotations_msg,
-    capture_epoch,
-    log_stamps,
-    write_run_log,
-)
+from deckpose.evaluate.mcap_log import annotations_msg, write_run_log
 from deckpose.evaluate.mcap_scene import camera_entity
 from foxglove_schemas_protobuf.SceneEntityDeletion_pb2 import SceneEntityDeletion
 from mcap.reader import make_reader
@@ -31,6 +25,7 @@ from mcap_protobuf.decoder import DecoderFactory
 
 from deckpose import run_folder as rl
 from deckpose.camera import preset
+from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH_NS, capture_epoch, log_stamps
 from deckpose.errors import InputDataError
 from deckpose.layout import DeckLayout
 from tests.tolerances import ROUNDOFF
