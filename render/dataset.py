@@ -192,15 +192,27 @@ def _write_json(path: Path, doc: dict[str, Any]) -> None:
 
 def _config_mismatch(out: Path, old: object, new: dict[str, Any]) -> str:
     """Why a dataset cannot be resumed with ``new``: another config, or one an older deckpose wrote."""
-    if isinstance(old, dict):
-        added = sorted(_missing_keys(old, new))
-        if added and _without(new, added) == old:
-            return (f"{out} was rendered by an older deckpose (its config has no {', '.join(added)}); "
-                    "its frames cannot be mixed with this version's: render into a new folder")
-        changed = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
-        return (f"{out} was rendered from another config (differs in {', '.join(changed)}); "
-                "resume needs the same config and seed")
-    return f"{out} was rendered from another config; resume needs the same config and seed"
+    if not isinstance(old, dict):
+        return f"{out} was rendered from another config; resume needs the same config and seed"
+    if _is_older_form(old, new):
+        return (f"{out} was rendered by an older deckpose (its config has no "
+                f"{', '.join(sorted(_missing_keys(old, new)))}); its frames cannot be mixed with this "
+                "version's: render into a new folder")
+    changed = sorted(k for k in set(old) | set(new) if old.get(k) != new.get(k))
+    return (f"{out} was rendered from another config (differs in {', '.join(changed)}); "
+            "resume needs the same config and seed")
+
+
+def _is_older_form(old: object, new: object) -> bool:
+    """Whether ``old`` is ``new`` with some keys left out, at any depth (and not ``new`` itself)."""
+    def within(a: object, b: object) -> bool:
+        if isinstance(a, dict) and isinstance(b, dict):
+            return set(a) <= set(b) and all(within(a[k], b[k]) for k in a)
+        if isinstance(a, list) and isinstance(b, list):
+            return len(a) == len(b) and all(within(x, y) for x, y in zip(a, b))
+        return a == b
+
+    return old != new and within(old, new)
 
 
 def _missing_keys(old: dict[str, Any], new: dict[str, Any], prefix: str = "") -> list[str]:
@@ -216,21 +228,6 @@ def _missing_keys(old: dict[str, Any], new: dict[str, Any], prefix: str = "") ->
                 if isinstance(a, dict) and isinstance(b, dict):
                     out += _missing_keys(a, b, f"{prefix}{k}[{i}].")
     return out
-
-
-def _without(doc: Any, dotted: list[str]) -> Any:
-    """``doc`` without the keys ``dotted`` names (as :func:`_missing_keys` spells them)."""
-    import copy
-    import re
-
-    d = copy.deepcopy(doc)
-    for key in dotted:
-        node: Any = d
-        parts = re.findall(r"[^.\[\]]+|\[\d+\]", key)
-        for part in parts[:-1]:
-            node = node[int(part[1:-1])] if part.startswith("[") else node[part]
-        node.pop(parts[-1], None)
-    return d
 
 
 def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool) -> None:
