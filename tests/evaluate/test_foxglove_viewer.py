@@ -16,7 +16,8 @@ import cv2
 import numpy as np
 import pytest
 from deckpose.evaluate.foxglove_layout import IMAGE_PANEL, PLOT_PANEL, SCENE_PANEL
-from deckpose.evaluate.mcap_log import DEFAULT_CAPTURE_EPOCH_NS
+
+from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH_NS
 
 TOOL = Path(__file__).resolve().parents[2] / "tools" / "foxglove_viewer"
 NODE = shutil.which("node")
