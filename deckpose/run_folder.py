@@ -5,7 +5,8 @@ dataset writer, detect, estimate, evaluate, report).
 
 A run folder is a rendered dataset (``deckpose render``) that later stages add to::
 
-    RUN/manifest.json, cameras/, images/, frames.parquet, beacons.parquet   (render)
+    RUN/manifest.json, cameras/, images/, frames.parquet, beacons.parquet,
+        lights.parquet                                                      (render)
     RUN/detections/<detector>.parquet [+ <detector>.frames.parquet]       (deckpose detect)
     RUN/estimates/<detector>--<method>.parquet                             (deckpose estimate --run)
     RUN/evaluation/errors.parquet, resolution_tables.{md,csv}              (deckpose evaluate)
@@ -32,6 +33,7 @@ from deckpose.camera_info import camera_to_dict, read_camera_info
 from deckpose.errors import InputDataError
 from deckpose.layout import DeckLayout, layout_from_dict
 from deckpose.pose import CameraPose, ShipPose
+from deckpose.table_schemas import LIGHT_COLUMNS, typed_frame
 from deckpose.tables import read_table
 
 #: Format of a rendered (or synthetic) dataset, recorded in its manifest.
@@ -82,6 +84,11 @@ class RunPaths:
     @property
     def beacons(self) -> Path:
         return self.root / "beacons.parquet"
+
+    @property
+    def lights(self) -> Path:
+        """Non-beacon lights per frame (render; absent from datasets of earlier versions)."""
+        return self.root / "lights.parquet"
 
     @property
     def cameras_dir(self) -> Path:
@@ -195,6 +202,14 @@ def read_frames(run: RunPaths) -> pd.DataFrame:
 def read_beacons(run: RunPaths) -> pd.DataFrame:
     require_dataset(run)
     return read_table(run.beacons, "beacons table")
+
+
+def read_lights(run: RunPaths) -> pd.DataFrame:
+    """The run's non-beacon lights; an empty table where the dataset records none."""
+    require_dataset(run)
+    if not run.lights.exists():
+        return typed_frame([], LIGHT_COLUMNS)
+    return read_table(run.lights, "lights table")
 
 
 def read_cameras(run: RunPaths, names: list[str] | None = None) -> dict[str, CameraModel]:

@@ -14,6 +14,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Literal
 
+import pandas as pd
+
 __all__ = ["BEACON_COLUMNS", "DETECTION_COLUMNS", "DETECT_FRAME_COLUMNS", "FRAME_COLUMNS", "Column",
            "Dtype", "column", "pandas_dtype"]
 
@@ -68,6 +70,12 @@ def pandas_dtype(col: Column) -> Literal["Int64", "int64", "boolean", "bool", "o
     return "object" if col.dtype == "string" else "float64"
 
 
+def typed_frame(rows: list[dict[str, object]], columns: tuple[Column, ...]) -> pd.DataFrame:
+    """``rows`` as a table with exactly ``columns``, each of its schema's pandas dtype (empty allowed)."""
+    df = pd.DataFrame(rows, columns=[c.name for c in columns])
+    return df.astype({c.name: pandas_dtype(c) for c in columns})
+
+
 _C = column
 _ROTATION = tuple(
     _C(f"r{i}{j}", "float64", "", f"R_world_from_cam[{i}, {j}]: the camera's attitude, row {i} column {j} "
@@ -118,6 +126,22 @@ BEACON_COLUMNS: tuple[Column, ...] = (
     _C("spot_background_e", "float64", "e-",
        "mean background electrons per pixel within 2 sigma of the centre, summed over channels"),
     _C("spot_peak_e", "float64", "e-", "expected electrons of the brightest pixel in the brightest channel"),
+    _C("unit_factor", "float64", "", "the beacon unit's intensity factor (LED tolerance x bow intensity; 1 = nominal)"),
+    _C("occluded_fraction", "float64", "", "fraction of the spot's light hidden by an occluder (0: none; 1: hidden)"),
+    _C("light_u_px", "float64", "px", "centroid of the beacon's light in the image, column (differs from u_px "
+       "where an occluder cuts the spot; null: no light)"),
+    _C("light_v_px", "float64", "px", "centroid of the beacon's light in the image, row"),
+)
+
+#: ``lights.parquet``: one row per frame x non-beacon light (navigation lights, floodlights, glints).
+LIGHT_COLUMNS: tuple[Column, ...] = (
+    _C("frame_id", "int64", "", "frame id", nullable=False),
+    _C("light_id", "int64", "", "the light's index in the frame", nullable=False),
+    _C("kind", "string", "", "port, starboard, masthead, stern, floodlight or glint", nullable=False),
+    _C("u_px", "float64", "px", "projected centre at mid-exposure, distorted image column (null: behind the camera)"),
+    _C("v_px", "float64", "px", "projected centre at mid-exposure, distorted image row"),
+    _C("in_image", "bool", "", "in front of the camera and inside the image", nullable=False),
+    _C("flux_e", "float64", "e-", "electrons in the light's core, summed over channels (0: not drawn)"),
 )
 
 #: ``detections/<detector>.parquet``: one row per frame x detection.

@@ -19,10 +19,11 @@ flat. Motion blur averages the spot over the deck poses of the exposure.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
-from deckpose.render.config import SensorSpec
+from deckpose.render.config import LedSpec, SensorSpec
+from deckpose.render.light import beacon_flux
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -51,6 +52,10 @@ class Splat:
     core_flux : float
         Radiance summed over the core (white = 1 before the colour), radiance x pixels;
         the halo (``halo_fraction`` of the light) is not included.
+    centre_px : (2,) array of float
+        Mean centre ``(u, v)`` of the core over the exposure, pixels.
+    cov_px2 : (2, 2) array of float
+        The core's second-moment matrix over the exposure, px^2 (``sigma_px = det**0.25``).
     """
 
     row0: int
@@ -60,11 +65,14 @@ class Splat:
     beacon_id: int = -1
     sigma_px: float = float("nan")
     core_flux: float = float("nan")
+    centre_px: NDArray[np.float64] = field(default_factory=lambda: np.full(2, np.nan))
+    cov_px2: NDArray[np.float64] = field(default_factory=lambda: np.full((2, 2), np.nan))
 
 
 def _centre_and_jacobian(layout: DeckLayout, ship: ShipPose, camera_pose: CameraPose,
-                         camera: CameraModel) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Projected centres (N,2), Jacobians (N,2,2) px/m of deck (x, y), and a usable mask (N,)."""
+                         camera: CameraModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Projected centres (N,2), Jacobians (N,2,2) px/m of deck (x, y), a usable mask (N,), and
+    the beacons' camera-frame positions (N,3) and the deck normal in the camera frame (3,)."""
     T = T_cam_from_deck(ship, camera_pose)
     P = layout.positions_deck_m()
     d = layout.beacon_radius_m
@@ -73,14 +81,15 @@ def _centre_and_jacobian(layout: DeckLayout, ship: ShipPose, camera_pose: Camera
     P_cam = pts @ T[:3, :3].T + T[:3, 3]
     ok = (P_cam[:, 2] > 1e-6).reshape(-1, 5).all(axis=1)
     n_cam = T[:3, 2]
-    facing = (-(P @ T[:3, :3].T + T[:3, 3])) @ n_cam > 0.0
+    centres_cam = P @ T[:3, :3].T + T[:3, 3]
+    facing = (-centres_cam) @ n_cam > 0.0
     uv = np.full((P_cam.shape[0], 2), np.nan)
     good = np.repeat(ok, 5)
     if good.any():
         uv[good] = camera.project(P_cam[good])
     uv = uv.reshape(-1, 5, 2)
     J = np.stack([(uv[:, 1] - uv[:, 2]) / (2 * d), (uv[:, 3] - uv[:, 4]) / (2 * d)], axis=-1)
-    return uv[:, 0], J, ok & facing
+    return uv[:, 0], J, ok & facing, np.stack([centres_cam, np.broadcast_to(n_cam, centres_cam.shape)])
 
 
 def _gaussian_patch(centre: np.ndarray, cov: np.ndarray, flux: float, row0: int, col0: int,
@@ -93,8 +102,51 @@ def _gaussian_patch(centre: np.ndarray, cov: np.ndarray, flux: float, row0: int,
     return (norm * np.exp(-0.5 * q)).astype(np.float32)
 
 
+def spot_splat(comps: list[tuple[np.ndarray, np.ndarray, float]], rgb: tuple[float, float, float],
+               sensor: SensorSpec, camera: CameraModel, light_id: int = -1) -> Splat | None:
+    """The splat of one light from its exposure components, or None when it misses the image.
+
+    Parameters
+    ----------
+    comps : list of (centre (2,) px, covariance (2, 2) px^2, flux)
+        The light's Gaussian core at each sub-pose of the exposure; ``flux`` is radiance
+        times pixels (white = 1 before the colour), core and halo together.
+    rgb : (3,) floats
+        The light's colour.
+    sensor : SensorSpec
+        Halo fraction and scale.
+    camera : CameraModel
+        Image size.
+    light_id : int
+        :attr:`Splat.beacon_id` (a beacon's layout id; -1 for any other light).
+    """
+    halo_sd = sensor.halo_scale * np.sqrt(max(np.linalg.eigvalsh(cv)[-1] for _, cv, _ in comps))
+    centres = np.array([c for c, _, _ in comps])
+    half = int(np.ceil(4.0 * halo_sd + np.ptp(centres, axis=0).max() / 2 + 1))
+    mid = np.round(centres.mean(axis=0)).astype(int)
+    col0, row0 = int(mid[0] - half), int(mid[1] - half)
+    if col0 + 2 * half < 0 or row0 + 2 * half < 0 or col0 >= camera.width_px or row0 >= camera.height_px:
+        return None
+    n = 2 * half + 1
+    patch = np.zeros((n, n), np.float32)
+    k = len(comps)
+    for c, cov, flux in comps:
+        core = (1.0 - sensor.halo_fraction) * flux / k
+        patch += _gaussian_patch(c, cov, core, row0, col0, n, n)
+        if sensor.halo_fraction > 0:
+            patch += _gaussian_patch(c, cov * sensor.halo_scale ** 2, sensor.halo_fraction * flux / k,
+                                     row0, col0, n, n)
+    core_flux = (1.0 - sensor.halo_fraction) * sum(f for _, _, f in comps) / k
+    spread = centres - centres.mean(axis=0)
+    S = sum(cv for _, cv, _ in comps) / k + spread.T @ spread / k
+    sigma = float(np.linalg.det(S)) ** 0.25
+    return Splat(row0, col0, patch, np.asarray(rgb, np.float32), light_id, sigma, float(core_flux),
+                 centres.mean(axis=0), S)
+
+
 def beacon_splats(layout: DeckLayout, poses: tuple[ShipPose, ...], camera_pose: CameraPose,
-                  camera: CameraModel, sensor: SensorSpec) -> list[Splat]:
+                  camera: CameraModel, sensor: SensorSpec, leds: LedSpec = LedSpec(),
+                  unit_factors: np.ndarray | None = None) -> list[Splat]:
     """Splats of every beacon the camera can see, averaged over ``poses`` (the exposure).
 
     Parameters
@@ -106,6 +158,10 @@ def beacon_splats(layout: DeckLayout, poses: tuple[ShipPose, ...], camera_pose: 
     camera : CameraModel
     sensor : SensorSpec
         PSF width, peak radiance and halo.
+    leds : LedSpec
+        The beacons' light model (:func:`deckpose.render.light.beacon_flux`).
+    unit_factors : (N,) array of float, optional
+        Each unit's intensity factor (:func:`deckpose.render.light.unit_factors`; default 1).
 
     Returns
     -------
@@ -115,39 +171,19 @@ def beacon_splats(layout: DeckLayout, poses: tuple[ShipPose, ...], camera_pose: 
     per_pose = [_centre_and_jacobian(layout, p, camera_pose, camera) for p in poses]
     r = layout.beacon_radius_m
     s2 = sensor.psf_sigma_px ** 2
+    factors = np.ones(layout.n_beacons) if unit_factors is None else np.asarray(unit_factors, float)
+    fluxes = [beacon_flux(layout, camera, sensor, leds, J, geo[0], geo[1][0]) * factors
+              for _, J, _, geo in per_pose]
     out: list[Splat] = []
     for i in range(layout.n_beacons):
         if not all(m[2][i] for m in per_pose):
             continue
-        comps = []
-        for c, J, _ in per_pose:
-            cov = J[i] @ J[i].T * (r * r / 4.0) + s2 * np.eye(2)
-            area_px = np.pi * r * r * abs(np.linalg.det(J[i]))
-            flux = sensor.beacon_peak * layout.intensity * area_px
-            comps.append((c[i], cov, flux))
-        halo_sd = sensor.halo_scale * np.sqrt(max(np.linalg.eigvalsh(cv)[-1] for _, cv, _ in comps))
-        centres = np.array([c for c, _, _ in comps])
-        half = int(np.ceil(4.0 * halo_sd + np.ptp(centres, axis=0).max() / 2 + 1))
-        mid = np.round(centres.mean(axis=0)).astype(int)
-        col0, row0 = int(mid[0] - half), int(mid[1] - half)
-        if col0 + 2 * half < 0 or row0 + 2 * half < 0 or col0 >= camera.width_px or row0 >= camera.height_px:
-            continue
-        n = 2 * half + 1
-        patch = np.zeros((n, n), np.float32)
-        k = len(comps)
-        for c, cov, flux in comps:
-            core = (1.0 - sensor.halo_fraction) * flux / k
-            patch += _gaussian_patch(c, cov, core, row0, col0, n, n)
-            if sensor.halo_fraction > 0:
-                patch += _gaussian_patch(c, cov * sensor.halo_scale ** 2, sensor.halo_fraction * flux / k,
-                                         row0, col0, n, n)
+        comps = [(c[i], J[i] @ J[i].T * (r * r / 4.0) + s2 * np.eye(2), float(f[i]))
+                 for (c, J, _, _), f in zip(per_pose, fluxes)]
         rgb = layout.bow_rgb if i == layout.bow_id else layout.beacon_rgb
-        core_flux = (1.0 - sensor.halo_fraction) * sum(f for _, _, f in comps) / k
-        spread = centres - centres.mean(axis=0)
-        S = sum(cv for _, cv, _ in comps) / k + spread.T @ spread / k
-        sigma = float(np.linalg.det(S)) ** 0.25
-        out.append(Splat(row0, col0, patch, np.asarray(rgb, np.float32), i, sigma,
-                         float(core_flux)))
+        sp = spot_splat(comps, rgb, sensor, camera, i)
+        if sp is not None:
+            out.append(sp)
     return out
 
 

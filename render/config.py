@@ -157,6 +157,113 @@ def _sensor_spec(doc: object, where: str = "sensor") -> SensorSpec:
     return spec
 
 
+class LedModel(enum.Enum):
+    """How a beacon's brightness is modelled (:mod:`deckpose.render.beacons`).
+
+    ``disc``: an emitting disc of constant radiance, so a spot's light is its projected
+    area times the radiance (today's frames). ``point``: an LED of intensity
+    ``I(theta) = I0 cos(theta)**m`` (theta from the deck normal) whose light on the
+    sensor falls with the square of the distance and the aperture's foreshortening.
+    """
+
+    DISC = "disc"
+    POINT = "point"
+
+
+#: Koschmieder's constant: the extinction coefficient is 3.912 / visibility (2 % contrast).
+KOSCHMIEDER = 3.912
+
+
+@dataclass(frozen=True)
+class LedSpec:
+    """Beacons as real lights: emission pattern, unit-to-unit tolerance, extinction.
+
+    ``model`` (:class:`LedModel`); ``emission_exponent`` ``m`` of ``cos(theta)**m``
+    (``point`` only; 1 = Lambertian, ``ln 0.5 / ln cos(half-angle)`` for a lensed
+    LED); ``intensity_tolerance`` ``t``: each unit's intensity is drawn once per
+    dataset from U(1 - t, 1) (from the config seed and the beacon id, so a beacon
+    keeps its brightness in every frame); ``bow_intensity`` scales the bow beacon
+    (a dimmer red unit); ``visibility_km``: Beer–Lambert transmission
+    ``exp(-3.912 d / V)`` over the beacon's distance ``d`` (null: clear air).
+    """
+
+    model: LedModel = LedModel.DISC
+    emission_exponent: float = 1.0
+    intensity_tolerance: float = 0.0
+    bow_intensity: float = 1.0
+    visibility_km: float | None = None
+
+    def extinction_per_m(self) -> float:
+        """Beer–Lambert extinction coefficient, per metre (0 in clear air)."""
+        return 0.0 if self.visibility_km is None else KOSCHMIEDER / (1000.0 * self.visibility_km)
+
+
+def _led_spec(doc: object, where: str = "leds") -> LedSpec:
+    spec = from_mapping(LedSpec, doc, where)
+    check_range(spec.emission_exponent, f"{where}.emission_exponent", low=0)
+    check_range(spec.intensity_tolerance, f"{where}.intensity_tolerance", low=0, high=1, high_open=True)
+    check_range(spec.bow_intensity, f"{where}.bow_intensity", low=0, low_open=True)
+    if spec.visibility_km is not None:
+        check_range(spec.visibility_km, f"{where}.visibility_km", low=0, low_open=True)
+    if spec.model is LedModel.DISC and spec.emission_exponent != 1.0:
+        raise ConfigError(f"{where}.emission_exponent: only the 'point' model has an emission pattern "
+                          "(a constant-radiance disc is Lambertian); set leds.model: point")
+    return spec
+
+
+@dataclass(frozen=True)
+class OcclusionSpec:
+    """Beacons hidden by crew, equipment or spray (:mod:`deckpose.render.occlusion`).
+
+    Each beacon in view is occluded in a frame with ``probability``; an occluder is a
+    straight edge across the spot that hides a fraction of its light drawn from
+    U(``min_fraction``, ``max_fraction``) (1 = wholly hidden). Per frame and beacon the
+    hidden fraction and the centroid of the light left are recorded in ``beacons.parquet``.
+    """
+
+    probability: float = 0.0
+    min_fraction: float = 0.2
+    max_fraction: float = 1.0
+
+
+def _occlusion_spec(doc: object, where: str = "occlusion") -> OcclusionSpec:
+    spec = from_mapping(OcclusionSpec, doc, where)
+    check_range(spec.probability, f"{where}.probability", low=0, high=1)
+    check_range(spec.min_fraction, f"{where}.min_fraction", low=0, low_open=True, high=1)
+    check_range(spec.max_fraction, f"{where}.max_fraction", low=0, low_open=True, high=1)
+    if spec.min_fraction > spec.max_fraction:
+        raise ConfigError(f"{where}: min_fraction {spec.min_fraction} exceeds max_fraction {spec.max_fraction}")
+    return spec
+
+
+@dataclass(frozen=True)
+class ShipLightsSpec:
+    """Lights that are not beacons (:mod:`deckpose.render.ship_lights`), recorded in ``lights.parquet``.
+
+    ``navigation``: the red port and green starboard sidelights, the white masthead and
+    stern lights, on a notional superstructure forward of the deck and at the stern;
+    ``floodlights``: white deck floodlights on poles along the deck edge;
+    ``glints``: specular glints of the sun or moon on the sea per frame, at random
+    positions near the ship (from the frame's seed); ``intensity`` of each light
+    relative to an on-axis beacon at the same distance (``glint_intensity`` for glints).
+    """
+
+    navigation: bool = False
+    floodlights: int = 0
+    glints: int = 0
+    intensity: float = 1.0
+    glint_intensity: float = 0.5
+
+
+def _ship_lights_spec(doc: object, where: str = "ship_lights") -> ShipLightsSpec:
+    spec = from_mapping(ShipLightsSpec, doc, where)
+    check_range(spec.floodlights, f"{where}.floodlights", low=0, high=64)
+    check_range(spec.glints, f"{where}.glints", low=0, high=256)
+    check_range(spec.intensity, f"{where}.intensity", low=0, low_open=True)
+    check_range(spec.glint_intensity, f"{where}.glint_intensity", low=0, low_open=True)
+    return spec
+
+
 @dataclass(frozen=True)
 class SceneSpec:
     """Deck plate and sea. ``deck_half_size_m`` must exceed the beacon ring radius."""
@@ -191,6 +298,9 @@ class RenderConfig:
     sensor: SensorSpec = SensorSpec()
     scene: SceneSpec = SceneSpec()
     layout: DeckLayout = DeckLayout()
+    leds: LedSpec = LedSpec()
+    occlusion: OcclusionSpec = OcclusionSpec()
+    ship_lights: ShipLightsSpec = ShipLightsSpec()
     seed: int = 0
     backend: Backend = Backend.EGL
     name: str = "dataset"
@@ -250,6 +360,9 @@ _SECTIONS: dict[str, Any] = {
     "sensor": _sensor_spec,
     "scene": _scene_spec,
     "layout": _layout,
+    "leds": _led_spec,
+    "occlusion": _occlusion_spec,
+    "ship_lights": _ship_lights_spec,
 }
 
 

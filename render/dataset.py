@@ -8,6 +8,7 @@ Layout (the dataset contract)::
     DATASET/previews/<frame_id>.png  the log's 8-bit preview (long side deckpose.preview.PREVIEW_PX)
     DATASET/frames.parquet           one row per frame
     DATASET/beacons.parquet          one row per frame x beacon
+    DATASET/lights.parquet           one row per frame x non-beacon light (navigation, floodlights, glints)
     DATASET/.parts/<frame_id>.json   per-frame ground truth, written after the image
 
 Every file is written atomically (temporary name, then rename). A frame is done
@@ -55,6 +56,7 @@ from deckpose.run_folder import (
     manifest_cameras,
     preview_relpath,
 )
+from deckpose.table_schemas import LIGHT_COLUMNS, typed_frame
 from deckpose.tables import write_table
 
 if TYPE_CHECKING:
@@ -106,7 +108,7 @@ def encode_frame(cfg: RenderConfig, spec: FrameSpec) -> EncodedFrame:
     The Dask workers' task: what it returns is written by the process that owns the
     output folder (:func:`write_frame`), so the workers need no access to it.
     """
-    from deckpose.render.frame import beacon_rows, frame_row, render_frame
+    from deckpose.render.frame import beacon_rows, frame_row, light_rows, render_frame
     from deckpose.render.scene import DeckRenderer
 
     key = (cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
@@ -121,7 +123,7 @@ def encode_frame(cfg: RenderConfig, spec: FrameSpec) -> EncodedFrame:
     # the log's preview, made from the frame in memory (the log would decode the PNG again)
     preview_png = encode_image(make_preview(bgr, PREVIEW_PX), ImageFormat.PNG)
     part = {"frame": frame_row(rf, image_relpath(spec.frame_id, cfg.image_format.suffix)),
-            "beacons": beacon_rows(rf)}
+            "beacons": beacon_rows(rf), "lights": light_rows(rf)}
     return EncodedFrame(spec.frame_id, image, preview_png, part)
 
 
@@ -314,20 +316,22 @@ def _run_dask(client: Client, cfg: RenderConfig, todo: list[FrameSpec], out: Pat
         del frame
 
 
-def collect_tables(out: Path, plan: list[FrameSpec]) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Build the frames and beacons tables from the part files, sorted by frame id."""
-    frames, beacons = [], []
+def collect_tables(out: Path, plan: list[FrameSpec]) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+    """Build the frames, beacons and lights tables from the part files, sorted by frame id."""
+    frames, beacons, lights = [], [], []
     for spec in plan:
         doc = json.loads(_part_path(out, spec.frame_id).read_text())
         frames.append(doc["frame"])
         beacons.extend(doc["beacons"])
+        lights.extend(doc.get("lights", []))
     fdf = pd.DataFrame(frames).sort_values("frame_id", kind="stable").reset_index(drop=True)
     bdf = pd.DataFrame(beacons).sort_values(["frame_id", "beacon_id"], kind="stable").reset_index(drop=True)
+    ldf = typed_frame(lights, LIGHT_COLUMNS).sort_values(["frame_id", "light_id"], kind="stable").reset_index(drop=True)
     for c in ("frame_id", "stamp_ns", "seed", "n_visible"):
         fdf[c] = fdf[c].astype("int64")
     for c in ("frame_id", "beacon_id"):
         bdf[c] = bdf[c].astype("int64")
-    return fdf, bdf
+    return fdf, bdf, ldf
 
 
 def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
@@ -374,9 +378,10 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
         for _ in runner:
             bar.update(1)
         bar.close()
-    fdf, bdf = collect_tables(out, plan)
+    fdf, bdf, ldf = collect_tables(out, plan)
     write_table(fdf, RunPaths(out).frames, "frames")
     write_table(bdf, RunPaths(out).beacons, "beacons")
+    write_table(ldf, RunPaths(out).lights, "lights")
     _write_json(RunPaths(out).manifest, _manifest(cfg, plan, complete=True))
     log.info("dataset %s complete: %d frames", out, len(plan))
     return out

@@ -211,6 +211,17 @@ class SpotRecord:
             object.__setattr__(self, name, arr)
 
 
+def splat_electrons(sp: Splat, sensor: SensorSpec) -> float:
+    """Electrons in a splat's core (halo excluded), summed over the image's channels.
+
+    RGB: the core's radiance times each channel's colour, summed; mono: times the
+    colour's mean (the grey the sensor sees, :func:`deckpose.render.beacons.add_splats`).
+    """
+    rgb = sp.rgb.astype(np.float64)
+    weight = float(rgb.mean()) if sensor.color == "mono" else float(rgb.sum())
+    return sp.core_flux * (sensor.exposure * sensor.full_well_e) * weight
+
+
 def spot_record(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: list[Splat],
                 sensor: SensorSpec, n_beacons: int) -> SpotRecord:
     """The :class:`SpotRecord` of a frame's splats, under the same exposure as :func:`expose`.
@@ -232,6 +243,8 @@ def spot_record(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splat
     out = {k: np.full(n_beacons, np.nan) for k in ("sigma_px", "flux_e", "background_e", "peak_e")}
     H, W = raster.shape[:2]
     for sp in splats:
+        if sp.beacon_id < 0:  # a light that is not a beacon (lights.parquet records it)
+            continue
         rgb = sp.rgb.astype(np.float64)
         weights = np.array([rgb.mean()]) if mono else rgb
         n = sp.patch.shape[0]
@@ -253,7 +266,7 @@ def spot_record(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splat
             bg = mean_raster * scale
         i = sp.beacon_id
         out["sigma_px"][i] = sp.sigma_px
-        out["flux_e"][i] = sp.core_flux * e_per_rad * float(weights.sum())
+        out["flux_e"][i] = splat_electrons(sp, sensor)
         out["background_e"][i] = float(bg.sum())
         out["peak_e"][i] = float(np.max(float(sp.patch.max()) * e_per_rad * weights + bg))
     return SpotRecord(**out)

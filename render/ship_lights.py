@@ -1,0 +1,160 @@
+"""Lights in the frame that are not beacons: navigation lights, deck floodlights, sea glints.
+
+A detector benchmark that counts false detections needs lights that are not beacons,
+at known places. The ship's lights sit on a notional hull around the helideck, in the
+deck frame (x bow, y port, z up; the deck plate's half side ``h``, its freeboard
+``f`` above the sea):
+
+* ``port`` (red) and ``starboard`` (green) sidelights on the bridge wings,
+  ``(h + 8, +-(h - 2), 4)`` m; the white ``masthead`` light ``(h + 14, 0, 12)`` m;
+  the white ``stern`` light at the transom, ``(-h - 0.5, 0, -1)`` m;
+* ``floodlight`` (warm white) on poles ``1.5`` m high, evenly spaced along the deck's edge;
+* ``glint`` (white): the sun or moon on the sea, points on the sea plane (world
+  ``z = -f``) at random positions ``1.5 h`` to ``4 h`` from the ship, drawn per frame
+  from the frame's seed.
+
+Each is a point source of isotropic intensity ``intensity`` (``glint_intensity``) times
+that of an on-axis beacon (:func:`deckpose.render.light.point_light_gain`), through the
+same atmosphere, drawn as a PSF-sized spot with the beacons' halo. Real sidelights
+shine sideways; seen from above they would be dimmer: ``intensity`` sets how bright
+they look. Every light in front of the camera is recorded (``lights.parquet``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from deckpose.render.beacons import Splat, spot_splat
+from deckpose.render.config import LedSpec, SensorSpec, ShipLightsSpec
+from deckpose.render.light import point_light_gain, transmission
+from numpy.typing import NDArray
+
+from deckpose.camera import CameraModel
+from deckpose.layout import DeckLayout
+from deckpose.pose import CameraPose, ShipPose
+
+#: Stream index of the glints in ``SeedSequence([frame seed, stream])``.
+GLINT_STREAM = 2
+
+_RED = (1.0, 0.08, 0.05)
+_GREEN = (0.05, 1.0, 0.3)
+_WHITE = (1.0, 1.0, 1.0)
+_WARM = (1.0, 0.85, 0.6)
+
+
+@dataclass(frozen=True)
+class ShipLight:
+    """One non-beacon light.
+
+    Attributes
+    ----------
+    kind : str
+        ``port``, ``starboard``, ``masthead``, ``stern``, ``floodlight`` or ``glint``.
+    position_m : (3,) array of float
+        Position in the deck frame (``on_deck``) or the world frame (glints), metres.
+    on_deck : bool
+        Whether it moves with the deck.
+    rgb : (3,) floats
+    intensity : float
+        Relative to an on-axis beacon of the layout.
+    """
+
+    kind: str
+    position_m: NDArray[np.float64]
+    on_deck: bool
+    rgb: tuple[float, float, float]
+    intensity: float
+
+
+def ship_lights(spec: ShipLightsSpec, deck_half_size_m: float, freeboard_m: float,
+                rng: np.random.Generator) -> list[ShipLight]:
+    """The frame's non-beacon lights, light id = list index.
+
+    Parameters
+    ----------
+    spec : ShipLightsSpec
+    deck_half_size_m : float
+        Half the deck plate's side, metres.
+    freeboard_m : float
+        Height of the deck above the sea, metres.
+    rng : numpy.random.Generator
+        The frame's glint stream (unused without glints).
+    """
+    h, k = deck_half_size_m, spec.intensity
+    out: list[ShipLight] = []
+    if spec.navigation:
+        out += [ShipLight("port", np.array([h + 8.0, h - 2.0, 4.0]), True, _RED, k),
+                ShipLight("starboard", np.array([h + 8.0, -(h - 2.0), 4.0]), True, _GREEN, k),
+                ShipLight("masthead", np.array([h + 14.0, 0.0, 12.0]), True, _WHITE, k),
+                ShipLight("stern", np.array([-h - 0.5, 0.0, -1.0]), True, _WHITE, k)]
+    for j in range(spec.floodlights):
+        t = 8.0 * (j + 0.5) / spec.floodlights  # perimeter of the square, in half-sides
+        side, a = int(t // 2), (t % 2) - 1.0
+        x, y = [(h, a * h), (-a * h, h), (-h, -a * h), (a * h, -h)][side]
+        out.append(ShipLight("floodlight", np.array([x, y, 1.5]), True, _WARM, k))
+    if spec.glints:
+        r = rng.uniform(1.5 * h, 4.0 * h, spec.glints)
+        phi = rng.uniform(0.0, 2.0 * math.pi, spec.glints)
+        for rr, pp in zip(r, phi):
+            out.append(ShipLight("glint", np.array([rr * math.cos(pp), rr * math.sin(pp), -freeboard_m]),
+                                 False, _WHITE, spec.glint_intensity))
+    return out
+
+
+def _to_cam(light: ShipLight, ship: ShipPose, camera_pose: CameraPose) -> NDArray[np.float64]:
+    p = np.append(light.position_m, 1.0)
+    T = camera_pose.T_cam_from_world @ (ship.T_world_from_deck if light.on_deck else np.eye(4))
+    return (T @ p)[:3]
+
+
+def light_splats(lights: list[ShipLight], poses: tuple[ShipPose, ...], camera_pose: CameraPose,
+                 camera: CameraModel, sensor: SensorSpec, leds: LedSpec, layout: DeckLayout
+                 ) -> tuple[list[Splat], NDArray[np.float64], NDArray[np.bool_]]:
+    """Splats of the lights over the exposure, and their truth at mid-exposure.
+
+    Parameters
+    ----------
+    lights : list of ShipLight
+    poses : tuple of ShipPose
+        The deck poses of the exposure (the middle one is the truth's).
+    camera_pose, camera, sensor
+        As for the beacons.
+    leds : LedSpec
+        The atmosphere (``visibility_km``).
+    layout : DeckLayout
+        A beacon's size and intensity, the lights' unit.
+
+    Returns
+    -------
+    list of Splat
+        ``beacon_id`` is ``-1 - light id``; lights behind the camera or off the image have none.
+    (L, 2) array of float
+        Each light's projected centre at mid-exposure, pixels (NaN behind the camera).
+    (L,) array of bool
+        In front of the camera and inside the image.
+    """
+    r = layout.beacon_radius_m
+    radiance = sensor.beacon_peak * layout.intensity
+    s2 = sensor.psf_sigma_px ** 2
+    mid = poses[len(poses) // 2]
+    uv = np.full((len(lights), 2), np.nan)
+    in_image = np.zeros(len(lights), bool)
+    out: list[Splat] = []
+    for j, light in enumerate(lights):
+        P = np.array([_to_cam(light, p, camera_pose) for p in poses])
+        P_mid = _to_cam(light, mid, camera_pose)
+        if P_mid[2] > 1e-6:
+            uv[j] = camera.project(P_mid[None])[0]
+            in_image[j] = bool(camera.in_image(uv[j][None])[0])
+        if not np.all(P[:, 2] > 1e-6):
+            continue
+        flux = (radiance * np.pi * r * r * light.intensity * point_light_gain(P, None, camera, 0.0)
+                * transmission(np.linalg.norm(P, axis=1), leds))
+        centres = camera.project(P)
+        comps = [(c, s2 * np.eye(2), float(f)) for c, f in zip(centres, flux)]
+        sp = spot_splat(comps, light.rgb, sensor, camera, -1 - j)
+        if sp is not None:
+            out.append(sp)
+    return out, uv, in_image
