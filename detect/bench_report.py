@@ -15,7 +15,13 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from deckpose.detect.benchmark import centroid_by_lighting, crb_per_beacon, match_run, summarise
+from deckpose.detect.benchmark import (
+    centroid_by_lighting,
+    crb_per_beacon,
+    false_detections,
+    match_run,
+    summarise,
+)
 from deckpose.detect.identify import IdentifyOptions
 from deckpose.detect.registry import DetectorOptions
 from deckpose.detect.run import detect_frames_with
@@ -24,7 +30,7 @@ from deckpose.detect.synthetic import SensorModel
 from deckpose.detect.synthetic_dataset import summed_channels_sensor
 
 from deckpose.atomic_io import atomic_open, atomic_path
-from deckpose.run_folder import RunPaths
+from deckpose.run_folder import RunPaths, read_lights
 
 
 def dataset_sensor(frameset: FrameSet) -> SensorModel | None:
@@ -89,6 +95,7 @@ def run_benchmark(
     run = RunPaths(Path(dataset))
     beacons = pd.read_parquet(run.beacons)
     frames = pd.read_parquet(run.frames)
+    lights = read_lights(run) if run.manifest.exists() else None
     sensor = dataset_sensor(fs)
     summaries, matches = [], []
     crb_cache: pd.Series | None = None
@@ -108,7 +115,8 @@ def run_benchmark(
         ).to_numpy()
         m["saturated"] = saturated_flags(m, fs.manifest)
         m["detector"] = name
-        summaries.append(summarise(name, m, dets, fout, frames))
+        false = false_detections(dets, m, lights, [int(i) for i in frames["frame_id"]])
+        summaries.append(summarise(name, m, dets, fout, frames, false))
         matches.append(m)
     return pd.concat(summaries, ignore_index=True), pd.concat(matches, ignore_index=True)
 
@@ -121,16 +129,18 @@ def markdown_table(summary: pd.DataFrame) -> str:
     """The summary as a Markdown table."""
     head = (
         "| detector | camera | height m | radius px | sat. | RMS px | CRB px | RMS/CRB | bias px "
-        "| p95 px | recall | precision | id acc. | ms/frame | CPU ms |"
+        "| p95 px | recall | precision | id acc. | false/frame | lights hit | ms/frame | CPU ms |"
     )
-    lines = [head, "|" + "|".join(["---"] * 15) + "|"]
+    lines = [head, "|" + "|".join(["---"] * 17) + "|"]
     for r in summary.sort_values(["camera", "height_m", "detector"]).to_dict("records"):
         lines.append(
             f"| {r['detector']} | {r['camera']} | {r['height_m']:g} | {r['radius_px']:.2f} | "
             f"{_fmt(r.get('saturated', math.nan), 2)} | {_fmt(r['rms_px'], 4)} | "
             f"{_fmt(r['crb_px'], 4)} | {_fmt(r['rms_over_crb'], 2)} | "
             f"{_fmt(r['bias_px'], 4)} | {_fmt(r['p95_px'], 4)} | {_fmt(r['recall'], 3)} | "
-            f"{_fmt(r['precision'], 3)} | {_fmt(r['id_accuracy'], 3)} | {_fmt(r['ms_per_frame'], 1)} | "
+            f"{_fmt(r['precision'], 3)} | {_fmt(r['id_accuracy'], 3)} | "
+            f"{_fmt(r.get('false_per_frame', math.nan), 2)} | {_fmt(r.get('lights_found', math.nan), 2)} | "
+            f"{_fmt(r['ms_per_frame'], 1)} | "
             f"{_fmt(r.get('cpu_ms_per_frame', math.nan), 1)} |"
         )
     return "\n".join(lines)
@@ -269,7 +279,10 @@ def write_report(
         "bias = length of the mean error vector; "
         "p95 = 95th percentile of the radial error; recall and "
         "precision from one-to-one matching within max(3 px, 2 apparent radii); id acc. = matched "
-        "detections with the right beacon id; ms/frame = median wall time of detection + "
+        "detections with the right beacon id; false/frame = detections matched to no beacon, "
+        "per frame; lights hit = fraction of the recorded non-beacon lights in view (lights.parquet: "
+        "navigation lights, floodlights, glints) that drew a false detection within 4 px; "
+        "occluded beacons count in the recall but not in RMS or CRB; ms/frame = median wall time of detection + "
         "identification (decoded image, this machine); CPU ms = median CPU time of the same "
         "work on its one thread (the one-core cost when other jobs share the machine)."),
         "",

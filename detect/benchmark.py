@@ -5,7 +5,13 @@ Per detector x camera (resolution) x camera height:
 * ``rms_px``: per-axis RMS centroid error, ``sqrt(mean((du^2 + dv^2) / 2))``;
 * ``bias_px``: length of the mean error vector; ``p95_px``: 95th percentile of
   the radial error ``|(du, dv)|``;
-* ``recall``: matched / visible beacons; ``precision``: matched / detections;
+* ``recall``: matched / findable beacons (visible and not wholly occluded);
+  ``precision``: matched / detections; ``recall_occluded``: recall of the beacons an
+  occluder cuts in part (``occluded_fraction`` in ``beacons.parquet``);
+* ``false_per_frame``: detections matched to no beacon, per frame; ``lights_found``:
+  the fraction of recorded non-beacon lights in the image (``lights.parquet``:
+  navigation lights, floodlights, glints) that drew such a false detection within
+  :data:`LIGHT_GATE_PX`;
 * ``id_accuracy``: matched detections carrying the right beacon id (of the
   frames' matched detections; unassigned counts as wrong);
 * ``ms_per_frame``: median detection + identification wall time (image decoding
@@ -19,7 +25,9 @@ Per detector x camera (resolution) x camera height:
   ``spot_background_e`` replaces the sensor's uniform background) and left NaN
   otherwise. The bound assumes unclipped pixels: for a saturated core it is
   optimistic, so ``saturated`` (fraction of the cell's beacons whose core
-  reaches the full well, from ``spot_peak_e``) is reported beside it.
+  reaches the full well, from ``spot_peak_e``) is reported beside it. Occluded
+  beacons are left out of the centroid error and the bound (a cut spot is no longer
+  the Gaussian the bound is for) but counted in the recall.
 
 A detection matches the nearest visible beacon within
 ``max(3, 2 * apparent_radius_px)`` pixels, one-to-one, nearest pairs first.
@@ -36,6 +44,9 @@ import pandas as pd
 from deckpose.detect.crb import centroid_crb_px2
 from deckpose.detect.synthetic import SensorModel
 
+#: A false detection within this distance of a recorded non-beacon light was drawn by it, px.
+LIGHT_GATE_PX = 4.0
+
 
 def match_frame(det: pd.DataFrame, gt: pd.DataFrame) -> pd.DataFrame:
     """Match one frame's detections to its visible beacons.
@@ -50,7 +61,8 @@ def match_frame(det: pd.DataFrame, gt: pd.DataFrame) -> pd.DataFrame:
     Returns
     -------
     DataFrame
-        ``gt`` plus ``matched, du_px, dv_px, det_beacon_id, size_px``.
+        ``gt`` plus ``matched, du_px, dv_px, det_beacon_id, size_px`` and ``det_index``
+        (the matched detection's row in ``det``; -1 when unmatched).
     """
     out = gt.copy()
     out["matched"] = False
@@ -58,6 +70,7 @@ def match_frame(det: pd.DataFrame, gt: pd.DataFrame) -> pd.DataFrame:
     out["dv_px"] = np.nan
     out["det_beacon_id"] = -1
     out["size_px"] = np.nan
+    out["det_index"] = -1
     if len(det) == 0 or len(gt) == 0:
         return out
     P = det[["u_px", "v_px"]].to_numpy(float)
@@ -69,7 +82,7 @@ def match_frame(det: pd.DataFrame, gt: pd.DataFrame) -> pd.DataFrame:
     )
     used_g, used_d = set(), set()
     names = list(out.columns)
-    cols = {c: names.index(c) for c in ("matched", "du_px", "dv_px", "det_beacon_id", "size_px")}
+    cols = {c: names.index(c) for c in ("matched", "du_px", "dv_px", "det_beacon_id", "size_px", "det_index")}
     for _, i, j in pairs:
         if i in used_g or j in used_d:
             continue
@@ -80,6 +93,7 @@ def match_frame(det: pd.DataFrame, gt: pd.DataFrame) -> pd.DataFrame:
         out.iat[i, cols["dv_px"]] = P[j, 1] - G[i, 1]
         out.iat[i, cols["det_beacon_id"]] = int(det["beacon_id"].iloc[j])
         out.iat[i, cols["size_px"]] = float(det["size_px"].iloc[j])
+        out.iat[i, cols["det_index"]] = j
     return out
 
 
@@ -92,6 +106,8 @@ def crb_per_beacon(beacons: pd.DataFrame, sensor: SensorModel | None) -> np.ndar
     for k, r in enumerate(beacons.to_dict("records")):
         if not (r["spot_flux_e"] > 0 and r["spot_sigma_px"] > 0):  # also False for NaN
             continue
+        if r.get("occluded_fraction", 0.0) > 0:  # a cut spot: not the Gaussian the bound is for
+            continue
         s = sensor
         if has_bg and np.isfinite(r["spot_background_e"]):
             s = dataclasses.replace(sensor, background_e=max(float(r["spot_background_e"]), 0.0))
@@ -100,22 +116,76 @@ def crb_per_beacon(beacons: pd.DataFrame, sensor: SensorModel | None) -> np.ndar
     return out
 
 
+def findable(beacons: pd.DataFrame) -> pd.Series:
+    """Beacons a detector can find: visible and not wholly hidden by an occluder."""
+    ok = beacons["visible"].astype(bool)
+    if "occluded_fraction" in beacons:
+        ok &= ~(beacons["occluded_fraction"].fillna(0.0) >= 1.0)
+    return ok
+
+
 def match_run(
     detections: pd.DataFrame, frames_out: pd.DataFrame, beacons: pd.DataFrame, frames: pd.DataFrame
 ) -> pd.DataFrame:
     """Matched per-beacon rows of a whole run, with camera, height (and lighting) per frame.
 
     ``frames_out`` is ``detect_frames.parquet``; ``beacons`` and ``frames`` the dataset's tables.
+    The rows are the findable beacons (:func:`findable`); ``occluded`` marks those an
+    occluder cuts in part.
     """
-    vis = beacons[beacons["visible"].astype(bool)]
+    vis = beacons[findable(beacons)]
     det_by = {k: g for k, g in detections.groupby("frame_id")}
     parts = []
     empty = detections.iloc[:0]
     for fid, g in vis.groupby("frame_id"):
         parts.append(match_frame(det_by.get(fid, empty), g.reset_index(drop=True)))
     m = pd.concat(parts, ignore_index=True) if parts else vis.iloc[:0]
+    m["occluded"] = (m["occluded_fraction"].fillna(0.0) > 0).to_numpy() if "occluded_fraction" in m \
+        else np.zeros(len(m), bool)
     cols = ["frame_id", "camera", "camera_height_m"] + (["lighting"] if "lighting" in frames else [])
     return m.merge(frames[cols], on="frame_id", how="left")
+
+
+def false_detections(detections: pd.DataFrame, matches: pd.DataFrame, lights: pd.DataFrame | None,
+                     frame_ids: list[int]) -> pd.DataFrame:
+    """Per frame: detections matched to no beacon, and the non-beacon lights that drew one.
+
+    Parameters
+    ----------
+    detections : DataFrame
+        One detector's detections.
+    matches : DataFrame
+        :func:`match_run`'s rows for that detector (``det_index`` per matched beacon).
+    lights : DataFrame or None
+        The dataset's ``lights.parquet`` (None or empty: no recorded lights).
+    frame_ids : list of int
+        Every frame of the run.
+
+    Returns
+    -------
+    DataFrame
+        ``frame_id, n_false, n_lights, n_lights_found`` (``n_lights``: recorded lights
+        in the image; ``n_lights_found``: of them, those with a false detection within
+        :data:`LIGHT_GATE_PX`).
+    """
+    det_by = {k: g for k, g in detections.groupby("frame_id")}
+    used = {k: set(g.loc[g["matched"], "det_index"].astype(int)) for k, g in matches.groupby("frame_id")}
+    lit = lights[lights["in_image"].astype(bool)] if lights is not None and len(lights) else None
+    light_by = {k: g for k, g in lit.groupby("frame_id")} if lit is not None else {}
+    rows = []
+    for fid in frame_ids:
+        d = det_by.get(fid)
+        n = 0 if d is None else len(d)
+        free = [j for j in range(n) if j not in used.get(fid, set())]
+        lg = light_by.get(fid)
+        found = 0
+        if lg is not None and free and d is not None:
+            P = d[["u_px", "v_px"]].to_numpy(float)[free]
+            L = lg[["u_px", "v_px"]].to_numpy(float)
+            found = int((np.linalg.norm(L[:, None] - P[None], axis=2).min(axis=1) < LIGHT_GATE_PX).sum())
+        rows.append({"frame_id": int(fid), "n_false": len(free), "n_lights": 0 if lg is None else len(lg),
+                     "n_lights_found": found})
+    return pd.DataFrame(rows, columns=["frame_id", "n_false", "n_lights", "n_lights_found"])
 
 
 def centroid_by_lighting(matches: pd.DataFrame) -> pd.DataFrame:
@@ -134,6 +204,8 @@ def centroid_by_lighting(matches: pd.DataFrame) -> pd.DataFrame:
     if "lighting" not in matches or matches["lighting"].nunique() < 2:
         return pd.DataFrame(columns=cols)
     m = matches[matches["matched"]]
+    if "occluded" in m:
+        m = m[~m["occluded"].astype(bool)]
     rows = []
     keys = ["detector", "camera", "camera_height_m", "lighting"]
     for key, g in m.groupby(keys, sort=True):
@@ -153,22 +225,30 @@ def summarise(
     detections: pd.DataFrame,
     frames_out: pd.DataFrame,
     frames: pd.DataFrame,
+    false: pd.DataFrame | None = None,
 ) -> pd.DataFrame:
-    """One row per camera x height of the metrics in the module docstring."""
+    """One row per camera x height of the metrics in the module docstring.
+
+    ``false`` is :func:`false_detections`' table (None: the false-detection columns are NaN).
+    """
     fo = frames_out.merge(frames[["frame_id", "camera_height_m"]], on="frame_id", how="left")
     nd = detections.groupby("frame_id").size()
+    occluded = matched["occluded"] if "occluded" in matched else pd.Series(False, index=matched.index)
     rows = []
     for key, g in matched.groupby(["camera", "camera_height_m"], sort=True):
         cam, h = cast("tuple[str, float]", key)
         fids = set(g["frame_id"])
         f = fo[fo["frame_id"].isin(fids)]
         m = g[g["matched"]]
-        du, dv = m["du_px"].to_numpy(float), m["dv_px"].to_numpy(float)
+        clear = m[~occluded.loc[m.index]]  # the centroid error and bound: spots no occluder cuts
+        du, dv = clear["du_px"].to_numpy(float), clear["dv_px"].to_numpy(float)
         n_det = int(sum(int(nd.get(i, 0)) for i in fids))
-        crb = m["crb_var_px2"].to_numpy(float) if "crb_var_px2" in m else np.full(len(m), np.nan)
-        rms = math.sqrt(np.mean((du**2 + dv**2) / 2)) if len(m) else math.nan
-        crb_rms = math.sqrt(np.mean(crb)) if len(m) and np.all(np.isfinite(crb)) else math.nan
+        crb = clear["crb_var_px2"].to_numpy(float) if "crb_var_px2" in clear else np.full(len(clear), np.nan)
+        rms = math.sqrt(np.mean((du**2 + dv**2) / 2)) if len(clear) else math.nan
+        crb_rms = math.sqrt(np.mean(crb)) if len(clear) and np.all(np.isfinite(crb)) else math.nan
         sat = g["saturated"].to_numpy(float) if "saturated" in g else np.full(len(g), np.nan)
+        occ = g[occluded.loc[g.index]]
+        fl = false[false["frame_id"].isin(fids)] if false is not None else None
         rows.append(
             {
                 "detector": detector,
@@ -178,18 +258,22 @@ def summarise(
                 "beacons": len(g),
                 "radius_px": float(g["apparent_radius_px"].mean()),
                 "rms_px": rms,
-                "bias_px": float(math.hypot(du.mean(), dv.mean())) if len(m) else math.nan,
-                "p95_px": float(np.percentile(np.hypot(du, dv), 95)) if len(m) else math.nan,
+                "bias_px": float(math.hypot(du.mean(), dv.mean())) if len(clear) else math.nan,
+                "p95_px": float(np.percentile(np.hypot(du, dv), 95)) if len(clear) else math.nan,
                 "crb_px": crb_rms,
                 "rms_over_crb": rms / crb_rms if crb_rms > 0 else math.nan,
                 "saturated": float(np.mean(sat))
                 if len(g) and np.all(np.isfinite(sat))
                 else math.nan,
                 "recall": len(m) / len(g) if len(g) else math.nan,
+                "recall_occluded": float(occ["matched"].mean()) if len(occ) else math.nan,
                 "precision": len(m) / n_det if n_det else math.nan,
                 "id_accuracy": float((m["det_beacon_id"] == m["beacon_id"]).mean())
                 if len(m)
                 else math.nan,
+                "false_per_frame": float(fl["n_false"].mean()) if fl is not None and len(fl) else math.nan,
+                "lights_found": float(fl["n_lights_found"].sum() / fl["n_lights"].sum())
+                if fl is not None and fl["n_lights"].sum() > 0 else math.nan,
                 "frames_ok": int(f["ok"].sum()),
                 "ms_per_frame": 1000.0 * float(f["seconds"].median()) if len(f) else math.nan,
                 "cpu_ms_per_frame": 1000.0 * float(f["cpu_seconds"].median())
