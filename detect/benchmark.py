@@ -256,6 +256,7 @@ def summarise(
                 "height_m": float(h),
                 "frames": len(fids),
                 "beacons": len(g),
+                "detections": n_det,
                 "radius_px": float(g["apparent_radius_px"].mean()),
                 "rms_px": rms,
                 "bias_px": float(math.hypot(du.mean(), dv.mean())) if len(clear) else math.nan,
