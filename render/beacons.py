@@ -22,7 +22,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from deckpose.render.config import LedSpec, SensorSpec
+from deckpose.render.config import EmitterShape, LedSpec, SensorSpec
+from deckpose.render.emitter import dome_light_centroids
 from deckpose.render.light import beacon_flux
 from numpy.typing import NDArray
 
@@ -70,9 +71,14 @@ class Splat:
 
 
 def _centre_and_jacobian(layout: DeckLayout, ship: ShipPose, camera_pose: CameraPose,
-                         camera: CameraModel) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Projected centres (N,2), Jacobians (N,2,2) px/m of deck (x, y), a usable mask (N,), and
-    the beacons' camera-frame positions (N,3) and the deck normal in the camera frame (3,)."""
+                         camera: CameraModel, emitter: EmitterShape = EmitterShape.FLAT
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Light centres (N,2), Jacobians (N,2,2) px/m of deck (x, y), a usable mask (N,), and
+    the beacons' camera-frame positions (N,3) and the deck normal in the camera frame (3,).
+
+    The light centre is the projected centre for a flat emitter and the dome's light
+    centroid (:func:`deckpose.render.emitter.dome_light_centroids`) for a domed one.
+    """
     T = T_cam_from_deck(ship, camera_pose)
     P = layout.positions_deck_m()
     d = layout.beacon_radius_m
@@ -89,7 +95,12 @@ def _centre_and_jacobian(layout: DeckLayout, ship: ShipPose, camera_pose: Camera
         uv[good] = camera.project(P_cam[good])
     uv = uv.reshape(-1, 5, 2)
     J = np.stack([(uv[:, 1] - uv[:, 2]) / (2 * d), (uv[:, 3] - uv[:, 4]) / (2 * d)], axis=-1)
-    return uv[:, 0], J, ok & facing, np.stack([centres_cam, np.broadcast_to(n_cam, centres_cam.shape)])
+    centre = uv[:, 0]
+    if emitter is EmitterShape.DOME:
+        dome = dome_light_centroids(layout, T, camera)
+        ok &= np.isfinite(dome).all(axis=1)
+        centre = dome
+    return centre, J, ok & facing, np.stack([centres_cam, np.broadcast_to(n_cam, centres_cam.shape)])
 
 
 def _gaussian_patch(centre: np.ndarray, cov: np.ndarray, flux: float, row0: int, col0: int,
@@ -168,7 +179,7 @@ def beacon_splats(layout: DeckLayout, poses: tuple[ShipPose, ...], camera_pose: 
     list of Splat
         Beacons facing the camera whose window touches the image.
     """
-    per_pose = [_centre_and_jacobian(layout, p, camera_pose, camera) for p in poses]
+    per_pose = [_centre_and_jacobian(layout, p, camera_pose, camera, leds.emitter) for p in poses]
     r = layout.beacon_radius_m
     s2 = sensor.psf_sigma_px ** 2
     factors = np.ones(layout.n_beacons) if unit_factors is None else np.asarray(unit_factors, float)

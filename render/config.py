@@ -170,6 +170,13 @@ class LedModel(enum.Enum):
     POINT = "point"
 
 
+class EmitterShape(enum.Enum):
+    """A beacon's emitting surface (:mod:`deckpose.render.emitter`): a disc on the deck or a dome."""
+
+    FLAT = "flat"
+    DOME = "dome"
+
+
 #: Koschmieder's constant: the extinction coefficient is 3.912 / visibility (2 % contrast).
 KOSCHMIEDER = 3.912
 
@@ -184,10 +191,14 @@ class LedSpec:
     dataset from U(1 - t, 1) (from the config seed and the beacon id, so a beacon
     keeps its brightness in every frame); ``bow_intensity`` scales the bow beacon
     (a dimmer red unit); ``visibility_km``: Beer–Lambert transmission
-    ``exp(-3.912 d / V)`` over the beacon's distance ``d`` (null: clear air).
+    ``exp(-3.912 d / V)`` over the beacon's distance ``d`` (null: clear air);
+    ``emitter`` (:class:`EmitterShape`): ``dome`` centres each spot on the light centroid
+    of a constant-radiance hemisphere, which is not the projected centre (both are
+    recorded: ``u_px`` and ``light_u_px`` in ``beacons.parquet``).
     """
 
     model: LedModel = LedModel.DISC
+    emitter: EmitterShape = EmitterShape.FLAT
     emission_exponent: float = 1.0
     intensity_tolerance: float = 0.0
     bow_intensity: float = 1.0

@@ -238,3 +238,56 @@ def test_rendered_dataset_records_every_effect(tmp_path) -> None:
     np.testing.assert_allclose(b.loc[clear, "light_u_px"], b.loc[clear, "u_px"], atol=1e-6)
     again = render_dataset(config_from_dict(doc), tmp_path / "again", workers=0, progress=False)
     assert (out / "images" / "000001.png").read_bytes() == (again / "images" / "000001.png").read_bytes()
+
+
+def _ray_cast_dome_centroid(centre_world: np.ndarray, radius: float, cam_pose: CameraPose,
+                            camera: CameraModel, step: float = 0.02) -> np.ndarray:
+    """Area centroid of the dome's silhouette by casting a ray through every sub-pixel sample.
+
+    A sample is lit when its ray's first hit on the sphere lies on the upper half (z >= 0
+    above the deck; the lower half is under the opaque deck). Constant radiance makes the
+    image uniform over the lit samples, so their mean is the light centroid.
+    """
+    T = cam_pose.T_cam_from_world
+    c = T[:3, :3] @ centre_world + T[:3, 3]
+    up = T[:3, :3] @ np.array([0.0, 0.0, 1.0])  # the deck normal (level deck) in the camera frame
+    uv0 = camera.project(c[None])[0]
+    half = 1.5 * radius * camera.fx / c[2]
+    us = np.arange(uv0[0] - half, uv0[0] + half, step)
+    vs = np.arange(uv0[1] - half, uv0[1] + half, step)
+    U, V = np.meshgrid(us, vs)
+    d = np.stack([(U - camera.cx) / camera.fx, (V - camera.cy) / camera.fy, np.ones_like(U)], -1)
+    d /= np.linalg.norm(d, axis=-1, keepdims=True)
+    b = d @ c
+    disc = b * b - (c @ c - radius * radius)
+    hit = disc >= 0
+    s = b - np.sqrt(np.where(hit, disc, 0.0))
+    p = d * s[..., None] - c  # first hit relative to the sphere's centre
+    lit = hit & (p @ up >= 0)
+    return np.array([U[lit].mean(), V[lit].mean()])
+
+
+def test_dome_light_centroid_matches_ray_casting() -> None:
+    from deckpose.render.config import EmitterShape
+    from deckpose.render.emitter import dome_light_centroids
+
+    from deckpose.pose import T_cam_from_deck
+
+    cam = CameraModel(1280, 960, [[900.0, 0, 640.0], [0, 900.0, 480.0], [0, 0, 1]])
+    layout = DeckLayout(beacon_radius_m=0.4)  # a big dome, many pixels: a sharp comparison
+    pose = CameraPose.nadir(30.0)
+    dome = dome_light_centroids(layout, T_cam_from_deck(ShipPose(), pose), cam)
+    flat = beacon_splats(layout, (ShipPose(),), pose, cam, SENSOR)
+    for i in (0, 3, layout.n_ring):
+        want = _ray_cast_dome_centroid(layout.positions_deck_m()[i], layout.beacon_radius_m, pose, cam)
+        np.testing.assert_allclose(dome[i], want, atol=0.02)
+    # off the nadir the light sits outward of the projected centre, by a fraction of a pixel
+    projected = next(s.centre_px for s in flat if s.beacon_id == 0)
+    shift = dome[0] - projected
+    assert 0.1 < np.linalg.norm(shift) < 1.0 and shift @ (projected - [640.0, 480.0]) > 0
+    # the centre beacon, on the optical axis, is symmetric: no shift
+    np.testing.assert_allclose(dome[layout.n_ring], [640.0, 480.0], atol=0.01)  # the grid: < 1e-3 radii
+    # the splats of a domed layout are centred on those light centroids
+    domed = beacon_splats(layout, (ShipPose(),), pose, cam, SENSOR, LedSpec(emitter=EmitterShape.DOME))
+    for sp in domed:
+        np.testing.assert_allclose(sp.centre_px, dome[sp.beacon_id], atol=1e-9)
