@@ -14,7 +14,7 @@ Each dataset is rendered once into ``--work`` (resumed if there), benchmarked by
 ``deckpose.detect.bench_report.run_benchmark`` (the ``bench-detectors`` command's
 engine, detection + identification on one thread) with its report in
 ``OUT/<dataset>/``, and pooled over heights and lightings into ``OUT/results.csv`` and
-``OUT/report.md``: recall, recall of cut beacons, precision, false detections per
+``OUT/report.md`` (``--only`` redoes some datasets and keeps the others' rows): recall, recall of cut beacons, precision, false detections per
 frame, the share of recorded non-beacon lights that drew one, identification
 accuracy, frames fully identified, the pooled RMS/CRB of the uncut spots with a 95 %
 bootstrap interval (frames resampled), CPU time per frame, and a ranking per dataset.
@@ -208,6 +208,9 @@ def main(argv: list[str] | None = None) -> int:
     (out / "configs").mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(args.seed)
     tables = []
+    if (out / "results.csv").exists():  # keep the datasets this run does not redo (--only)
+        kept = pd.read_csv(out / "results.csv")
+        tables.append(kept[~kept["dataset"].isin(list(todo))])
     for name, (doc, _) in todo.items():
         with atomic_open(out / "configs" / f"{name}.yaml", "w") as fh:
             yaml.safe_dump(doc, fh, sort_keys=False)
@@ -226,6 +229,8 @@ def main(argv: list[str] | None = None) -> int:
         with atomic_path(out / "results.csv") as tmp:
             res.to_csv(tmp, index=False, float_format="%.6g")
     res = pd.concat(tables, ignore_index=True)
+    every = datasets()
+    res = res.sort_values("dataset", key=lambda c: c.map({k: i for i, k in enumerate(every)}), kind="stable")
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], check=False, capture_output=True, text=True,
                             cwd=ROOT).stdout.strip()
     meta = {"command": " ".join([".venv/bin/python", "benchmarks/detector_ladder.py", *(argv or sys.argv[1:])]),
@@ -234,7 +239,7 @@ def main(argv: list[str] | None = None) -> int:
             "bootstrap_seed": args.seed, "detectors": names}
     plot(res, out / "frames_ok.png")
     with atomic_open(out / "report.md", "w") as fh:
-        fh.write(markdown(res, {k: v[1] for k, v in todo.items()}, meta))
+        fh.write(markdown(res, {k: v[1] for k, v in every.items()}, meta))
     with atomic_open(out / "manifest.json", "w") as fh:
         json.dump(meta, fh, indent=2)
     print((out / "report.md").read_text())
