@@ -31,14 +31,16 @@ from deckpose.detect.tables import detection_rows, write_tables
 from deckpose.atomic_io import atomic_open
 from deckpose.camera import CameraModel
 from deckpose.camera_info import write_camera_info
-from deckpose.errors import ConfigError
+from deckpose.errors import ConfigError, InputDataError
 from deckpose.layout import DeckLayout, layout_to_dict
+from deckpose.records import Frame
 from deckpose.run_folder import DETECTIONS_FORMAT, RunPaths
 
 log = logging.getLogger(__name__)
 
 
-__all__ = ["DetectRunResult", "detect_frames", "detect_frames_with", "detect_run", "write_run"]
+__all__ = ["DetectRunResult", "assemble_tables", "detect_frames", "detect_frames_with", "detect_run",
+           "frame_results", "write_run"]
 
 
 @dataclass(frozen=True)
@@ -120,6 +122,13 @@ def detect_run(
     registry.get(detector)  # fail early on an unknown name
     if is_dataset(source):
         frameset = open_dataset(source)
+        if frameset.manifest.get("images_kept") is False:
+            at_render = frameset.manifest.get("detect_at_render", {}).get("detectors", [])
+            raise InputDataError(
+                f"{source} keeps no frames (rendered with --no-images), so there is nothing to "
+                f"detect in; its detections were made at render time ({', '.join(at_render) or 'none'}: "
+                f"{RunPaths(frameset.root).detections_dir}); render it again with "
+                f"--detect {detector} (or without --no-images)")
     else:
         if not camera_file:
             raise ConfigError(
@@ -204,16 +213,19 @@ def detect_frames_with(
                     det_parts[detector].append(rows)
                     frame_rows[detector].append(frame_row)
             bar.update(len(chunk))
-    out = {}
-    for detector in detectors:
-        parts = [d for d in det_parts[detector] if len(d)]  # (concatenating empties is deprecated)
-        dets = (
-            pd.concat(parts, ignore_index=True)
-            if parts
-            else detection_rows(FrameDetections.failed(-1, detector, "none"))
-        )
-        out[detector] = (dets, pd.DataFrame(frame_rows[detector]))
-    return out
+    return {d: assemble_tables(d, det_parts[d], frame_rows[d]) for d in detectors}
+
+
+def assemble_tables(detector: str, detection_parts: list[pd.DataFrame],
+                    frame_rows: list[dict[str, Any]]) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """One detector's ``(detections table, frames table)`` from its per-frame rows, in frame order."""
+    parts = [d for d in detection_parts if len(d)]  # (concatenating empties is deprecated)
+    dets = (
+        pd.concat(parts, ignore_index=True)
+        if parts
+        else detection_rows(FrameDetections.failed(-1, detector, "none"))
+    )
+    return dets, pd.DataFrame(frame_rows)
 
 
 @dataclass(frozen=True)
@@ -270,31 +282,52 @@ def _detect_chunk(job: _DetectJob, sources: tuple[FrameSource, ...]) -> list[_Fr
             if mod not in _IMPORTED_PLUGINS:  # once per worker process
                 registry.load_plugin(mod)
                 _IMPORTED_PLUGINS.add(mod)
-    out: list[_FrameResult] = []
-    for src in sources:
-        frame = load_frame(src, job.cameras[src.camera_name])
-        per_frame: _FrameResult = []
-        for detector in job.detectors:
-            if isinstance(frame, str):
-                fd = FrameDetections.failed(src.frame_id, detector, frame)
-            else:
-                fd = detect_frame(frame, detector, job.layout, options=job.options,
-                                  identify_options=job.identify_options)
-            log.debug("frame %d, %s: %s", src.frame_id, detector, "ok" if fd.ok else f"failed: {fd.reason}")
-            per_frame.append((detection_rows(fd), {
-                "frame_id": src.frame_id,
-                "ok": fd.ok,
-                "reason": fd.reason,
-                "n_detections": len(fd.detections),
-                "seconds": fd.seconds,
-                "cpu_seconds": fd.cpu_seconds,
-                "n_identified": int((fd.detections.beacon_ids >= 0).sum()),
-                "camera": src.camera_name,
-                "stamp_ns": src.stamp_ns,
-                "image": os.path.relpath(src.image_path, job.root),
-            }))
-        out.append(per_frame)
-    return out
+    return [
+        frame_results(load_frame(src, job.cameras[src.camera_name]), src.frame_id, src.camera_name,
+                      src.stamp_ns, os.path.relpath(src.image_path, job.root), job.detectors,
+                      job.layout, job.options, job.identify_options)
+        for src in sources
+    ]
+
+
+def frame_results(
+    frame: Frame | str,
+    frame_id: int,
+    camera_name: str,
+    stamp_ns: int,
+    image_relpath: str,
+    detectors: tuple[str, ...],
+    layout: DeckLayout,
+    options: DetectorOptions,
+    identify_options: IdentifyOptions,
+) -> _FrameResult:
+    """One frame's detections by each detector: its ``detections`` rows and its frame row.
+
+    The detect stage calls this on each decoded frame, and the render stage on each frame
+    in memory when it detects at render time (:mod:`deckpose.render.render_detection`),
+    so both write the same tables. ``frame`` is the frame, or why it cannot be used (then
+    every detector's frame row says so).
+    """
+    per_frame: _FrameResult = []
+    for detector in detectors:
+        if isinstance(frame, str):
+            fd = FrameDetections.failed(frame_id, detector, frame)
+        else:
+            fd = detect_frame(frame, detector, layout, options=options, identify_options=identify_options)
+        log.debug("frame %d, %s: %s", frame_id, detector, "ok" if fd.ok else f"failed: {fd.reason}")
+        per_frame.append((detection_rows(fd), {
+            "frame_id": frame_id,
+            "ok": fd.ok,
+            "reason": fd.reason,
+            "n_detections": len(fd.detections),
+            "seconds": fd.seconds,
+            "cpu_seconds": fd.cpu_seconds,
+            "n_identified": int((fd.detections.beacon_ids >= 0).sum()),
+            "camera": camera_name,
+            "stamp_ns": stamp_ns,
+            "image": image_relpath,
+        }))
+    return per_frame
 
 
 def write_run(
@@ -305,8 +338,13 @@ def write_run(
     frames: pd.DataFrame,
     options: DetectorOptions,
     identify_options: IdentifyOptions,
+    *,
+    detected_at_render: bool = False,
 ) -> Path:
     """Write the detection outputs; returns the detections table's path.
+
+    ``detected_at_render`` (recorded in the metadata file) says the frames were detected
+    in memory as they were rendered (``deckpose render --detect``), not decoded from disk.
 
     With ``out_dir``: a self-contained folder ``out_dir/{detections.parquet,
     detect_frames.parquet, detect_run.json, cameras/}``. Without (datasets only):
@@ -346,6 +384,7 @@ def write_run(
         "cameras": cams,
         "n_frames": len(frames),
         "n_frames_ok": int(frames["ok"].sum()) if len(frames) else 0,
+        "detected_at_render": detected_at_render,
         "versions": _versions(),
     }
     with atomic_open(meta_path, "w") as fh:

@@ -132,6 +132,10 @@ def read_export_frames(run: rl.RunPaths) -> ExportFrames:
     facing = b["facing"].to_numpy(bool).reshape(-1, n)
     T = np.stack([T_cam_from_deck(*rl.frame_poses(row)) for _, row in frames.iterrows()])
     rel = tuple(str(r) for r in frames["image"])
+    if not all(rel):
+        raise InputDataError(
+            f"{run.root} keeps no frames (rendered with --no-images: detections and previews only), so "
+            f"it cannot be exported; render it again without --no-images: deckpose render CONFIG.yaml DIR")
     paths = tuple(run.root / r for r in rel)
     missing = [str(p) for p in paths if not p.is_file()]
     if missing:

@@ -217,7 +217,10 @@ def plot_centroid_vs_size(ce_by_det: dict[str, pd.DataFrame], path: Path,
 
 def example_frame(run: rl.RunPaths, frame: pd.Series, beacons: pd.DataFrame,
                   dets: dict[str, pd.DataFrame], path: Path, max_px: int = 1200) -> None:
-    image = run.root / frame["image"]
+    # A run rendered with --no-images keeps only the preview: shown in the frame's pixel
+    # coordinates, without the native-pixel inset.
+    kept = bool(frame["image"])
+    image = run.root / frame["image"] if kept else run.preview(int(frame["frame_id"]))
     if not image.is_file():
         raise InputDataError(f"cannot read image {image}: no such file")
     img = decode_image(image.read_bytes(), str(image))
@@ -225,10 +228,11 @@ def example_frame(run: rl.RunPaths, frame: pd.Series, beacons: pd.DataFrame,
         img = np.right_shift(img, 8).astype(np.uint8)
     if img.ndim == 3:
         img = cv2.cvtColor(img, cv2.COLOR_BGR2RGB)
-    H, W = img.shape[:2]
+    cam = rl.read_cameras(run, [str(frame["camera"])])[str(frame["camera"])] if not kept else None
+    H, W = (cam.height_px, cam.width_px) if cam is not None else img.shape[:2]
     b = beacons[(beacons.frame_id == frame.frame_id) & beacons.visible.astype(bool)]
     inset = None
-    if len(b):
+    if len(b) and kept:
         # a zoomed inset around one beacon, at native pixels, where the sub-pixel offsets
         # between the truth and the detections show (cut before the frame is shrunk)
         c = b.iloc[0]
@@ -238,7 +242,7 @@ def example_frame(run: rl.RunPaths, frame: pd.Series, beacons: pd.DataFrame,
         inset = (c, img[y0:y1, x0:x1].copy(), (x0, x1, y0, y1))
     # matplotlib gets at most max_px on the long side (a 64 MP frame handed over whole made
     # `deckpose report` peak at 4.6 GiB); the axes keep full-resolution pixel coordinates
-    scale = min(1.0, max_px / max(H, W))
+    scale = min(1.0, max_px / max(img.shape[:2]))
     if scale < 1.0:
         img = cv2.resize(img, (max(1, round(W * scale)), max(1, round(H * scale))),
                          interpolation=cv2.INTER_AREA)
@@ -265,7 +269,8 @@ def example_frame(run: rl.RunPaths, frame: pd.Series, beacons: pd.DataFrame,
         ins.set_xticks([])
         ins.set_yticks([])
         ins.set_title(f"beacon {int(c.beacon_id)}, native pixels", fontsize=6, color="white")
-    ax.set_title(f"frame {frame.frame_id}: {frame.camera}, {frame.camera_height_m:g} m, {frame.get('lighting', '')}")
+    ax.set_title(f"frame {frame.frame_id}: {frame.camera}, {frame.camera_height_m:g} m, {frame.get('lighting', '')}"
+                 + ("" if kept else " (preview: the frame was not kept)"))
     _legend(ax, fontsize=7, loc="lower right")
     ax.set_axis_off()
     _save(fig, path)

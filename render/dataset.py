@@ -10,6 +10,12 @@ Layout (the dataset contract)::
     DATASET/beacons.parquet          one row per frame x beacon
     DATASET/lights.parquet           one row per frame x non-beacon light (navigation, floodlights, glints)
     DATASET/.parts/<frame_id>.json   per-frame ground truth, written after the image
+    DATASET/detections/<detector>.*  with ``detection``: detected at render time
+                                     (:mod:`deckpose.render.render_detection`)
+
+With a :class:`~deckpose.render.render_detection.RenderDetection` (``deckpose render
+--detect``), each frame is also detected in the worker that rendered it, from memory, and
+with ``keep_images=False`` (``--no-images``) its image file is not written.
 
 Every file is written atomically (temporary name, then rename). A frame is done
 when its part file exists, and the part is written only after its image, so a run
@@ -41,6 +47,12 @@ from typing import TYPE_CHECKING, Any, cast
 import pandas as pd
 from deckpose.render.config import RenderConfig, config_to_dict, load_config
 from deckpose.render.plan import FrameSpec, plan_frames
+from deckpose.render.render_detection import (
+    RenderDetection,
+    detect_rendered,
+    resolve_detection,
+    write_rendered_detections,
+)
 
 from deckpose.atomic_io import atomic_open, remove_stale_temps
 from deckpose.camera_info import write_camera_info
@@ -91,7 +103,8 @@ class EncodedFrame:
     """One rendered frame as the bytes of its files: what a worker hands back to be written.
 
     ``image`` is the file ``part["frame"]["image"]`` names (``images/<frame_id>.png``, BGR
-    on disk, or ``.zst``: :mod:`deckpose.image_store`), ``preview_png`` is
+    on disk, or ``.zst``: :mod:`deckpose.image_store`; empty, and no file, when the frames
+    are not kept), ``preview_png`` is
     ``previews/<frame_id>.png`` and ``part`` is the ``.parts/<frame_id>.json`` document
     (the frame's ``frames.parquet`` row and ``beacons.parquet`` rows).
     """
@@ -102,11 +115,13 @@ class EncodedFrame:
     part: dict[str, Any]
 
 
-def encode_frame(cfg: RenderConfig, spec: FrameSpec) -> EncodedFrame:
+def encode_frame(cfg: RenderConfig, spec: FrameSpec, detection: RenderDetection | None = None) -> EncodedFrame:
     """Render one frame and encode its image, preview and ground truth; writes nothing.
 
     The Dask workers' task: what it returns is written by the process that owns the
-    output folder (:func:`write_frame`), so the workers need no access to it.
+    output folder (:func:`write_frame`), so the workers need no access to it. With
+    ``detection``, the frame is also detected here, from memory (the part's
+    ``"detections"``), and its image is encoded only if ``detection.keep_images``.
     """
     from deckpose.render.frame import beacon_rows, frame_row, light_rows, render_frame
     from deckpose.render.scene import DeckRenderer
@@ -119,11 +134,14 @@ def encode_frame(cfg: RenderConfig, spec: FrameSpec) -> EncodedFrame:
         rf = render_frame(cfg, spec, camera, _RENDERERS[key])
     img = rf.frame.image
     bgr = img if img.ndim == 2 else img[..., ::-1]
-    image = encode_image(bgr, cfg.image_format)
+    keep = detection is None or detection.keep_images
+    image = encode_image(bgr, cfg.image_format) if keep else b""
     # the log's preview, made from the frame in memory (the log would decode the PNG again)
     preview_png = encode_image(make_preview(bgr, PREVIEW_PX), ImageFormat.PNG)
-    part = {"frame": frame_row(rf, image_relpath(spec.frame_id, cfg.image_format.suffix)),
-            "beacons": beacon_rows(rf), "lights": light_rows(rf)}
+    rel = image_relpath(spec.frame_id, cfg.image_format.suffix) if keep else ""
+    part: dict[str, Any] = {"frame": frame_row(rf, rel), "beacons": beacon_rows(rf), "lights": light_rows(rf)}
+    if detection is not None and detection.detectors:
+        part["detections"] = detect_rendered(rf.frame, spec.camera_name, rel, cfg.layout, detection)
     return EncodedFrame(spec.frame_id, image, preview_png, part)
 
 
@@ -143,20 +161,25 @@ def write_frame(out_dir: Path, frame: EncodedFrame) -> int:
     Returns the frame id. A frame is done when its part exists, so a writer killed at
     any moment leaves whole files and, at worst, a frame that ``resume`` renders again.
     """
-    _write_bytes(out_dir / frame.part["frame"]["image"], frame.image)
+    if frame.part["frame"]["image"]:  # "" when the frames are not kept
+        _write_bytes(out_dir / frame.part["frame"]["image"], frame.image)
     _write_bytes(out_dir / preview_relpath(frame.frame_id), frame.preview_png)
     with atomic_open(_part_path(out_dir, frame.frame_id), "w") as fh:
         json.dump(frame.part, fh)
     return frame.frame_id
 
 
-def render_one(cfg: RenderConfig, spec: FrameSpec, out_dir: str) -> int:
+def render_one(cfg: RenderConfig, spec: FrameSpec, out_dir: str, detection: RenderDetection | None = None) -> int:
     """Render one frame and write it into ``out_dir`` (the local workers' entry point)."""
-    return write_frame(Path(out_dir), encode_frame(cfg, spec))
+    return write_frame(Path(out_dir), encode_frame(cfg, spec, detection))
 
 
-def _manifest(cfg: RenderConfig, plan: list[FrameSpec], complete: bool) -> dict[str, Any]:
+def _manifest(cfg: RenderConfig, plan: list[FrameSpec], complete: bool,
+              detection: RenderDetection | None = None) -> dict[str, Any]:
     cams = cfg.cameras_by_name()
+    extra: dict[str, Any] = {}
+    if detection is not None:  # absent otherwise: the manifests of earlier versions are unchanged
+        extra = {"images_kept": detection.keep_images, "detect_at_render": detection.manifest_entry()}
     return {
         "format": DATASET_FORMAT,
         "name": cfg.name,
@@ -170,6 +193,7 @@ def _manifest(cfg: RenderConfig, plan: list[FrameSpec], complete: bool) -> dict[
         "sensor_channels": 1 if cfg.sensor.color == "mono" else 3,
         "cameras": manifest_cameras(cams),
         "preview_px": PREVIEW_PX,
+        **extra,
     }
 
 
@@ -232,7 +256,27 @@ def _missing_keys(old: dict[str, Any], new: dict[str, Any], prefix: str = "") ->
     return out
 
 
-def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool) -> None:
+def _detection_mismatch(out: Path, old: dict[str, Any], detection: RenderDetection | None) -> str:
+    """Why a dataset cannot be resumed with another choice of detection at render time ("" if it can)."""
+    new = _manifest_detection(detection)
+    was = (old.get("images_kept", True), old.get("detect_at_render"))
+    if was == new:
+        return ""
+    def say(kept: object, det: object) -> str:
+        names = ",".join(det.get("detectors", [])) if isinstance(det, dict) else ""
+        return (f"--detect {names}" if names else "no --detect") + ("" if kept else " --no-images")
+    return (f"{out} was rendered with {say(*was)}, this run asks for {say(*new)}; resume with the "
+            "same choice, or render into a new folder")
+
+
+def _manifest_detection(detection: RenderDetection | None) -> tuple[bool, dict[str, Any] | None]:
+    if detection is None:
+        return True, None
+    return detection.keep_images, json.loads(json.dumps(detection.manifest_entry()))
+
+
+def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool,
+             detection: RenderDetection | None = None) -> None:
     run = RunPaths(out)
     manifest = run.manifest
     if manifest.exists():
@@ -245,6 +289,9 @@ def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool) 
         new = json.loads(json.dumps(config_to_dict(cfg)))
         if old.get("config") != new:
             raise ConfigError(_config_mismatch(out, old.get("config"), new))
+        why = _detection_mismatch(out, old, detection)
+        if why:
+            raise ConfigError(why)
     elif out.exists() and any(p.name != LOCK_NAME for p in out.iterdir()) and not resume:
         raise ConfigError(f"output folder {out} is not empty; choose a new or empty folder")
     out.mkdir(parents=True, exist_ok=True)
@@ -254,16 +301,17 @@ def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool) 
     run.images_dir.mkdir(exist_ok=True)
     run.previews_dir.mkdir(exist_ok=True)
     (out / ".parts").mkdir(exist_ok=True)
-    _write_json(manifest, _manifest(cfg, plan, complete=False))
+    _write_json(manifest, _manifest(cfg, plan, complete=False, detection=detection))
 
 
-def _run_local(cfg: RenderConfig, todo: list[FrameSpec], out: Path, workers: int) -> Iterator[int]:
+def _run_local(cfg: RenderConfig, todo: list[FrameSpec], out: Path, workers: int,
+               detection: RenderDetection | None = None) -> Iterator[int]:
     if workers == 0:
         for spec in todo:
-            yield render_one(cfg, spec, str(out))
+            yield render_one(cfg, spec, str(out), detection)
         return
     with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn")) as pool:
-        futures = [pool.submit(render_one, cfg, spec, str(out)) for spec in todo]
+        futures = [pool.submit(render_one, cfg, spec, str(out), detection) for spec in todo]
         try:
             for fut in as_completed(futures):
                 yield fut.result()
@@ -285,7 +333,8 @@ def _connect(address: str) -> Client:
                           "(dask scheduler) or give its address as --scheduler tcp://HOST:8786") from None
 
 
-def _run_dask(client: Client, cfg: RenderConfig, todo: list[FrameSpec], out: Path) -> Iterator[int]:
+def _run_dask(client: Client, cfg: RenderConfig, todo: list[FrameSpec], out: Path,
+              detection: RenderDetection | None = None) -> Iterator[int]:
     """Render on the cluster's workers and write here, as the frames come back.
 
     The workers write nothing (:func:`encode_frame`), so they need no shared disk and
@@ -305,7 +354,7 @@ def _run_dask(client: Client, cfg: RenderConfig, todo: list[FrameSpec], out: Pat
             spec = next(specs, None)
             if spec is None:
                 return
-            running.add(client.submit(encode_frame, cfg, spec, pure=False))
+            running.add(client.submit(encode_frame, cfg, spec, detection, pure=False))
 
     submit_up_to_window()
     for fut in running:
@@ -316,11 +365,16 @@ def _run_dask(client: Client, cfg: RenderConfig, todo: list[FrameSpec], out: Pat
         del frame
 
 
-def collect_tables(out: Path, plan: list[FrameSpec]) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
+def read_parts(out: Path, plan: list[FrameSpec]) -> list[dict[str, Any]]:
+    """The part documents of every planned frame, in plan order."""
+    return [json.loads(_part_path(out, spec.frame_id).read_text()) for spec in plan]
+
+
+def collect_tables(out: Path, plan: list[FrameSpec], parts: list[dict[str, Any]] | None = None
+                   ) -> tuple[pd.DataFrame, pd.DataFrame, pd.DataFrame]:
     """Build the frames, beacons and lights tables from the part files, sorted by frame id."""
     frames, beacons, lights = [], [], []
-    for spec in plan:
-        doc = json.loads(_part_path(out, spec.frame_id).read_text())
+    for doc in parts if parts is not None else read_parts(out, plan):
         frames.append(doc["frame"])
         beacons.extend(doc["beacons"])
         lights.extend(doc.get("lights", []))
@@ -336,7 +390,7 @@ def collect_tables(out: Path, plan: list[FrameSpec]) -> tuple[pd.DataFrame, pd.D
 
 def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
                    workers: int = 1, resume: bool = False, scheduler: str | None = None,
-                   progress: bool = True) -> Path:
+                   progress: bool = True, detection: RenderDetection | None = None) -> Path:
     """Render every frame of a config into a dataset folder.
 
     Parameters
@@ -354,6 +408,10 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
         Address of a Dask scheduler (``tcp://host:8786``); overrides ``workers``.
     progress : bool
         Show a progress bar.
+    detection : RenderDetection, optional
+        Detect each frame at render time, from memory, and optionally keep no frames
+        (:mod:`deckpose.render.render_detection`). ``options.gain_dn_per_e = None`` takes
+        the sensor's gain, as ``deckpose detect`` does from the manifest.
 
     Returns
     -------
@@ -365,8 +423,10 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
         raise ConfigError(f"workers must be >= 0, got {workers}")
     plan = plan_frames(cfg)  # every config error surfaces here, before any frame
     out = Path(out_dir)
+    if detection is not None:  # checked before anything is written
+        detection = resolve_detection(detection, sensor_block(cfg))
     with _connect(scheduler) if scheduler else contextlib.nullcontext() as client:  # before writing
-        _prepare(cfg, plan, out, resume)
+        _prepare(cfg, plan, out, resume, detection)
         todo = [s for s in plan if not _part_path(out, s.frame_id).exists()]
         log.info("%d of %d frames to render into %s (%s)", len(todo), len(plan), out,
                  f"scheduler {scheduler}" if scheduler else f"{workers} worker processes")
@@ -374,14 +434,19 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
 
         bar = tqdm(total=len(plan), initial=len(plan) - len(todo), unit="frame",
                    disable=None if progress else True, desc=f"render {cfg.name}")
-        runner = _run_dask(client, cfg, todo, out) if client is not None else _run_local(cfg, todo, out, workers)
+        runner = (_run_dask(client, cfg, todo, out, detection) if client is not None
+                  else _run_local(cfg, todo, out, workers, detection))
         for _ in runner:
             bar.update(1)
         bar.close()
-    fdf, bdf, ldf = collect_tables(out, plan)
+    parts = read_parts(out, plan)
+    fdf, bdf, ldf = collect_tables(out, plan, parts)
     write_table(fdf, RunPaths(out).frames, "frames")
     write_table(bdf, RunPaths(out).beacons, "beacons")
     write_table(ldf, RunPaths(out).lights, "lights")
-    _write_json(RunPaths(out).manifest, _manifest(cfg, plan, complete=True))
+    _write_json(RunPaths(out).manifest, _manifest(cfg, plan, complete=True, detection=detection))
+    if detection is not None:
+        for path in write_rendered_detections(out, parts, detection):
+            log.info("detections at render time: %s", path)
     log.info("dataset %s complete: %d frames", out, len(plan))
     return out

@@ -66,6 +66,11 @@ class PipelineOptions:
         First stage to run (one of :data:`STAGES`); earlier stages' outputs are reused.
     command : tuple of str
         The command line, recorded in ``pipeline.json``.
+    detect_at_render : bool
+        Detect each frame as it is rendered, from memory (``deckpose render --detect``), instead
+        of decoding every frame again in a detect stage.
+    keep_images : bool
+        Write the frames' image files (``False`` needs ``detect_at_render``).
     """
 
     run_dir: Path
@@ -78,6 +83,8 @@ class PipelineOptions:
     publish_dir: Path | None = None
     from_stage: str = "render"
     command: tuple[str, ...] = field(default_factory=tuple)
+    detect_at_render: bool = False
+    keep_images: bool = True
 
     def __post_init__(self) -> None:
         if not self.detectors:
@@ -88,6 +95,8 @@ class PipelineOptions:
             raise ConfigError(f"unknown stage {self.from_stage!r}; choose from {', '.join(STAGES)}")
         if self.workers < 0:
             raise ConfigError(f"--workers must be >= 0, got {self.workers}")
+        if not self.keep_images and not self.detect_at_render:
+            raise ConfigError("--no-images keeps no frame for the detect stage: add --detect-at-render")
 
 
 def _csv(text: str) -> tuple[str, ...]:
@@ -120,6 +129,10 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--from-stage", choices=STAGES, default="render",
                    help="start at this stage, reusing the earlier stages' outputs in RUN (e.g. 'report' "
                         "after changing only the report)")
+    p.add_argument("--detect-at-render", action="store_true",
+                   help="detect each frame as it is rendered, from memory (no frame decoded again)")
+    p.add_argument("--no-images", action="store_true",
+                   help="keep no frame (previews and tables only); needs --detect-at-render")
     add_progress(p)
     p.set_defaults(func=run)
 
@@ -132,6 +145,7 @@ def run(args: argparse.Namespace) -> int:
         run_dir=args.run, detectors=tuple(args.detector), methods=tuple(args.method), workers=workers(args),
         scheduler=args.scheduler, mcap=not args.no_mcap, progress=not args.no_progress,
         publish_dir=args.publish, from_stage=args.from_stage, command=_canonical_command(args),
+        detect_at_render=args.detect_at_render, keep_images=not args.no_images,
     )
     paths = run_pipeline(config, options, config_label=str(args.config))
     for key, path in paths.items():
@@ -151,6 +165,10 @@ def _canonical_command(args: argparse.Namespace) -> tuple[str, ...]:
         cmd += ["--publish", str(args.publish)]
     if args.from_stage != STAGES[0]:
         cmd += ["--from-stage", args.from_stage]
+    if args.detect_at_render:
+        cmd.append("--detect-at-render")
+    if args.no_images:
+        cmd.append("--no-images")
     return tuple(cmd)
 
 
@@ -208,6 +226,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     from deckpose.evaluate.report import write_report
     from deckpose.evaluate.run import evaluate_run, write_log
     from deckpose.render.dataset import render_dataset
+    from deckpose.render.render_detection import RenderDetection
     from deckpose.run_folder import run_paths
 
     check_names(options)
@@ -234,12 +253,16 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     if runs("render"):
         say(1, total, f"render {config_label or getattr(config, 'name', 'config')} -> {run_dir} "
                       "(resumes frames on disk)")
+        detection = (RenderDetection(options.detectors, keep_images=options.keep_images)
+                     if options.detect_at_render else None)
         render_dataset(config, run_dir, workers=options.workers, resume=True, scheduler=options.scheduler,
-                       progress=options.progress)
+                       progress=options.progress, detection=detection)
         seconds["render"] = time.perf_counter() - t
         log.info("stage render: %.1f s", seconds["render"])
     t = time.perf_counter()
-    if runs("detect"):
+    if runs("detect") and options.detect_at_render:
+        say(2, total, f"detect beacons ({', '.join(options.detectors)}): done at render time")
+    elif runs("detect"):
         say(2, total, f"detect beacons ({', '.join(options.detectors)})")
         for det in options.detectors:  # a stage whose every frame failed still ran: the report says so
             res = detect_run(run_dir, det, progress=options.progress, workers=options.workers)
@@ -273,7 +296,8 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         "command": list(options.command), "config": config_label, "config_name": getattr(config, "name", None),
         "detectors": list(options.detectors), "methods": list(options.methods), "workers": options.workers,
         "scheduler": options.scheduler, "deckpose_version": __version__, "machine": _machine(),
-        "from_stage": options.from_stage,
+        "from_stage": options.from_stage, "detect_at_render": options.detect_at_render,
+        "images_kept": options.keep_images,
         "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "stage_seconds": {k: stage_seconds[k] for k in STAGES if k in stage_seconds},
     }

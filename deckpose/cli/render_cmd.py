@@ -41,6 +41,12 @@ def register(subparsers: Any) -> None:
     p.add_argument("--scheduler", default=None, metavar="ADDRESS",
                    help="Dask scheduler address (tcp://host:8786); frames run on its workers")
     p.add_argument("--seed", type=int, default=None, help="override the config's seed")
+    p.add_argument("--detect", default=None, metavar="DETECTORS",
+                   help="also detect each frame as it is rendered, from memory, with these detectors "
+                        "(comma-separated; default options); writes detections/<detector>.parquet as "
+                        "'deckpose detect' would, without decoding a frame")
+    p.add_argument("--no-images", action="store_true",
+                   help="keep no frame (previews and tables only); needs --detect")
     add_progress(p)
     p.set_defaults(func=run)
 
@@ -60,12 +66,21 @@ def run(args: argparse.Namespace) -> int:
     if args.seed is not None:
         cfg = dataclasses.replace(cfg, seed=args.seed)
     out = args.output or args.out or Path("datasets") / cfg.name
+    detection = None
+    if args.detect is not None or args.no_images:
+        from deckpose.render.dataset import sensor_block
+        from deckpose.render.render_detection import RenderDetection, resolve_detection
+
+        names = tuple(n.strip() for n in (args.detect or "").split(",") if n.strip())
+        # checked before the output folder is claimed (created), as a config is
+        detection = resolve_detection(RenderDetection(detectors=names, keep_images=not args.no_images),
+                                      sensor_block(cfg))
     from deckpose.output_folder import claim_output
 
     # room for at least the largest frame (uncompressed), checked before anything is written
     biggest = max(c.width_px * c.height_px for c in cfg.cameras_by_name().values())
     claim_output(out, need_bytes=biggest * 3 * (2 if cfg.sensor.bit_depth > 8 else 1), what="render")
     path = render_dataset(cfg, out, workers=workers(args), resume=args.resume, scheduler=args.scheduler,
-                          progress=not args.no_progress)
+                          progress=not args.no_progress, detection=detection)
     print(f"dataset written to {path}")
     return 0
