@@ -229,6 +229,21 @@ def test_dask_run_survives_a_worker_killed_mid_run(reference: Path, dask_cluster
     assert_same_dataset(reference, ds)
 
 
+def test_dask_workers_detect_at_render(dask_cluster, tmp_path: Path) -> None:
+    # detection at render time runs on the cluster's workers; its table is the one the detect
+    # stage writes from the frames the client wrote
+    from deckpose.detect.run import detect_run
+    from deckpose.render.render_detection import RenderDetection
+
+    lc, _client = dask_cluster
+    ds = render_dataset(config_from_dict(tiny_doc()), tmp_path / "dask", scheduler=lc.scheduler_address,
+                        progress=False, detection=RenderDetection(("cog",)))
+    fused = pd.read_parquet(ds / "detections" / "cog.parquet")
+    assert len(fused) > 0
+    decoded = detect_run(ds, "cog", out_dir=tmp_path / "decoded")
+    pd.testing.assert_frame_equal(fused, pd.read_parquet(decoded.path))
+
+
 def test_an_unreachable_or_malformed_scheduler_is_one_line(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     dask = pytest.importorskip("dask")
     pytest.importorskip("distributed")
