@@ -131,6 +131,9 @@ BEACON_COLUMNS: tuple[Column, ...] = (
     _C("light_u_px", "float64", "px", "centroid of the beacon's light in the image, column (differs from u_px "
        "where an occluder cuts the spot; null: no light)"),
     _C("light_v_px", "float64", "px", "centroid of the beacon's light in the image, row"),
+    _C("global_u_px", "float64", "px", "true centre at the frame time (global shutter), column; u_px is "
+       "the beacon at its own row's time when a rolling shutter is on, else the same"),
+    _C("global_v_px", "float64", "px", "true centre at the frame time (global shutter), row"),
 )
 
 #: ``lights.parquet``: one row per frame x non-beacon light (navigation lights, floodlights, glints).
