@@ -56,7 +56,7 @@ from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.projection import BeaconProjection, project_layout
 
-__all__ = ["ROW_TOLERANCE_PX", "ShipTrack", "ShutterFrame", "row_time_s", "rolling_shutter_beacons"]
+__all__ = ["ROW_TOLERANCE_PX", "ShipTrack", "ShutterFrame", "rolling_shutter_beacons", "row_time_s"]
 
 #: The fixed point's stopping step, pixels.
 ROW_TOLERANCE_PX = 1e-9
