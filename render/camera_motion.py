@@ -25,11 +25,10 @@ from dataclasses import dataclass
 import numpy as np
 from deckpose.render.config import ShutterSpec
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from deckpose.pose import CameraPose
 
-__all__ = ["VIBRATION_STREAM", "CameraMotion", "camera_motion"]
+__all__ = ["VIBRATION_STREAM", "CameraMotion", "camera_motion", "rotation_from_rotvec"]
 
 #: Stream index of the vibration phases in ``SeedSequence([frame seed, stream])`` (issue 23, item 4).
 VIBRATION_STREAM = 2341
@@ -67,11 +66,34 @@ class CameraMotion:
 
     def pose_at(self, t_s: float) -> CameraPose:
         """The camera pose at motion time ``t_s``, seconds."""
-        dt = float(t_s) - self.t_frame_s
+        R, C = self.matrices_at(np.array([float(t_s)]))
+        return CameraPose(R[0], C[0])
+
+    def matrices_at(self, t_s: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """``R_world_from_cam`` (M, 3, 3) and the camera centre (M, 3), metres, at times ``t_s`` (M,)."""
+        dt = np.asarray(t_s, float)[:, None] - self.t_frame_s
         jitter = self.amplitude_rad * np.sin(2.0 * math.pi * self.frequency_hz * dt + self.phase_rad)
-        R = (self.base.R_world_from_cam @ Rotation.from_rotvec(self.rate_rad_per_s * dt).as_matrix()
-             @ Rotation.from_rotvec(jitter).as_matrix())
-        return CameraPose(R, self.base.position_world_m + self.velocity_m_per_s * dt)
+        R = self.base.R_world_from_cam @ rotation_from_rotvec(self.rate_rad_per_s * dt) @ rotation_from_rotvec(jitter)
+        return R, self.base.position_world_m + self.velocity_m_per_s * dt
+
+
+def rotation_from_rotvec(w_rad: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Rotation matrices (M, 3, 3) of rotation vectors (M, 3), radians (Rodrigues' formula).
+
+    ``R = I + a [w]x + b [w]x^2`` with ``a = sin(t)/t``, ``b = (1 - cos t)/t^2``, ``t = |w|``;
+    below ``t = 1e-4`` their Taylor series (error < 1e-17), so ``w = 0`` gives ``I`` exactly.
+    """
+    w = np.asarray(w_rad, float)
+    t2 = np.einsum("mi,mi->m", w, w)
+    t = np.sqrt(t2)
+    small = t < 1e-4
+    ts = np.where(small, 1.0, t)
+    a = np.where(small, 1.0 - t2 / 6.0, np.sin(ts) / ts)
+    b = np.where(small, 0.5 - t2 / 24.0, (1.0 - np.cos(ts)) / (ts * ts))
+    K = np.zeros((w.shape[0], 3, 3))
+    K[:, 0, 1], K[:, 0, 2], K[:, 1, 2] = -w[:, 2], w[:, 1], -w[:, 0]
+    K[:, 1, 0], K[:, 2, 0], K[:, 2, 1] = w[:, 2], -w[:, 1], w[:, 0]
+    return np.eye(3) + a[:, None, None] * K + b[:, None, None] * (K @ K)
 
 
 def camera_motion(spec: ShutterSpec, base: CameraPose, t_frame_s: float,

@@ -55,6 +55,7 @@ from deckpose.errors import ConfigError
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.projection import BeaconProjection, project_layout
+from deckpose.rotation import R_from_zyx, zyx_from_R
 
 __all__ = ["ROW_TOLERANCE_PX", "ShipTrack", "ShutterFrame", "rolling_shutter_beacons", "row_time_s"]
 
@@ -87,8 +88,12 @@ class ShipTrack:
 
     def pose_at(self, t_s: float) -> ShipPose:
         """The deck pose at ``t_s`` (held at the end knots outside the track)."""
+        return ShipPose(*(float(x) for x in self.values_at(np.array([float(t_s)]))[0]))
+
+    def values_at(self, t_s: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Roll, pitch, yaw (rad), heave, surge, sway (m) at times ``t_s`` (M,): an (M, 6) array."""
         knots = np.asarray(self.t_s, float)
-        return ShipPose(*(float(np.interp(t_s, knots, [getattr(p, c) for p in self.poses])) for c in _CHANNELS))
+        return np.stack([np.interp(t_s, knots, [getattr(p, c) for p in self.poses]) for c in _CHANNELS], axis=-1)
 
 
 @dataclass(frozen=True)
@@ -127,10 +132,25 @@ def row_time_s(v_px: NDArray[np.float64], height_px: int, t_frame_s: float, spec
     return t_frame_s + sign * (np.asarray(v_px, float) - 0.5 * (height_px - 1)) * spec.line_delay_s
 
 
-def _relative_pose(ship: ShipPose, cam: CameraPose, cam_ref: CameraPose) -> ShipPose:
-    """The deck pose that, seen from ``cam_ref``, images as ``ship`` seen from ``cam``."""
-    T = cam_ref.T_world_from_cam @ cam.T_cam_from_world @ ship.T_world_from_deck
-    return ShipPose.from_R(T[:3, :3], T[:3, 3])
+def _cam_from_deck(track: ShipTrack, motion: CameraMotion,
+                   t_s: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """``R_cam_from_deck`` (M, 3, 3) and ``t_cam_from_deck`` (M, 3), metres, at times ``t_s`` (M,)."""
+    v = track.values_at(t_s)
+    R_deck = R_from_zyx(v[:, 0], v[:, 1], v[:, 2])
+    R_cam, C = motion.matrices_at(t_s)
+    R_cam_T = np.swapaxes(R_cam, 1, 2)
+    return R_cam_T @ R_deck, np.einsum("mij,mj->mi", R_cam_T, v[:, [4, 5, 3]] - C)
+
+
+def _relative_poses(track: ShipTrack, motion: CameraMotion, t_s: NDArray[np.float64],
+                    cam_ref: CameraPose) -> list[ShipPose]:
+    """The deck poses (M,) that, seen from ``cam_ref``, image as the deck at ``t_s`` seen from the moving camera."""
+    R, t = _cam_from_deck(track, motion, t_s)
+    R_w = cam_ref.R_world_from_cam @ R
+    p_w = t @ cam_ref.R_world_from_cam.T + cam_ref.position_world_m
+    roll, pitch, yaw = zyx_from_R(R_w)
+    return [ShipPose(float(a), float(b), float(c), float(p[2]), float(p[0]), float(p[1]))
+            for a, b, c, p in zip(roll, pitch, yaw, p_w)]
 
 
 def _patch_centroid(sp: Splat) -> NDArray[np.float64]:
@@ -150,16 +170,22 @@ def _solve_rows(layout: DeckLayout, track: ShipTrack, motion: CameraMotion, came
     span = camera.height_px * spec.line_delay_s
     v = np.asarray(v0_px, float)
     last_step = math.inf
+    P_deck = layout.positions_deck_m()
     for it in range(1, _MAX_ITERATIONS + 1):
         t = np.clip(row_time_s(np.nan_to_num(v, nan=0.5 * (camera.height_px - 1)), camera.height_px, t0, spec),
                     t0 - span, t0 + span)
-        projs = [project_layout(layout, track.pose_at(float(t[i])), motion.pose_at(float(t[i])), camera)
-                 for i in range(n)]
-        v_new = np.array([projs[i].points_px[i, 1] for i in range(n)])
+        R, tr = _cam_from_deck(track, motion, t)
+        P_cam = np.einsum("nij,nj->ni", R, P_deck) + tr  # beacon i at its own time
+        v_new = np.full(n, np.nan)
+        front = P_cam[:, 2] > 1e-9
+        if front.any():
+            v_new[front] = camera.project(P_cam[front])[:, 1]
         moved = np.abs(v_new - v)[np.isfinite(v_new) & np.isfinite(v)]
         step = float(moved.max()) if moved.size else 0.0
         v = v_new
         if step < ROW_TOLERANCE_PX:
+            projs = [project_layout(layout, track.pose_at(float(t[i])), motion.pose_at(float(t[i])), camera)
+                     for i in range(n)]
             return t, projs, it
         if it > 2 and step > 0.5 * last_step:
             raise ConfigError(f"shutter.line_delay_s: the rolling-shutter rows do not converge (step {step:.3g} px "
@@ -205,8 +231,9 @@ def rolling_shutter_beacons(layout: DeckLayout, track: ShipTrack, ship_frame: Sh
     k = motion_spec.blur_steps if motion_spec.exposure_s > 0 else 1
     offsets = motion_spec.exposure_s * ((np.arange(k) + 0.5) / k - 0.5)
     splats: list[Splat] = []
+    sub = _relative_poses(track, motion, (t[:, None] + offsets[None, :]).ravel(), cam0)
     for i in range(n):
-        poses = tuple(_relative_pose(track.pose_at(float(x)), motion.pose_at(float(x)), cam0) for x in t[i] + offsets)
+        poses = tuple(sub[i * k:(i + 1) * k])
         for sp in beacon_splats(layout, poses, cam0, camera, sensor, leds, unit_factors, beacon_ids=(i,)):
             splats.append(dataclasses.replace(sp, centre_px=_patch_centroid(sp)))
     return ShutterFrame(splats, projection, glob.points_px, t, cam0, iterations)
