@@ -129,8 +129,11 @@ BEACON_COLUMNS: tuple[Column, ...] = (
     _C("unit_factor", "float64", "", "the beacon unit's intensity factor (LED tolerance x bow intensity; 1 = nominal)"),
     _C("occluded_fraction", "float64", "", "fraction of the spot's light hidden by an occluder (0: none; 1: hidden)"),
     _C("light_u_px", "float64", "px", "centroid of the beacon's light in the image, column (differs from u_px "
-       "where an occluder cuts the spot; null: no light)"),
+       "where an occluder cuts the spot or a vibration path moves it; null: no light)"),
     _C("light_v_px", "float64", "px", "centroid of the beacon's light in the image, row"),
+    _C("global_u_px", "float64", "px", "true centre at the frame time (global shutter), column; u_px is "
+       "the beacon at its own row's time when a rolling shutter is on, else the same"),
+    _C("global_v_px", "float64", "px", "true centre at the frame time (global shutter), row"),
 )
 
 #: ``lights.parquet``: one row per frame x non-beacon light (navigation lights, floodlights, glints).

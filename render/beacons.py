@@ -157,7 +157,8 @@ def spot_splat(comps: list[tuple[np.ndarray, np.ndarray, float]], rgb: tuple[flo
 
 def beacon_splats(layout: DeckLayout, poses: tuple[ShipPose, ...], camera_pose: CameraPose,
                   camera: CameraModel, sensor: SensorSpec, leds: LedSpec = LedSpec(),
-                  unit_factors: np.ndarray | None = None) -> list[Splat]:
+                  unit_factors: np.ndarray | None = None, *,
+                  beacon_ids: tuple[int, ...] | None = None) -> list[Splat]:
     """Splats of every beacon the camera can see, averaged over ``poses`` (the exposure).
 
     Parameters
@@ -173,6 +174,8 @@ def beacon_splats(layout: DeckLayout, poses: tuple[ShipPose, ...], camera_pose: 
         The beacons' light model (:func:`deckpose.render.light.beacon_flux`).
     unit_factors : (N,) array of float, optional
         Each unit's intensity factor (:func:`deckpose.render.light.unit_factors`; default 1).
+    beacon_ids : tuple of int, optional
+        Only these beacons (default: all); the rolling shutter gives each beacon its own poses.
 
     Returns
     -------
@@ -186,7 +189,7 @@ def beacon_splats(layout: DeckLayout, poses: tuple[ShipPose, ...], camera_pose: 
     fluxes = [beacon_flux(layout, camera, sensor, leds, J, geo[0], geo[1][0]) * factors
               for _, J, _, geo in per_pose]
     out: list[Splat] = []
-    for i in range(layout.n_beacons):
+    for i in range(layout.n_beacons) if beacon_ids is None else beacon_ids:
         if not all(m[2][i] for m in per_pose):
             continue
         comps = [(c[i], J[i] @ J[i].T * (r * r / 4.0) + s2 * np.eye(2), float(f[i]))

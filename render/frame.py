@@ -9,7 +9,9 @@ the beacons' light model and unit tolerance (:mod:`deckpose.render.light`), occl
 (:mod:`deckpose.render.occlusion`) and lights that are not beacons
 (:mod:`deckpose.render.ship_lights`). Each draws from its own stream,
 ``SeedSequence([frame seed, stream])``, so switching one on leaves the others' and the
-sensor noise's realisations as they were.
+sensor noise's realisations as they were. The rolling shutter and the UAV's motion and
+vibration (:mod:`deckpose.render.rolling_shutter`) place each beacon at its own row's time;
+``u_px, v_px`` are then that truth and ``global_u_px, global_v_px`` the frame-time projection.
 """
 
 from __future__ import annotations
@@ -20,11 +22,13 @@ from typing import Any
 
 import numpy as np
 from deckpose.render.beacons import beacon_splats
+from deckpose.render.camera_motion import VIBRATION_STREAM, camera_motion
 from deckpose.render.config import RenderConfig
 from deckpose.render.lens import distort, raster_camera
 from deckpose.render.light import unit_factors
 from deckpose.render.occlusion import OCCLUSION_STREAM, OcclusionRecord, occlude
 from deckpose.render.plan import FrameSpec
+from deckpose.render.rolling_shutter import ShutterFrame, rolling_shutter_beacons
 from deckpose.render.scene import DeckRenderer, radiance_scale
 from deckpose.render.sensor import SpotRecord, expose, splat_electrons, spot_record
 from deckpose.render.ship_lights import GLINT_STREAM, ShipLight, light_splats, ship_lights
@@ -49,6 +53,7 @@ class RenderedFrame:
     lights_px: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 2)))
     lights_in_image: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, bool))
     lights_flux_e: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    global_points_px: np.ndarray | None = None  # frame-time projection (None: projection.points_px)
 
 
 def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
@@ -64,12 +69,14 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
     renderer : DeckRenderer
         This process's renderer (its GL context is created on first use).
     """
-    cam_pose = spec.camera_pose
+    factors = unit_factors(cfg.layout, cfg.leds, cfg.seed)
+    shutter = _shutter(cfg, spec, camera, factors)
+    cam_pose = spec.camera_pose if shutter is None else shutter.camera_pose
     raster = renderer.render(raster_camera(camera), cam_pose, spec.ship, spec.t_s, spec.lighting)
     raster = distort(raster, camera)
     poses = spec.blur_poses or (spec.ship,)
-    factors = unit_factors(cfg.layout, cfg.leds, cfg.seed)
-    splats = beacon_splats(cfg.layout, poses, cam_pose, camera, cfg.sensor, cfg.leds, factors)
+    splats = (beacon_splats(cfg.layout, poses, cam_pose, camera, cfg.sensor, cfg.leds, factors)
+              if shutter is None else shutter.splats)
     splats, occlusion = occlude(splats, cfg.occlusion, cfg.layout.n_beacons, _stream(spec.seed, OCCLUSION_STREAM))
     lights = ship_lights(cfg.ship_lights, cfg.deck_half_size_m(), cfg.scene.freeboard_m,
                          _stream(spec.seed, GLINT_STREAM))
@@ -82,12 +89,21 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
     image = expose(raster, scale, splats + extra, cfg.sensor, rng)
     spots = spot_record(raster, scale, splats, cfg.sensor, cfg.layout.n_beacons)
     image.setflags(write=False)  # Frame keeps a read-only array as is (no 200 MB copy at 64 MP)
-    proj = project_layout(cfg.layout, spec.ship, cam_pose, camera)
+    proj = project_layout(cfg.layout, spec.ship, cam_pose, camera) if shutter is None else shutter.projection
     truth = GroundTruth(spec.ship, cam_pose, proj.points_px, proj.visible, proj.apparent_radius_px,
                         spec.frame_id, spec.stamp_ns, spec.seed)
     frame = Frame(image, camera, spec.frame_id, spec.stamp_ns)
     return RenderedFrame(frame, truth, proj, spec, spots, factors, occlusion, tuple(lights), lights_px,
-                         lights_in, flux_e)
+                         lights_in, flux_e, None if shutter is None else shutter.global_points_px)
+
+
+def _shutter(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel, factors: np.ndarray) -> ShutterFrame | None:
+    """The beacons under the rolling shutter and the UAV's motion (None when the section is off)."""
+    if not cfg.shutter.enabled or spec.track is None:
+        return None
+    motion = camera_motion(cfg.shutter, spec.camera_pose, spec.t_s, _stream(spec.seed, VIBRATION_STREAM))
+    return rolling_shutter_beacons(cfg.layout, spec.track, spec.ship, motion, camera, cfg.shutter, cfg.motion,
+                                   cfg.sensor, cfg.leds, factors)
 
 
 def _stream(seed: int, stream: int) -> np.random.Generator:
@@ -124,9 +140,11 @@ def beacon_rows(rf: RenderedFrame) -> list[dict[str, Any]]:
     ``spot_background_e`` and ``spot_peak_e`` (NaN where the beacon has no spot), which
     the detector benchmark turns into the centroid Cramér–Rao bound; the unit's
     intensity factor (``unit_factor``), and the occluder's ``occluded_fraction`` with the
-    centroid of the light left (``light_u_px``, ``light_v_px``).
+    centroid of the light left (``light_u_px``, ``light_v_px``); ``global_u_px``,
+    ``global_v_px``: the projection at the frame time (``u_px, v_px`` without a rolling shutter).
     """
     p, sp, oc = rf.projection, rf.spots, rf.occlusion
+    g = p.points_px if rf.global_points_px is None else rf.global_points_px
     return [
         {"frame_id": rf.spec.frame_id, "beacon_id": i, "u_px": float(p.points_px[i, 0]),
          "v_px": float(p.points_px[i, 1]), "visible": bool(p.visible[i]), "in_image": bool(p.in_image[i]),
@@ -134,7 +152,8 @@ def beacon_rows(rf: RenderedFrame) -> list[dict[str, Any]]:
          "spot_sigma_px": float(sp.sigma_px[i]), "spot_flux_e": float(sp.flux_e[i]),
          "spot_background_e": float(sp.background_e[i]), "spot_peak_e": float(sp.peak_e[i]),
          "unit_factor": float(rf.unit_factors[i]), "occluded_fraction": float(oc.hidden_fraction[i]),
-         "light_u_px": float(oc.light_u_px[i]), "light_v_px": float(oc.light_v_px[i])}
+         "light_u_px": float(oc.light_u_px[i]), "light_v_px": float(oc.light_v_px[i]),
+         "global_u_px": float(g[i, 0]), "global_v_px": float(g[i, 1])}
         for i in range(p.points_px.shape[0])
     ]
 

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from deckpose.render.config import Lighting, MotionSource, MotionSpec, RenderConfig
+from deckpose.render.rolling_shutter import ShipTrack
 
 from deckpose.capture_time import epoch_ns, replay_starts_ns
 from deckpose.errors import ConfigError, DeckposeError
@@ -47,6 +48,9 @@ class FrameSpec:
         Capture time of motion time 0 for this frame's replay of the motion series,
         nanoseconds since the Unix epoch (:mod:`deckpose.capture_time`); 0 = stamps
         are motion time.
+    track : ShipTrack or None
+        The deck's motion around ``t_s`` for the rolling shutter and the UAV's motion
+        (``shutter`` section; None when it is off).
     """
 
     frame_id: int
@@ -58,6 +62,7 @@ class FrameSpec:
     lighting: Lighting
     seed: int
     capture_offset_ns: int = 0
+    track: ShipTrack | None = None
 
     @property
     def camera_pose(self) -> CameraPose:
@@ -164,7 +169,8 @@ def plan_frames(cfg: RenderConfig, series: MotionSeries | None = None) -> list[F
     series = load_motion(cfg.motion) if series is None else series
     idx = sample_indices(cfg.motion, len(series))
     blur = cfg.motion.exposure_s > 0 and cfg.motion.source is not MotionSource.FIXED
-    names = list(cfg.cameras_by_name())
+    cams = cfg.cameras_by_name()
+    names = list(cams)
     frames: list[FrameSpec] = []
     fid = 0
     for cam in names:
@@ -180,11 +186,28 @@ def plan_frames(cfg: RenderConfig, series: MotionSeries | None = None) -> list[F
                         blur_poses = tuple(_interp_pose(series, float(x)) for x in ts)
                     _check_camera_above_deck(cfg, h, ship, fid)
                     seed = int(np.random.SeedSequence([cfg.seed, fid]).generate_state(1)[0])
-                    frames.append(FrameSpec(fid, cam, float(h), ship, blur_poses, t, light, seed))
+                    track = _ship_track(cfg, series, t, ship, cams[cam].height_px) if cfg.shutter.enabled else None
+                    frames.append(FrameSpec(fid, cam, float(h), ship, blur_poses, t, light, seed, track=track))
                     fid += 1
     if not frames:
         raise ConfigError("the config yields no frames")
     return _on_capture_time(frames, len(idx), epoch_ns(cfg.capture_epoch))
+
+
+def _ship_track(cfg: RenderConfig, series: MotionSeries, t_s: float, ship: ShipPose, height_px: int) -> ShipTrack:
+    """The deck's motion over one frame's readout (one frame height either side) and exposure.
+
+    Knots at the series samples inside the span and at its ends, so linear
+    interpolation between them is :func:`_interp_pose` itself; fixed attitudes do not move.
+    """
+    if cfg.motion.source is MotionSource.FIXED:
+        return ShipTrack((t_s,), (ship,))
+    half = height_px * cfg.shutter.line_delay_s + 0.5 * cfg.motion.exposure_s
+    if half == 0:
+        return ShipTrack((t_s,), (ship,))
+    ts = np.asarray(series.t_s, float)
+    knots = [t_s - half, *(float(x) for x in ts[(ts > t_s - half) & (ts < t_s + half)]), t_s + half]
+    return ShipTrack(tuple(knots), tuple(_interp_pose(series, x) for x in knots))
 
 
 def _on_capture_time(frames: list[FrameSpec], per_replay: int, epoch: int) -> list[FrameSpec]:
