@@ -53,6 +53,12 @@ from deckpose.atomic_io import atomic_open, atomic_path
 
 ROOT = Path(__file__).resolve().parent.parent
 RUNGS = ("easy", "real", "hard")
+#: Conditions whose own config is the easy rung plus one effect (its values justified in it).
+CONDITION_CONFIGS = {
+    "rolling_shutter": "a rolling shutter (10 us a row) while the UAV drifts and turns",
+    "defocus": "defocus",
+    "exposure": "auto-exposure, a Bayer sensor and fixed-pattern noise",
+}
 
 
 def _rung(name: str) -> dict:
@@ -75,6 +81,11 @@ def datasets() -> dict[str, tuple[dict, str]]:
     easy_with("fog", "0.5 km visibility", leds={"visibility_km": hard["leds"]["visibility_km"]})
     easy_with("occlusion", "hard's occluders (10 %, up to wholly)", occlusion=hard["occlusion"])
     easy_with("other_lights", "hard's ship lights and glints", ship_lights=hard["ship_lights"])
+    # conditions with a config of their own: the easy rung plus one effect, justified there
+    for cond, what in CONDITION_CONFIGS.items():
+        path = ROOT / "configs" / f"detector_benchmark_{cond}.yaml"
+        if path.is_file():
+            out[cond] = (_rung(cond), f"easy + {what} (configs/detector_benchmark_{cond}.yaml)")
     return out
 
 
@@ -132,10 +143,14 @@ def _f(x: float, nd: int = 3) -> str:
 
 
 def markdown(results: pd.DataFrame, what: dict[str, str], meta: dict) -> str:
-    lines = ["# Detector ladder", "",
-             (f"Made by `{meta['command']}` at commit {meta['commit']} on {meta['machine']}; "
-             f"1-minute load {meta['load_start']:.1f} at the start, {meta['load_end']:.1f} at the end; "
-             f"{meta['minutes']:.0f} minutes. Seeds are the configs' (recorded in each dataset's manifest)."), "",
+    lines = ["# Detector ladder", ""]
+    for run in meta["runs"]:
+        lines.append(
+            f"Datasets {', '.join(run['datasets'])} made by `{run['command']}` at commit {run['commit']} on "
+            f"{run['machine']}; 1-minute load {run['load_start']:.1f} at the start, {run['load_end']:.1f} "
+            f"at the end; {run['minutes']:.0f} minutes.")
+        lines.append("")
+    lines += ["Seeds are the configs' (recorded in each dataset's manifest).", "",
              ("Each dataset: 8 MP, 12-bit, heights 30/50/80 m, night/dusk/day, 5 thesis-series samples with 10 ms "
              "motion blur (45 frames). Rows are pooled over heights and lightings; a per-cell report is in "
              "`<dataset>/bench_detectors.md`."), "",
@@ -233,10 +248,21 @@ def main(argv: list[str] | None = None) -> int:
     res = res.sort_values("dataset", key=lambda c: c.map({k: i for i, k in enumerate(every)}), kind="stable")
     commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], check=False, capture_output=True, text=True,
                             cwd=ROOT).stdout.strip()
-    meta = {"command": " ".join([".venv/bin/python", "benchmarks/detector_ladder.py", *(argv or sys.argv[1:])]),
-            "commit": commit, "machine": f"{platform.machine()}, {os.cpu_count()} cores",
-            "load_start": load0, "load_end": os.getloadavg()[0], "minutes": (time.time() - t0) / 60,
-            "bootstrap_seed": args.seed, "detectors": names}
+    this_run = {"command": " ".join([".venv/bin/python", "benchmarks/detector_ladder.py", *(argv or sys.argv[1:])]),
+                "commit": commit, "machine": f"{platform.machine()}, {os.cpu_count()} cores",
+                "load_start": load0, "load_end": os.getloadavg()[0], "minutes": (time.time() - t0) / 60,
+                "datasets": list(todo)}
+    # each dataset's provenance: the runs before this one keep the datasets it did not redo
+    runs = []
+    if args.only and (out / "manifest.json").exists():
+        old = json.loads((out / "manifest.json").read_text())
+        for r in old.get("runs", [dict(old, datasets=[k for k in every if k not in todo])]):
+            kept_names = [d for d in r.get("datasets", []) if d not in todo and d in set(res["dataset"])]
+            if kept_names:
+                runs.append({k: v for k, v in dict(r, datasets=kept_names).items()
+                             if k not in ("bootstrap_seed", "detectors", "runs")})
+    runs.append(this_run)
+    meta = {"runs": runs, "bootstrap_seed": args.seed, "detectors": names}
     plot(res, out / "frames_ok.png")
     with atomic_open(out / "report.md", "w") as fh:
         fh.write(markdown(res, {k: v[1] for k, v in every.items()}, meta))
