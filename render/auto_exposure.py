@@ -50,9 +50,9 @@ def raster_levels(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32],
     v = np.arange(256, dtype=np.float64)
     if mono:
         grey = cv2.cvtColor(raster, cv2.COLOR_RGB2GRAY)
-        hist = cv2.calcHist([grey], [0], None, [256], [0, 256])[:, 0]
+        hist = cv2.calcHist([grey], [0], None, [256], [0, 256]).ravel()
         return v * float(scale @ _LUMA), hist.astype(np.float64)
-    hists = [cv2.calcHist([raster], [c], None, [256], [0, 256])[:, 0] for c in range(3)]
+    hists = [cv2.calcHist([raster], [c], None, [256], [0, 256]).ravel() for c in range(3)]
     levels = np.concatenate([v * scale[c] for c in range(3)])
     return levels, np.concatenate(hists).astype(np.float64)
 
