@@ -80,7 +80,7 @@ def select_mosaic(rgb: NDArray[np.float32], pattern: BayerPattern, row0: int,
             out[dy::2, dx::2] = rgb[dy::2, dx::2, k]
 
 
-def demosaic(mosaic: NDArray[np.uint8] | NDArray[np.uint16], pattern: BayerPattern) -> np.ndarray:
+def demosaic(mosaic: np.ndarray, pattern: BayerPattern) -> np.ndarray:
     """Bilinear demosaicing of a quantised mosaic into RGB (OpenCV).
 
     Parameters

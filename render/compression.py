@@ -38,4 +38,7 @@ def jpeg_round_trip(image: NDArray[np.uint8], quality: int) -> NDArray[np.uint8]
     if not ok:
         raise RuntimeError("jpeg_round_trip: OpenCV could not encode the frame as JPEG")
     out = cv2.imdecode(buf, cv2.IMREAD_COLOR if colour else cv2.IMREAD_GRAYSCALE)
-    return cv2.cvtColor(out, cv2.COLOR_BGR2RGB) if colour else out
+    if out is None:
+        raise RuntimeError("jpeg_round_trip: OpenCV could not decode the JPEG it encoded")
+    decoded = np.asarray(cv2.cvtColor(out, cv2.COLOR_BGR2RGB) if colour else out, np.uint8)
+    return decoded

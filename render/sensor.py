@@ -12,6 +12,12 @@ Order of operations for one frame:
    a few electrons), the well saturates, and the result is quantised to
    ``bit_depth`` bits.
 
+Sensor effects, off by default: with ``sensor.bayer`` each pixel keeps its filter's
+channel before the noise and the quantised mosaic is demosaiced
+(:mod:`deckpose.render.bayer`); a camera's fixed pattern (:mod:`deckpose.render.fixed_pattern`)
+changes each pixel's mean before the noise. Auto-exposure and JPEG act around
+:func:`expose` (:mod:`deckpose.render.frame`).
+
 The work is done in horizontal strips of about :data:`STRIP_ELEMENTS` values, so the
 float32 work buffers stay in the CPU cache and main memory sees the frame twice: one
 read of the raster, one write of the image. Normal deviates are Box-Muller pairs from
