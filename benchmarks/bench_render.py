@@ -9,8 +9,10 @@ Each case runs in a fresh process (so its peak RSS is its own):
   full-frame readback, ``cv2.imwrite`` at default settings (no tiling, no reuse);
 * ``real``, with ``--realism``: ``ours`` with the realism effects of
   ``configs/detector_benchmark_hard.yaml`` (LED model, fog, occluders, ship lights and
-  glints) and the rolling shutter, UAV motion and vibration of
-  ``configs/detector_benchmark_rolling_shutter.yaml`` (vibration 0.05 deg RMS, 10 ms); ``ours`` and ``real`` run ``--repeat`` times interleaved, and the ratio of
+  glints), the rolling shutter, UAV motion and vibration of
+  ``configs/detector_benchmark_rolling_shutter.yaml`` (vibration 0.05 deg RMS, 10 ms) and the
+  sensor effects of ``configs/detector_benchmark_exposure.yaml`` (Bayer, fixed pattern,
+  auto-exposure); ``ours`` and ``real`` run ``--repeat`` times interleaved, and the ratio of
   their medians is printed (issue 23's budget: 1.5x).
 
 Usage::
@@ -49,6 +51,9 @@ from pathlib import Path
 
 #: The realism sections of the hard ladder rung (``real`` case).
 REALISM_SECTIONS = ("leds", "occlusion", "ship_lights")
+#: The sensor effects of ``configs/detector_benchmark_exposure.yaml`` the ``real`` case adds (Bayer, fixed
+#: pattern, auto-exposure; on the 8-bit sensor of ``ours``).
+SENSOR_EFFECT_KEYS = ("bayer", "prnu", "dsnu_e", "hot_pixel_fraction", "hot_pixel_e", "auto_exposure")
 
 
 def _case_ours(size: str, frames: int, backend: str, out: Path, realism: bool = False) -> dict[str, float]:
@@ -69,6 +74,9 @@ def _case_ours(size: str, frames: int, backend: str, out: Path, realism: bool = 
                              / "detector_benchmark_rolling_shutter.yaml").read_text())
         doc["shutter"] = {**rs["shutter"], "vibration_deg_rms": 0.05}  # and vibration, over a 10 ms exposure
         doc["motion"] = {**doc["motion"], "exposure_s": 0.01}
+        exposure = yaml.safe_load((Path(__file__).resolve().parent.parent / "configs"
+                                   / "detector_benchmark_exposure.yaml").read_text())
+        doc["sensor"] = {k: exposure["sensor"][k] for k in SENSOR_EFFECT_KEYS}
     cfg = config_from_dict(doc)
     plan = plan_frames(cfg)
     t0 = time.perf_counter()

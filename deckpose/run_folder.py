@@ -97,6 +97,10 @@ class RunPaths:
     def camera_file(self, name: str) -> Path:
         return self.root / camera_relpath(name)
 
+    def hot_pixels_file(self, name: str) -> Path:
+        """A camera's hot pixels (render with ``sensor.hot_pixel_fraction`` > 0 only)."""
+        return self.cameras_dir / f"{name}_hot_pixels.parquet"
+
     @property
     def images_dir(self) -> Path:
         return self.root / IMAGES_DIR

@@ -16,8 +16,8 @@ from typing import Literal
 
 import pandas as pd
 
-__all__ = ["BEACON_COLUMNS", "DETECTION_COLUMNS", "DETECT_FRAME_COLUMNS", "FRAME_COLUMNS", "Column",
-           "Dtype", "column", "pandas_dtype"]
+__all__ = ["BEACON_COLUMNS", "DETECTION_COLUMNS", "DETECT_FRAME_COLUMNS", "FRAME_COLUMNS", "HOT_PIXEL_COLUMNS",
+           "Column", "Dtype", "column", "pandas_dtype"]
 
 #: A column's type: its Arrow/Parquet type (``int64``, ``double``, ``bool``, ``string``).
 Dtype = Literal["int64", "float64", "bool", "string"]
@@ -107,6 +107,8 @@ FRAME_COLUMNS: tuple[Column, ...] = (
     _C("cam_x_m", "float64", "m", "camera position, world x", nullable=False),
     _C("cam_y_m", "float64", "m", "camera position, world y", nullable=False),
     _C("cam_z_m", "float64", "m", "camera position, world z (up)", nullable=False),
+    _C("exposure", "float64", "", "exposure the auto-exposure chose (unit of sensor.exposure: 1 = the raster's "
+       "white fills the well); the column exists only with sensor.auto_exposure"),
 )
 
 #: ``beacons.parquet``: one row per frame x beacon, the true projection and spot model.
@@ -145,6 +147,13 @@ LIGHT_COLUMNS: tuple[Column, ...] = (
     _C("v_px", "float64", "px", "projected centre at mid-exposure, distorted image row"),
     _C("in_image", "bool", "", "in front of the camera and inside the image", nullable=False),
     _C("flux_e", "float64", "e-", "electrons in the light's core, summed over channels (0: not drawn)"),
+)
+
+#: ``cameras/<name>_hot_pixels.parquet``: one row per hot pixel of a camera (the same in every frame).
+HOT_PIXEL_COLUMNS: tuple[Column, ...] = (
+    _C("u_px", "int64", "px", "the hot pixel's column", nullable=False),
+    _C("v_px", "int64", "px", "the hot pixel's row", nullable=False),
+    _C("excess_e", "float64", "e-", "its dark signal above the DSNU, electrons per frame", nullable=False),
 )
 
 #: ``detections/<detector>.parquet``: one row per frame x detection.

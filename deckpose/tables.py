@@ -27,6 +27,7 @@ from deckpose.table_schemas import (
     DETECT_FRAME_COLUMNS,
     DETECTION_COLUMNS,
     FRAME_COLUMNS,
+    HOT_PIXEL_COLUMNS,
     LIGHT_COLUMNS,
     Column,
 )
@@ -47,6 +48,7 @@ UNIT_SUFFIXES: dict[str, str] = {
 SCHEMAS: dict[str, tuple[Column, ...]] = {
     "frames": FRAME_COLUMNS, "beacons": BEACON_COLUMNS, "detections": DETECTION_COLUMNS,
     "detect frames": DETECT_FRAME_COLUMNS, "estimates": ESTIMATE_COLUMNS, "lights": LIGHT_COLUMNS,
+    "hot pixels": HOT_PIXEL_COLUMNS,
 }
 #: Kinds written with exactly their schema's columns, in order, with its types.
 FIXED_KINDS = frozenset({"estimates"})

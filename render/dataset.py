@@ -4,6 +4,7 @@ Layout (the dataset contract)::
 
     DATASET/manifest.json            format, resolved config, seed, versions, layout, cameras
     DATASET/cameras/<name>.yaml      ROS camera_info per camera
+    DATASET/cameras/<name>_hot_pixels.parquet  the camera's hot pixels (only with sensor.hot_pixel_fraction > 0)
     DATASET/images/<frame_id>.png    lossless 8- or 16-bit PNG (BGR on disk)
     DATASET/previews/<frame_id>.png  the log's 8-bit preview (long side deckpose.preview.PREVIEW_PX)
     DATASET/frames.parquet           one row per frame
@@ -45,7 +46,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
 import pandas as pd
-from deckpose.render.config import RenderConfig, config_to_dict, load_config
+from deckpose.render.config import BayerPattern, RenderConfig, config_to_dict, load_config
+from deckpose.render.fixed_pattern import hot_pixel_table
 from deckpose.render.plan import FrameSpec, plan_frames
 from deckpose.render.render_detection import (
     RenderDetection,
@@ -68,7 +70,7 @@ from deckpose.run_folder import (
     manifest_cameras,
     preview_relpath,
 )
-from deckpose.table_schemas import LIGHT_COLUMNS, typed_frame
+from deckpose.table_schemas import HOT_PIXEL_COLUMNS, LIGHT_COLUMNS, typed_frame
 from deckpose.tables import write_table
 
 if TYPE_CHECKING:
@@ -206,9 +208,21 @@ def sensor_block(cfg: RenderConfig) -> dict[str, Any]:
     each beacon is ``spot_background_e`` in ``beacons.parquet`` (summed over channels).
     """
     s = cfg.sensor
-    return {"gain_dn_per_e": (2 ** s.bit_depth - 1) / s.full_well_e, "read_noise_e": s.read_noise_e,
-            "full_well_e": s.full_well_e, "bit_depth": s.bit_depth, "offset_dn": 0.0,
-            "background_e": 0.0, "noise": s.noise}
+    block: dict[str, Any] = {
+        "gain_dn_per_e": (2 ** s.bit_depth - 1) / s.full_well_e, "read_noise_e": s.read_noise_e,
+        "full_well_e": s.full_well_e, "bit_depth": s.bit_depth, "offset_dn": 0.0,
+        "background_e": 0.0, "noise": s.noise}
+    # sensor effects (issue 23 item 4), named only when on: a default manifest is unchanged
+    if s.bayer is not BayerPattern.NONE:
+        block["bayer"] = s.bayer.value  # each pixel measured one channel; RGB is bilinear demosaicing
+    if s.jpeg_quality is not None:
+        block["jpeg_quality"] = s.jpeg_quality
+    if s.prnu or s.dsnu_e or s.hot_pixel_fraction:
+        block["fixed_pattern"] = {"prnu": s.prnu, "dsnu_e": s.dsnu_e, "hot_pixel_fraction": s.hot_pixel_fraction,
+                                  "hot_pixel_e": s.hot_pixel_e, "hot_pixels": "cameras/<name>_hot_pixels.parquet"}
+    if s.auto_exposure is not None:
+        block["exposure"] = "per frame: frames.parquet exposure (auto-exposure)"
+    return block
 
 
 def _write_json(path: Path, doc: dict[str, Any]) -> None:
@@ -298,6 +312,10 @@ def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool,
     remove_stale_temps(out)
     for name, cam in cfg.cameras_by_name().items():
         write_camera_info(cam, run.camera_file(name))
+        if cfg.sensor.hot_pixel_fraction > 0:  # the fixed pattern's hot pixels, for false-detection counts
+            hot = hot_pixel_table(cfg.sensor, cfg.seed, name, cam.height_px, cam.width_px)
+            write_table(typed_frame([], HOT_PIXEL_COLUMNS) if not hot["u_px"].size else pd.DataFrame(hot),
+                        run.hot_pixels_file(name), "hot pixels")
     run.images_dir.mkdir(exist_ok=True)
     run.previews_dir.mkdir(exist_ok=True)
     (out / ".parts").mkdir(exist_ok=True)

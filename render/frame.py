@@ -21,9 +21,12 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+from deckpose.render.auto_exposure import metered_exposure
 from deckpose.render.beacons import beacon_splats
 from deckpose.render.camera_motion import VIBRATION_STREAM, camera_motion
+from deckpose.render.compression import jpeg_round_trip
 from deckpose.render.config import RenderConfig
+from deckpose.render.fixed_pattern import fixed_pattern
 from deckpose.render.lens import distort, raster_camera
 from deckpose.render.light import unit_factors
 from deckpose.render.occlusion import OCCLUSION_STREAM, OcclusionRecord, occlude
@@ -54,6 +57,8 @@ class RenderedFrame:
     lights_in_image: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, bool))
     lights_flux_e: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
     global_points_px: np.ndarray | None = None  # frame-time projection (None: projection.points_px)
+    #: The exposure the auto-exposure chose (:mod:`deckpose.render.auto_exposure`); None: ``sensor.exposure``.
+    exposure: float | None = None
 
 
 def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
@@ -81,20 +86,27 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
     lights = ship_lights(cfg.ship_lights, cfg.deck_half_size_m(), cfg.scene.freeboard_m,
                          _stream(spec.seed, GLINT_STREAM))
     extra, lights_px, lights_in = light_splats(lights, poses, cam_pose, camera, cfg.sensor, cfg.leds, cfg.layout)
-    flux_e = np.zeros(len(lights))
-    for sp in extra:
-        flux_e[-1 - sp.beacon_id] = splat_electrons(sp, cfg.sensor)
     rng = np.random.default_rng(spec.seed)
     scale = radiance_scale(spec.lighting, cfg.scene.shading)
-    image = expose(raster, scale, splats + extra, cfg.sensor, rng)
-    spots = spot_record(raster, scale, splats, cfg.sensor, cfg.layout.n_beacons)
+    sensor = cfg.sensor  # with auto-exposure, the exposure this frame's metering chose (and the truth uses)
+    if sensor.auto_exposure is not None:
+        sensor = dataclasses.replace(sensor, exposure=metered_exposure(raster, scale, sensor, sensor.auto_exposure))
+    flux_e = np.zeros(len(lights))
+    for sp in extra:
+        flux_e[-1 - sp.beacon_id] = splat_electrons(sp, sensor)
+    pattern = fixed_pattern(sensor, cfg.seed, camera.name, *raster.shape[:2])
+    image = expose(raster, scale, splats + extra, sensor, rng, pattern=pattern)
+    if sensor.jpeg_quality is not None:
+        image = jpeg_round_trip(image, sensor.jpeg_quality)
+    spots = spot_record(raster, scale, splats, sensor, cfg.layout.n_beacons)
     image.setflags(write=False)  # Frame keeps a read-only array as is (no 200 MB copy at 64 MP)
     proj = project_layout(cfg.layout, spec.ship, cam_pose, camera) if shutter is None else shutter.projection
     truth = GroundTruth(spec.ship, cam_pose, proj.points_px, proj.visible, proj.apparent_radius_px,
                         spec.frame_id, spec.stamp_ns, spec.seed)
     frame = Frame(image, camera, spec.frame_id, spec.stamp_ns)
     return RenderedFrame(frame, truth, proj, spec, spots, factors, occlusion, tuple(lights), lights_px,
-                         lights_in, flux_e, None if shutter is None else shutter.global_points_px)
+                         lights_in, flux_e, None if shutter is None else shutter.global_points_px,
+                         None if cfg.sensor.auto_exposure is None else sensor.exposure)
 
 
 def _shutter(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel, factors: np.ndarray) -> ShutterFrame | None:
@@ -129,6 +141,8 @@ def frame_row(rf: RenderedFrame, image_relpath: str) -> dict[str, Any]:
         for j in range(3):
             row[f"r{i}{j}"] = float(R[i, j])
     row["cam_x_m"], row["cam_y_m"], row["cam_z_m"] = (float(x) for x in t.camera_pose.position_world_m)
+    if rf.exposure is not None:  # the column exists only with sensor.auto_exposure (default tables unchanged)
+        row["exposure"] = rf.exposure
     return row
 
 

@@ -12,6 +12,12 @@ Order of operations for one frame:
    a few electrons), the well saturates, and the result is quantised to
    ``bit_depth`` bits.
 
+Sensor effects, off by default: with ``sensor.bayer`` each pixel keeps its filter's
+channel before the noise and the quantised mosaic is demosaiced
+(:mod:`deckpose.render.bayer`); a camera's fixed pattern (:mod:`deckpose.render.fixed_pattern`)
+changes each pixel's mean before the noise. Auto-exposure and JPEG act around
+:func:`expose` (:mod:`deckpose.render.frame`).
+
 The work is done in horizontal strips of about :data:`STRIP_ELEMENTS` values, so the
 float32 work buffers stay in the CPU cache and main memory sees the frame twice: one
 read of the raster, one write of the image. Normal deviates are Box-Muller pairs from
@@ -31,8 +37,10 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from deckpose.render.bayer import demosaic, select_mosaic
 from deckpose.render.beacons import Splat, add_splats
-from deckpose.render.config import SensorSpec
+from deckpose.render.config import BayerPattern, SensorSpec
+from deckpose.render.fixed_pattern import FixedPattern, apply_fixed_pattern
 from numpy.typing import NDArray
 
 #: Float32 values per processing strip: each of its three work buffers (1 MiB) stays in cache.
@@ -87,7 +95,7 @@ def _fill_standard_normal(out: NDArray[np.float32], radius: NDArray[np.float32],
 
 
 def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: list[Splat],
-           sensor: SensorSpec, rng: np.random.Generator) -> np.ndarray:
+           sensor: SensorSpec, rng: np.random.Generator, *, pattern: FixedPattern | None = None) -> np.ndarray:
     """Raster plus beacons to a quantised sensor image.
 
     A pixel (per channel) of mean ``m`` DN reads ``clip(round(m + sigma z), 0, 2**bit_depth - 1)``
@@ -118,6 +126,11 @@ def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: li
         The frame's noise generator (unused when ``sensor.noise`` is false). One
         31-bit seed is drawn from it to seed OpenCV's uniform stream, so a frame
         depends on the generator's state and the frame's shape only.
+    pattern : FixedPattern, optional
+        The camera's fixed-pattern noise, applied to the mean before the noise
+        (:mod:`deckpose.render.fixed_pattern`). With ``sensor.bayer`` set, each pixel keeps
+        its filter's channel before the pattern and the noise, and the quantised mosaic
+        is demosaiced (:mod:`deckpose.render.bayer`).
 
     Returns
     -------
@@ -134,15 +147,18 @@ def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: li
         scale = np.array([scale @ _LUMA])
     lut_mean = _mean_lut(scale, dn_per_e)
     C = 1 if mono else 3
+    bayer = sensor.bayer is not BayerPattern.NONE
+    Cn = 1 if bayer else C  # values per pixel that get noise (a Bayer photosite has one)
     depth = cv2.CV_8U if sensor.bit_depth == 8 else cv2.CV_16U
-    out = np.empty((H, W) if mono else (H, W, C), np.uint8 if sensor.bit_depth == 8 else np.uint16)
+    out = np.empty((H, W) if mono or bayer else (H, W, C), np.uint8 if sensor.bit_depth == 8 else np.uint16)
     rows = strip_rows(W, C)
     by_strip = _splats_by_strip(splats, rows)
     # work buffers of one strip, 2-D (rows, W * C): one OpenCV channel, all of it
     mean_buf = np.empty((rows, W * C), np.float32)
-    half = (rows * W * C + 1) // 2  # Box-Muller pairs per strip
+    mosaic_buf = np.empty((rows, W), np.float32) if bayer else mean_buf
+    half = (rows * W * Cn + 1) // 2  # Box-Muller pairs per strip
     noise_buf = np.empty(2 * half if sensor.noise else 0, np.float32)
-    sigma_buf = np.empty_like(mean_buf) if sensor.noise else mean_buf  # (unused without noise)
+    sigma_buf = np.empty_like(mosaic_buf) if sensor.noise else mosaic_buf  # (unused without noise)
     radius_buf = np.empty((1, half if sensor.noise else 0), np.float32)
     angle_buf = np.empty_like(radius_buf)
     # variance in DN^2 of a pixel of mean m DN: g m + (g r)^2 (shot + read noise, g = DN/e)
@@ -153,15 +169,20 @@ def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: li
         r1 = min(H, r0 + rows)
         h = r1 - r0
         block = cv2.cvtColor(raster[r0:r1], cv2.COLOR_RGB2GRAY) if mono else raster[r0:r1]
-        dst = out[r0:r1].reshape(h, W * C)
+        dst = out[r0:r1].reshape(h, W * Cn)
         mean = mean_buf[:h]
         cv2.LUT(block, lut_mean, dst=mean.reshape(block.shape))
         if k in by_strip:
             add_splats(mean.reshape(h, W, C), by_strip[k], r0, gain=e_per_rad * dn_per_e)
+        if bayer:
+            select_mosaic(mean.reshape(h, W, C), sensor.bayer, r0, mosaic_buf[:h])
+            mean = mosaic_buf[:h]
+        if pattern is not None:
+            apply_fixed_pattern(mean.reshape(h, W, Cn), pattern, r0, dn_per_e)
         if sensor.noise:
-            pairs = (h * W * C + 1) // 2
+            pairs = (h * W * Cn + 1) // 2
             _fill_standard_normal(noise_buf, radius_buf[:, :pairs], angle_buf[:, :pairs])
-            noise, sigma = noise_buf[:h * W * C].reshape(h, W * C), sigma_buf[:h]
+            noise, sigma = noise_buf[:h * W * Cn].reshape(h, W * Cn), sigma_buf[:h]
             cv2.addWeighted(mean, dn_per_e, mean, 0.0, read_var_dn2, dst=sigma)
             cv2.sqrt(sigma, dst=sigma)
             cv2.multiply(noise, sigma, dst=noise)
@@ -170,7 +191,7 @@ def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: li
             cv2.addWeighted(mean, 1.0, mean, 0.0, 0.0, dst=dst, dtype=depth)  # round, saturate
         if sensor.bit_depth == 12:
             np.minimum(dst, np.uint16(dn_max), out=dst)
-    return out
+    return demosaic(out, sensor.bayer) if bayer else out
 
 
 @dataclass(frozen=True)
