@@ -131,6 +131,16 @@ BEACON_COLUMNS: tuple[Column, ...] = (
     _C("light_u_px", "float64", "px", "centroid of the beacon's light in the image, column (differs from u_px "
        "where an occluder cuts the spot; null: no light)"),
     _C("light_v_px", "float64", "px", "centroid of the beacon's light in the image, row"),
+    _C("spot_crb_px", "float64", "px", "per-axis centroid Cramér-Rao bound computed numerically from the PSF "
+       "drawn (optics on; null: off, the benchmark's Gaussian bound applies)"),
+    _C("defocus_px", "float64", "px", "thin-lens blur-circle diameter at the beacon's depth (optics; null: off)"),
+    _C("field_blur_sigma_px", "float64", "px", "field-dependent blur sigma at the beacon (optics; null: off)"),
+    _C("vignetting", "float64", "", "cos(theta)^n vignetting gain at the beacon, in spot_flux_e (optics; null: off)"),
+    _C("u_r_px", "float64", "px", "true centre of the red channel under lateral chromatic aberration, column "
+       "(u_px, v_px are the green, geometric centre; optics; null: off)"),
+    _C("v_r_px", "float64", "px", "true centre of the red channel, row"),
+    _C("u_b_px", "float64", "px", "true centre of the blue channel under lateral chromatic aberration, column"),
+    _C("v_b_px", "float64", "px", "true centre of the blue channel, row"),
 )
 
 #: ``lights.parquet``: one row per frame x non-beacon light (navigation lights, floodlights, glints).

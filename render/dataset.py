@@ -156,6 +156,9 @@ def render_one(cfg: RenderConfig, spec: FrameSpec, out_dir: str) -> int:
 
 
 def _manifest(cfg: RenderConfig, plan: list[FrameSpec], complete: bool) -> dict[str, Any]:
+    # with the frame's modules (scipy, OpenCV), not when the CLI imports this one
+    from deckpose.render.optics import optics_block
+
     cams = cfg.cameras_by_name()
     return {
         "format": DATASET_FORMAT,
@@ -170,6 +173,7 @@ def _manifest(cfg: RenderConfig, plan: list[FrameSpec], complete: bool) -> dict[
         "sensor_channels": 1 if cfg.sensor.color == "mono" else 3,
         "cameras": manifest_cameras(cams),
         "preview_px": PREVIEW_PX,
+        **({"optics": optics_block(cfg.optics, cams)} if cfg.optics.enabled() else {}),
     }
 
 

@@ -6,8 +6,8 @@ cost one rasterisation per sub-pose). The ground truth is the mid-exposure pose.
 
 Realism on top of the raster, each off by default (:mod:`deckpose.render.config`):
 the beacons' light model and unit tolerance (:mod:`deckpose.render.light`), occluders
-(:mod:`deckpose.render.occlusion`) and lights that are not beacons
-(:mod:`deckpose.render.ship_lights`). Each draws from its own stream,
+(:mod:`deckpose.render.occlusion`), lights that are not beacons
+(:mod:`deckpose.render.ship_lights`) and the lens beyond a Gaussian (:mod:`deckpose.render.optics`). Each draws from its own stream,
 ``SeedSequence([frame seed, stream])``, so switching one on leaves the others' and the
 sensor noise's realisations as they were.
 """
@@ -24,10 +24,11 @@ from deckpose.render.config import RenderConfig
 from deckpose.render.lens import distort, raster_camera
 from deckpose.render.light import unit_factors
 from deckpose.render.occlusion import OCCLUSION_STREAM, OcclusionRecord, occlude
+from deckpose.render.optics import LensedFrame, OpticsRecord, optics_row, through_lens
 from deckpose.render.plan import FrameSpec
 from deckpose.render.scene import DeckRenderer, radiance_scale
 from deckpose.render.sensor import SpotRecord, expose, splat_electrons, spot_record
-from deckpose.render.ship_lights import GLINT_STREAM, ShipLight, light_splats, ship_lights
+from deckpose.render.ship_lights import GLINT_STREAM, ShipLight, _to_cam, light_splats, ship_lights
 
 from deckpose.camera import CameraModel
 from deckpose.projection import BeaconProjection, project_layout
@@ -49,6 +50,7 @@ class RenderedFrame:
     lights_px: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros((0, 2)))
     lights_in_image: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0, bool))
     lights_flux_e: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(0))
+    optics: OpticsRecord | None = None
 
 
 def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
@@ -74,20 +76,26 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
     lights = ship_lights(cfg.ship_lights, cfg.deck_half_size_m(), cfg.scene.freeboard_m,
                          _stream(spec.seed, GLINT_STREAM))
     extra, lights_px, lights_in = light_splats(lights, poses, cam_pose, camera, cfg.sensor, cfg.leds, cfg.layout)
+    proj = project_layout(cfg.layout, spec.ship, cam_pose, camera)
+    scale = radiance_scale(spec.lighting, cfg.scene.shading)
+    lens: LensedFrame | None = None
+    if cfg.optics.enabled():  # off: today's spots, bit for bit
+        depth = np.array([_to_cam(lights[-1 - sp.beacon_id], spec.ship, cam_pose)[2] for sp in extra])
+        lens = through_lens(cfg.optics, camera, cfg.sensor, raster, scale, splats, extra, proj.points_px,
+                            proj.depth_m, depth)
+        splats, extra = lens.beacons, lens.lights
     flux_e = np.zeros(len(lights))
     for sp in extra:
         flux_e[-1 - sp.beacon_id] = splat_electrons(sp, cfg.sensor)
     rng = np.random.default_rng(spec.seed)
-    scale = radiance_scale(spec.lighting, cfg.scene.shading)
-    image = expose(raster, scale, splats + extra, cfg.sensor, rng)
-    spots = spot_record(raster, scale, splats, cfg.sensor, cfg.layout.n_beacons)
+    spots = lens.spots if lens else spot_record(raster, scale, splats, cfg.sensor, cfg.layout.n_beacons)
+    image = expose(raster, scale, splats + extra, cfg.sensor, rng, lens.background_gain if lens else None)
     image.setflags(write=False)  # Frame keeps a read-only array as is (no 200 MB copy at 64 MP)
-    proj = project_layout(cfg.layout, spec.ship, cam_pose, camera)
     truth = GroundTruth(spec.ship, cam_pose, proj.points_px, proj.visible, proj.apparent_radius_px,
                         spec.frame_id, spec.stamp_ns, spec.seed)
     frame = Frame(image, camera, spec.frame_id, spec.stamp_ns)
     return RenderedFrame(frame, truth, proj, spec, spots, factors, occlusion, tuple(lights), lights_px,
-                         lights_in, flux_e)
+                         lights_in, flux_e, lens.record if lens else None)
 
 
 def _stream(seed: int, stream: int) -> np.random.Generator:
@@ -124,7 +132,8 @@ def beacon_rows(rf: RenderedFrame) -> list[dict[str, Any]]:
     ``spot_background_e`` and ``spot_peak_e`` (NaN where the beacon has no spot), which
     the detector benchmark turns into the centroid Cramér–Rao bound; the unit's
     intensity factor (``unit_factor``), and the occluder's ``occluded_fraction`` with the
-    centroid of the light left (``light_u_px``, ``light_v_px``).
+    centroid of the light left (``light_u_px``, ``light_v_px``), and the optics' per-beacon
+    record (:func:`deckpose.render.optics.optics_row`; NaN without optics).
     """
     p, sp, oc = rf.projection, rf.spots, rf.occlusion
     return [
@@ -134,7 +143,8 @@ def beacon_rows(rf: RenderedFrame) -> list[dict[str, Any]]:
          "spot_sigma_px": float(sp.sigma_px[i]), "spot_flux_e": float(sp.flux_e[i]),
          "spot_background_e": float(sp.background_e[i]), "spot_peak_e": float(sp.peak_e[i]),
          "unit_factor": float(rf.unit_factors[i]), "occluded_fraction": float(oc.hidden_fraction[i]),
-         "light_u_px": float(oc.light_u_px[i]), "light_v_px": float(oc.light_v_px[i])}
+         "light_u_px": float(oc.light_u_px[i]), "light_v_px": float(oc.light_v_px[i]),
+         **optics_row(rf.optics, i)}
         for i in range(p.points_px.shape[0])
     ]
 
