@@ -62,7 +62,7 @@ from deckpose.camera import CameraModel
 from deckpose.spot_fisher import centre_crb_px2
 
 __all__ = [
-    "AIRY_TRUNCATION", "GLARE_TRUNCATION", "KERNEL_OVERSAMPLE", "OPTICS_CHANNELS", "OPTICS_COLUMNS",
+    "AIRY_TRUNCATION", "BLOOM_MAX_PAD_PX", "GLARE_TRUNCATION", "KERNEL_OVERSAMPLE", "OPTICS_CHANNELS", "OPTICS_COLUMNS",
     "SPIKE_TRUNCATION", "SPIKE_WIDTH_PX", "LensedFrame", "OpticsRecord", "SpotOptics", "airy_first_zero_px", "airy_kernel", "apply_optics",
     "bloom_column", "bloom_splats", "ca_centres_px", "channel_kernels", "defocus_diameter_px", "disk_kernel",
     "field_sigma_px", "focal_length_m", "gaussian_kernel", "glare_kernel", "optics_block", "optics_record",
@@ -441,6 +441,8 @@ def bloom_column(charge_e: NDArray[np.float64], full_well_e: float) -> NDArray[n
 
 
 _LUMA = np.array([0.299, 0.587, 0.114])
+#: The most rows blooming adds above and below a spot's window; charge spilled farther is dropped.
+BLOOM_MAX_PAD_PX = 256
 
 
 def bloom_splats(splats: list[Splat], raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32],
@@ -450,8 +452,9 @@ def bloom_splats(splats: list[Splat], raster: NDArray[np.uint8], scale_rgb: NDAr
 
     Per channel (mono: the grey pixel) the expected electrons of light plus background in
     the splat's window are bloomed along columns (:func:`bloom_column`, the window padded
-    so the charge stays in it) and the background taken off again; a splat that fills no
-    pixel is returned as it is.
+    so the charge stays in it, by at most :data:`BLOOM_MAX_PAD_PX` rows) and the background
+    taken off again; a splat that fills no pixel is returned as it is. The window grows
+    in rows only (it is no longer square).
 
     Parameters
     ----------
@@ -480,27 +483,32 @@ def bloom_splats(splats: list[Splat], raster: NDArray[np.uint8], scale_rgb: NDAr
         if not over.any():
             out.append(sp)
             continue
-        pad = math.ceil(float(over.max()) / max(cap - float(bg.max()), 0.1 * cap)) + 2
-        light = np.pad(light, ((pad, pad), (pad, pad), (0, 0)))
-        n = light.shape[0]
-        bg = _window_background(sp.row0 - pad, sp.col0 - pad, n, raster, scale, mono, background_gain)
+        n = sp.patch.shape[0]
+        pad = min(math.ceil(float(over.max()) / max(cap - float(bg.max()), 0.1 * cap)) + 2, BLOOM_MAX_PAD_PX)
+        light = np.pad(light, ((pad, pad), (0, 0), (0, 0)))
+        bg = np.concatenate([_window_background(sp.row0 - pad, sp.col0, pad, raster, scale, mono, background_gain,
+                                                n)[:pad], bg,
+                             _window_background(sp.row0 + n, sp.col0, pad, raster, scale, mono, background_gain,
+                                                n)[:pad]])
         bloomed = np.stack([bloom_column(light[..., c] + bg[..., c], cap) - bg[..., c]
                             for c in range(light.shape[2])], axis=-1)
         if mono:
             patch = np.repeat(bloomed / (e_per_rad * rgb.mean()), 3, axis=2)
         else:
             patch = np.divide(bloomed, rgb * e_per_rad, out=np.zeros_like(bloomed), where=rgb > 0)
-        out.append(replace(sp, row0=sp.row0 - pad, col0=sp.col0 - pad, patch=patch.astype(np.float32)))
+        out.append(replace(sp, row0=sp.row0 - pad, patch=patch.astype(np.float32)))
     return out
 
 
 def _window_background(row0: int, col0: int, n: int, raster: NDArray[np.uint8], scale_e: NDArray[np.float64],
-                       mono: bool, gain: Callable[[int, int], NDArray[np.float32]] | None) -> NDArray[np.float64]:
-    """Expected background electrons of an ``n x n`` window, (n, n, C); 0 off the image."""
+                       mono: bool, gain: Callable[[int, int], NDArray[np.float32]] | None,
+                       width: int | None = None) -> NDArray[np.float64]:
+    """Expected background electrons of an ``n`` x ``width`` (default ``n``) window, (n, width, C); 0 off the image."""
     H, W = raster.shape[:2]
     C = 1 if mono else 3
-    out = np.zeros((n, n, C))
-    r0, r1, c0, c1 = max(row0, 0), min(row0 + n, H), max(col0, 0), min(col0 + n, W)
+    w = n if width is None else width
+    out = np.zeros((n, w, C))
+    r0, r1, c0, c1 = max(row0, 0), min(row0 + n, H), max(col0, 0), min(col0 + w, W)
     if r0 >= r1 or c0 >= c1:
         return out
     block = raster[r0:r1, c0:c1]

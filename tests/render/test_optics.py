@@ -10,25 +10,42 @@ force. Spots are exposed noise-free onto a black raster, so the image is the mod
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
+import pandas as pd
 import pytest
-from deckpose.render.beacons import Splat, add_splats, beacon_splats
-from deckpose.render.config import OpticsSpec, SensorSpec
+from deckpose.detect.benchmark import crb_per_beacon
+from deckpose.detect.crb import centroid_crb_px2
+from deckpose.detect.synthetic import SensorModel
+from deckpose.render.beacons import Splat, add_splats, beacon_splats, spot_splat
+from deckpose.render.config import OpticsSpec, SensorSpec, config_from_dict
 from deckpose.render.optics import (
+    SpotOptics,
     airy_first_zero_px,
     airy_kernel,
     apply_optics,
+    bloom_column,
+    bloom_splats,
+    ca_centres_px,
     defocus_diameter_px,
+    disk_kernel,
+    spot_crb_px,
+    vignetting_gain,
+    vignetting_rows,
 )
 from deckpose.render.sensor import expose
 from scipy.special import j1, jn_zeros
 
 from deckpose.camera import CameraModel
+from deckpose.errors import ConfigError
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.projection import project_layout
+from deckpose.spot_fisher import centre_crb_px2
+
+from .conftest import tiny_doc
 
 CAMERA = CameraModel(640, 480, [[600.0, 0, 321.3], [0, 600.0, 238.6], [0, 0, 1]])
 LAYOUT = DeckLayout()
@@ -45,9 +62,9 @@ def _splats(optics: OpticsSpec, sensor: SensorSpec = SENSOR) -> tuple[list[Splat
     return base, lensed, proj.points_px
 
 
-def _image(splats: list[Splat], sensor: SensorSpec = SENSOR, gain=None) -> np.ndarray:
+def _image(splats: list[Splat], sensor: SensorSpec = SENSOR) -> np.ndarray:
     raster = np.zeros((CAMERA.height_px, CAMERA.width_px, 3), np.uint8)
-    img = expose(raster, np.ones(3, np.float32), splats, sensor, np.random.default_rng(0), gain)
+    img = expose(raster, np.ones(3, np.float32), splats, sensor, np.random.default_rng(0))
     return img.astype(np.float64)
 
 
@@ -118,3 +135,225 @@ def test_point_symmetric_kernels_keep_the_centroid_and_the_flux(optics: OpticsSp
         q, q_ref = _image([sl]).sum(axis=2), _image([sp]).sum(axis=2)
         np.testing.assert_allclose(_centroid(q), c, atol=3e-3)
         assert abs(q.sum() / q_ref.sum() - 1) < 5e-3
+
+
+def test_lateral_ca_moves_each_channel_to_its_recorded_centre() -> None:
+    optics = OpticsSpec(lateral_ca_ppm=(1500.0, -1200.0))
+    base, lensed, truth = _splats(optics)
+    centres = ca_centres_px(truth, CAMERA, optics)
+    # the radial magnification written out: x0 + m (x - x0), m = 1 + ppm / 1e6, green unmoved
+    x0 = np.array([CAMERA.cx, CAMERA.cy])
+    np.testing.assert_allclose(centres[:, 0], x0 + 1.0015 * (truth - x0), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(centres[:, 1], truth, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(centres[:, 2], x0 + 0.9988 * (truth - x0), rtol=0, atol=1e-9)
+    assert np.abs(centres[:, 0] - truth).max() > 0.2  # the shifts are a fifth of a pixel at the ring
+    for sp, sl in zip(base, lensed):
+        light = _light([sl])
+        for ch in range(3):
+            if sl.rgb[ch] > 0:  # the bow beacon is red only
+                # the bilinear shift kernel's centroid is the shift exactly; the core's < 1e-4 px
+                np.testing.assert_allclose(_centroid(light[..., ch]), centres[sp.beacon_id, ch], atol=1e-3)
+
+
+def test_vignetting_is_cos4_of_the_ray_angle_on_spots_and_raster() -> None:
+    optics = OpticsSpec(vignetting_exponent=4.0)
+    base, lensed, truth = _splats(optics)
+    rays = np.linalg.solve(CAMERA.K, np.c_[truth, np.ones(len(truth))].T).T  # pinhole rays (no distortion)
+    theta = np.arccos(rays[:, 2] / np.linalg.norm(rays, axis=1))
+    want = np.cos(theta) ** 4
+    np.testing.assert_allclose(vignetting_gain(truth, CAMERA, 4.0), want, rtol=1e-12)
+    assert want.min() < 0.95  # the ring is far enough out for the law to show
+    for sp, sl in zip(base, lensed):
+        # the spot's light and its recorded flux are dimmed by the law at its centre (float32 sums: 1e-6)
+        assert _light([sl]).sum() / _light([sp]).sum() == pytest.approx(want[sp.beacon_id], rel=1e-5)
+        assert sl.core_flux / sp.core_flux == pytest.approx(want[sp.beacon_id], rel=1e-12)
+    # the raster: a uniform half-well scene exposed with the vignetting rows
+    raster = np.full((CAMERA.height_px, CAMERA.width_px, 3), 200, np.uint8)
+    scale = np.full(3, 0.5 / 200, np.float32)  # 200 -> half the well
+    img = expose(raster, scale, [], SENSOR, np.random.default_rng(0),
+                 vignetting_rows(CAMERA, 4.0)).astype(float)
+    v, u = np.mgrid[0:CAMERA.height_px:37, 0:CAMERA.width_px:41]
+    r = np.stack([(u - CAMERA.cx) / CAMERA.fx, (v - CAMERA.cy) / CAMERA.fy, np.ones(u.shape)], axis=-1)
+    cos_t = r[..., 2] / np.linalg.norm(r, axis=-1)
+    want_dn = 0.5 * 65535 * cos_t ** 4
+    np.testing.assert_allclose(img[v, u, 1], want_dn, atol=0.51)  # rounding to whole DN (+ float32 1e-3)
+
+
+def test_bloom_column_fills_the_neighbours_and_conserves_charge() -> None:
+    cap = 1000.0
+    col = np.zeros((21, 3))
+    col[10, 1] = 5 * cap  # five wells' charge in one pixel: two full pixels above and two below it
+    want = np.zeros_like(col)
+    want[8:13, 1] = cap
+    np.testing.assert_allclose(bloom_column(col, cap), want)
+    col[10, 1] = 5.5 * cap  # 4.5 wells spill, 2.25 each way: two full pixels and a quarter well per side
+    want[7, 1] = want[13, 1] = 0.25 * cap
+    np.testing.assert_allclose(bloom_column(col, cap), want)
+    col[10, 1] = 30 * cap  # more than the column holds: what leaves the window is lost, none is made
+    out = bloom_column(col, cap)
+    assert out.max() <= cap and out.sum() == pytest.approx(21 * cap)
+
+
+def test_bloom_splats_spill_along_columns_only_and_keep_the_charge() -> None:
+    sensor = dataclasses.replace(SENSOR, exposure=20.0, full_well_e=15000.0, bit_depth=12)  # ~15 wells at peak
+    _, lensed, _ = _splats(OpticsSpec(bloom=True), sensor)
+    raster = np.full((CAMERA.height_px, CAMERA.width_px, 3), 10, np.uint8)
+    e = sensor.exposure * sensor.full_well_e
+    scale = np.full(3, 0.2 * sensor.full_well_e / (10 * e), np.float32)  # a background of 0.2 wells
+    bloomed = bloom_splats(lensed, raster, scale, sensor)
+    bg = 10 * float(scale[0]) * e
+    for before, after in zip(lensed, bloomed):
+        a = before.patch.astype(np.float64) * before.rgb * e  # electrons per channel
+        b = after.patch.astype(np.float64) * after.rgb * e
+        assert (a + bg).max() > 5 * sensor.full_well_e  # it does saturate
+        assert (b + bg).max() <= sensor.full_well_e * (1 + 1e-6)  # no pixel above the well after
+        pad = before.row0 - after.row0
+        assert pad > 0 and before.col0 == after.col0  # the window grows in rows
+        a_cols = a.sum(axis=0)
+        # each column keeps its charge (float32 patches: 1e-6 of the spot's light)
+        np.testing.assert_allclose(b.sum(axis=0), a_cols, rtol=0, atol=1e-6 * a.sum())
+        lit = (b.sum(axis=2) > 1e-3 * sensor.full_well_e)
+        rows, cols = np.flatnonzero(lit.any(axis=1)), np.flatnonzero(lit.any(axis=0))
+        assert np.ptp(rows) > np.ptp(cols)  # the spot streaks along its columns
+
+
+def _fisher(mu: np.ndarray, grads: list[np.ndarray], extra: float) -> np.ndarray:
+    """The Fisher information of independent pixels of variance mu + extra, written out."""
+    info = np.zeros((len(grads), len(grads)))
+    for i, gi in enumerate(grads):
+        for j, gj in enumerate(grads):
+            info[i, j] = float(np.sum(gi * gj / (mu + extra)))
+    return info
+
+
+def test_numeric_crb_of_a_gaussian_is_the_analytic_bound() -> None:
+    u, v, s, flux, bg = 10.3, 9.8, 1.1, 5000.0, 40.0
+    sensor = SensorModel(gain_dn_per_e=0.25, read_noise_e=4.0, background_e=bg)
+    sub = (np.arange(15) + 0.5) / 15 - 0.5
+
+    def image(u: float, v: float, s: float) -> np.ndarray:
+        """The Gaussian integrated over 21 x 21 pixels by 15 x 15 point samples each."""
+        x = (np.arange(21)[:, None] + sub[None, :]).ravel()
+        gx = np.exp(-0.5 * ((x - u) / s) ** 2)
+        gy = np.exp(-0.5 * ((x - v) / s) ** 2)
+        g = np.outer(gy, gx) / (2 * math.pi * s * s) / 225
+        return flux * g.reshape(21, 15, 21, 15).sum(axis=(1, 3))
+
+    h = 1e-4  # central differences: O(h^2) = 1e-8 relative
+    grads = np.stack([(image(u + h, v, s) - image(u - h, v, s)) / (2 * h),
+                      (image(u, v + h, s) - image(u, v - h, s)) / (2 * h),
+                      (image(u, v, s + h) - image(u, v, s - h)) / (2 * h),
+                      image(u, v, s) / flux, np.ones((21, 21))])
+    got = centre_crb_px2(bg + image(u, v, s), grads, sensor.extra_variance_e2)
+    want = centroid_crb_px2(u, v, s, flux, sensor)
+    # 15-point midpoint quadrature of a sigma = 1.1 px Gaussian (~1e-4) and the 21 px window against
+    # the analytic 8 sigma + 2 (light beyond 9 sigma: nil): 0.5 %
+    np.testing.assert_allclose(got, want, rtol=5e-3, atol=1e-6 * float(want[0, 0]))
+
+
+def test_numeric_crb_of_a_defocused_spot_against_brute_force() -> None:
+    sensor = SensorSpec(bit_depth=12, noise=False, full_well_e=15000.0, read_noise_e=4.0, halo_fraction=0.0)
+    centre, s, flux = np.array([30.37, 29.81]), 1.0, 0.02  # flux in radiance x px: 0.02 x 15000 x 3 = 900 e
+    cam = CameraModel(64, 64, [[100.0, 0, 32.0], [0, 100.0, 32.0], [0, 0, 1]])
+    base = spot_splat([(centre, s * s * np.eye(2), flux)], (1.0, 1.0, 1.0), sensor, cam, 0)
+    assert base is not None
+    d = 3.0
+    disk = disk_kernel(d)
+    bg = 30.0
+    got = spot_crb_px(base, SpotOptics((disk, disk, disk), 1.0), bg, sensor)
+    # brute force: the Gaussian sampled at pixel centres (as the renderer draws it) convolved with a
+    # uniform disc integrated over each pixel on a 41 x 41 grid (the renderer's kernel: 7 x 7)
+    sub = (np.arange(41) + 0.5) / 41 - 0.5
+    R = 2
+    off = np.arange(-R, R + 1)
+    x = (off[:, None] + sub[None, :]).ravel()
+    inside = (x[None, :] ** 2 + x[:, None] ** 2 <= (d / 2) ** 2).reshape(2 * R + 1, 41, 2 * R + 1, 41)
+    K = inside.mean(axis=(1, 3))
+    K /= K.sum()
+    n = 64
+    e = 15000.0 * 3  # electrons per unit radiance, summed over three white channels
+
+    def image(cu: float, cv: float, ss: float) -> np.ndarray:
+        yy, xx = np.mgrid[0:n, 0:n].astype(float)
+        g = np.exp(-0.5 * ((xx - cu) ** 2 + (yy - cv) ** 2) / ss ** 2) / (2 * math.pi * ss ** 2)
+        out = np.zeros_like(g)
+        for i, dy in enumerate(off):  # the convolution written out
+            for j, dx in enumerate(off):
+                out += K[i, j] * np.roll(np.roll(g, dy, axis=0), dx, axis=1)
+        return flux * e * out
+
+    h = 1e-4
+    cu, cv = centre
+    spot = image(cu, cv, s)
+    grads = [(image(cu + h, cv, s) - image(cu - h, cv, s)) / (2 * h),
+             (image(cu, cv + h, s) - image(cu, cv - h, s)) / (2 * h),
+             (image(cu, cv, s + h) - image(cu, cv, s - h)) / (2 * h), spot / flux, np.ones_like(spot)]
+    gain = 4095 / 15000.0
+    info = _fisher(bg + spot, grads, 4.0 ** 2 + 1 / (12 * gain ** 2))
+    want = math.sqrt(np.trace(np.linalg.inv(info)[:2, :2]) / 2)
+    # the disc's pixel weights at 7 x 7 against 41 x 41 sub-samples differ by a few % at its rim, which
+    # moves the bound by 0.25 % here: 1 %
+    assert got == pytest.approx(want, rel=1e-2)
+    # and the disc matters: the bound of the plain Gaussian is clearly smaller
+    plain = spot_crb_px(base, SpotOptics((np.ones((1, 1)),) * 3, 1.0), bg, sensor)
+    assert plain < 0.8 * got
+
+
+def test_benchmark_uses_the_recorded_bound_when_present() -> None:
+    sensor = SensorModel(gain_dn_per_e=0.27, read_noise_e=4.0, background_e=0.0)
+    rows = pd.DataFrame({"u_px": [100.2, 200.7, 300.1], "v_px": [50.3, 60.1, 70.9],
+                         "spot_sigma_px": [1.2, 1.2, 1.2], "spot_flux_e": [3000.0, 3000.0, 3000.0],
+                         "spot_background_e": [20.0, 20.0, 20.0], "spot_crb_px": [0.031, np.nan, 0.05],
+                         "occluded_fraction": [0.0, 0.0, 0.5]})
+    got = crb_per_beacon(rows, sensor)
+    assert got[0] == pytest.approx(0.031 ** 2)  # recorded (optics on)
+    analytic = centroid_crb_px2(200.7, 60.1, 1.2, 3000.0, dataclasses.replace(sensor, background_e=20.0))
+    assert got[1] == pytest.approx(np.trace(analytic) / 2)  # not recorded: the Gaussian bound
+    assert np.isnan(got[2])  # occluded: no bound
+
+
+@pytest.mark.parametrize(("optics", "needle"), [
+    ({"f_number": 0.1}, "optics.f_number"),
+    ({"glare_fraction": 0.6, "spike_fraction": 0.5}, "glare_fraction + spike_fraction"),
+    ({"lateral_ca_ppm": [1.0, 2.0, 3.0]}, "optics.lateral_ca_ppm"),
+    ({"bloom": "yes"}, "optics.bloom"),
+    ({"focus_m": 3.0}, "focus_distance_m"),  # an unknown key: the valid ones are listed
+    ({"focus_distance_m": 0.0001}, "focal length"),  # 0.1 mm: inside the lens (f ~ 0.3 mm here)
+    ({"spike_blades": 2}, "optics.spike_blades"),
+    ({"wavelength_nm": [610.0, 540.0, 100.0]}, "optics.wavelength_nm[2]"),
+])
+def test_optics_config_errors_are_one_line(optics: dict[str, object], needle: str) -> None:
+    with pytest.raises(ConfigError) as err:
+        config_from_dict(tiny_doc(optics=optics))
+    assert needle in str(err.value) and "\n" not in str(err.value)
+
+
+def test_frames_bit_for_bit_with_optics_off_and_recorded_with_it_on(egl_renderer_factory) -> None:
+    from deckpose.render.frame import beacon_rows, render_frame
+    from deckpose.render.plan import plan_frames
+
+    doc = tiny_doc(heights_m=[30.0], lighting=["night"], cameras=[{"preset": "8mp-square", "size": [320, 180]}],
+                   sensor={"bit_depth": 12, "read_noise_e": 4, "full_well_e": 15000})
+    plain = config_from_dict(doc)
+    off = config_from_dict({**doc, "optics": {"f_number": 4.0, "pixel_pitch_um": 3.0}})  # every effect off
+    on = config_from_dict({**doc, "optics": {"focus_distance_m": 2.0, "diffraction": True, "glare_fraction": 0.03,
+                                             "spike_fraction": 0.02, "bloom": True, "vignetting_exponent": 4.0,
+                                             "lateral_ca_ppm": [800.0, -800.0], "field_blur_px": 1.0}})
+    spec = plan_frames(plain)[0]
+    cam = plain.cameras_by_name()[spec.camera_name]
+    renderer = egl_renderer_factory(plain)
+    a, b, c = (render_frame(cfg, spec, cam, renderer) for cfg in (plain, off, on))
+    np.testing.assert_array_equal(a.frame.image, b.frame.image)
+    pd.testing.assert_frame_equal(pd.DataFrame(beacon_rows(a)), pd.DataFrame(beacon_rows(b)))
+    assert pd.DataFrame(beacon_rows(a))["spot_crb_px"].isna().all()
+    assert not np.array_equal(a.frame.image, c.frame.image)
+    rows = pd.DataFrame(beacon_rows(c))
+    seen = rows[rows["visible"]]
+    assert len(seen) > 3 and (seen["spot_crb_px"] > 0).all()
+    np.testing.assert_allclose(rows["defocus_px"], defocus_diameter_px(c.projection.depth_m, cam, on.optics))
+    np.testing.assert_allclose(rows["vignetting"], vignetting_gain(c.projection.points_px, cam, 4.0))
+    ca = ca_centres_px(c.projection.points_px, cam, on.optics)
+    np.testing.assert_allclose(rows[["u_r_px", "v_r_px"]].to_numpy(), ca[:, 0])
+    # the spot's flux carries the vignetting: the same beacon's flux with and without the optics
+    ratio = (rows["spot_flux_e"] / pd.DataFrame(beacon_rows(a))["spot_flux_e"])[rows["visible"]]
+    np.testing.assert_allclose(ratio, seen["vignetting"], rtol=1e-9)
