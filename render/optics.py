@@ -423,16 +423,18 @@ def apply_optics(splats: list[Splat], depth_m: NDArray[np.float64], optics: Opti
         window grows by the kernel's radius on every side; ``core_flux`` times the
         vignetting; ``cov_px2`` and ``sigma_px`` include the green kernel's second moment.
     list of SpotOptics
-        What was applied, per splat.
+        What was applied, per splat (for a light that is not a beacon, ``beacon_id < 0``,
+        the kernels are not composed: (1, 1) placeholders, and its ``sigma_px`` is the core's).
     """
     out: list[Splat] = []
     used: list[SpotOptics] = []
     for sp, d in zip(splats, np.asarray(depth_m, float)):
         parts = kernel_parts(optics, camera, float(d), sp.centre_px)
-        kernels = _compose(parts)
         gain = float(vignetting_gain(sp.centre_px, camera, optics.vignetting_exponent)[0])
-        r = kernels[0].shape[0] // 2
         patch = _lens_patch(sp.patch, parts) * np.float32(gain)
+        r = (patch.shape[0] - sp.patch.shape[0]) // 2
+        # the composed kernels (the bound and sigma need them) for beacons; other lights record neither
+        kernels = _compose(parts) if sp.beacon_id >= 0 else (np.ones((1, 1)),) * 3
         cov = sp.cov_px2 + _kernel_cov(kernels[1])
         out.append(replace(sp, row0=sp.row0 - r, col0=sp.col0 - r, patch=patch.astype(np.float32),
                            sigma_px=float(np.linalg.det(cov)) ** 0.25, core_flux=sp.core_flux * gain,
@@ -538,8 +540,7 @@ BLOOM_MAX_PAD_PX = 256
 
 
 def bloom_splats(splats: list[Splat], raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32],
-                 sensor: SensorSpec, background_gain: Callable[[int, int], NDArray[np.float32]] | None = None
-                 ) -> list[Splat]:
+                 sensor: SensorSpec, vignetting: tuple[CameraModel, float] | None = None) -> list[Splat]:
     """The splats with the charge their light and the background put above the full well spilled.
 
     Per channel (mono: the grey pixel) the expected electrons of light plus background in
@@ -557,8 +558,8 @@ def bloom_splats(splats: list[Splat], raster: NDArray[np.uint8], scale_rgb: NDAr
     scale_rgb : (3,) array of float32
         Raster value to radiance, per channel.
     sensor : SensorSpec
-    background_gain : callable, optional
-        The raster's vignetting rows (:func:`vignetting_rows`).
+    vignetting : (CameraModel, float), optional
+        The camera and ``vignetting_exponent`` of the raster's vignetting (:func:`vignetting_gain`).
     """
     e_per_rad = sensor.exposure * sensor.full_well_e
     cap = sensor.full_well_e
@@ -570,7 +571,7 @@ def bloom_splats(splats: list[Splat], raster: NDArray[np.uint8], scale_rgb: NDAr
         light = sp.patch.astype(np.float64) * rgb * e_per_rad  # (n, n, 3) electrons
         if mono:
             light = light.mean(axis=2, keepdims=True)
-        bg = _window_background(sp.row0, sp.col0, sp.patch.shape[0], raster, scale, mono, background_gain)
+        bg = _window_background(sp.row0, sp.col0, sp.patch.shape[0], raster, scale, mono, vignetting)
         over = np.maximum(light + bg - cap, 0.0).sum(axis=0)
         if not over.any():
             out.append(sp)
@@ -578,10 +579,8 @@ def bloom_splats(splats: list[Splat], raster: NDArray[np.uint8], scale_rgb: NDAr
         n = sp.patch.shape[0]
         pad = min(math.ceil(float(over.max()) / max(cap - float(bg.max()), 0.1 * cap)) + 2, BLOOM_MAX_PAD_PX)
         light = np.pad(light, ((pad, pad), (0, 0), (0, 0)))
-        bg = np.concatenate([_window_background(sp.row0 - pad, sp.col0, pad, raster, scale, mono, background_gain,
-                                                n)[:pad], bg,
-                             _window_background(sp.row0 + n, sp.col0, pad, raster, scale, mono, background_gain,
-                                                n)[:pad]])
+        bg = np.concatenate([_window_background(sp.row0 - pad, sp.col0, pad, raster, scale, mono, vignetting, n),
+                             bg, _window_background(sp.row0 + n, sp.col0, pad, raster, scale, mono, vignetting, n)])
         bloomed = np.stack([bloom_column(light[..., c] + bg[..., c], cap) - bg[..., c]
                             for c in range(light.shape[2])], axis=-1)
         if mono:
@@ -593,7 +592,7 @@ def bloom_splats(splats: list[Splat], raster: NDArray[np.uint8], scale_rgb: NDAr
 
 
 def _window_background(row0: int, col0: int, n: int, raster: NDArray[np.uint8], scale_e: NDArray[np.float64],
-                       mono: bool, gain: Callable[[int, int], NDArray[np.float32]] | None,
+                       mono: bool, vignetting: tuple[CameraModel, float] | None,
                        width: int | None = None) -> NDArray[np.float64]:
     """Expected background electrons of an ``n`` x ``width`` (default ``n``) window, (n, width, C); 0 off the image."""
     H, W = raster.shape[:2]
@@ -608,8 +607,11 @@ def _window_background(row0: int, col0: int, n: int, raster: NDArray[np.uint8], 
         vals = cv2.cvtColor(np.ascontiguousarray(block), cv2.COLOR_RGB2GRAY)[..., None] * float(scale_e @ _LUMA)
     else:
         vals = block * scale_e
-    if gain is not None:
-        vals = vals * gain(r0, r1)[:, c0:c1, None]
+    if vignetting is not None:  # vignetting_gain() on the window's grid, by broadcasting
+        cam, n_exp = vignetting
+        tx2 = ((np.arange(c0, c1) - cam.cx) / cam.fx) ** 2
+        ty2 = ((np.arange(r0, r1) - cam.cy) / cam.fy) ** 2
+        vals = vals * ((1.0 + ty2[:, None] + tx2[None, :]) ** (-0.5 * n_exp))[..., None]
     out[r0 - row0:r1 - row0, c0 - col0:c1 - col0] = vals
     return out
 
@@ -729,8 +731,9 @@ def through_lens(optics: OpticsSpec, camera: CameraModel, sensor: SensorSpec, ra
     for sp, u in zip(beacons, used):
         crb[sp.beacon_id] = spot_crb_px(sp, u, float(spots.background_e[sp.beacon_id]), sensor)
     if optics.bloom:
-        lensed = bloom_splats(lensed, raster, scale_rgb, sensor, gain_rows)
-        lensed_lights = bloom_splats(lensed_lights, raster, scale_rgb, sensor, gain_rows)
+        vig = (camera, optics.vignetting_exponent) if optics.vignetting_exponent > 0 else None
+        lensed = bloom_splats(lensed, raster, scale_rgb, sensor, vig)
+        lensed_lights = bloom_splats(lensed_lights, raster, scale_rgb, sensor, vig)
     return LensedFrame(lensed, lensed_lights, spots, optics_record(optics, camera, points_px, depth_m, crb),
                        gain_rows)
 
