@@ -9,7 +9,7 @@ Each case runs in a fresh process (so its peak RSS is its own):
   full-frame readback, ``cv2.imwrite`` at default settings (no tiling, no reuse);
 * ``real``, with ``--realism``: ``ours`` with the realism effects of
   ``configs/detector_benchmark_hard.yaml`` (LED model, fog, occluders, ship lights and
-  glints); ``ours`` and ``real`` run ``--repeat`` times interleaved, and the ratio of
+  glints, optics); ``ours`` and ``real`` run ``--repeat`` times interleaved, and the ratio of
   their medians is printed (issue 23's budget: 1.5x).
 
 Usage::
@@ -47,7 +47,7 @@ import time
 from pathlib import Path
 
 #: The realism sections of the hard ladder rung (``real`` case).
-REALISM_SECTIONS = ("leds", "occlusion", "ship_lights")
+REALISM_SECTIONS = ("leds", "occlusion", "ship_lights", "optics")
 
 
 def _case_ours(size: str, frames: int, backend: str, out: Path, realism: bool = False) -> dict[str, float]:

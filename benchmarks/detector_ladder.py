@@ -8,7 +8,8 @@ breaks which detector:
 * ``uneven_leds``: point LEDs cos^6, units U(0.4, 1), bow at 0.4 (clear air);
 * ``fog``: 0.5 km visibility alone;
 * ``occlusion``: 10 % of beacons cut, up to wholly;
-* ``other_lights``: navigation lights, 8 floodlights (3x a beacon), 12 glints.
+* ``other_lights``: navigation lights, 8 floodlights (3x a beacon), 12 glints;
+* ``optics``: the hard rung's lens (misfocus, diffraction, cos^4, lateral colour, field blur).
 
 Each dataset is rendered once into ``--work`` (resumed if there), benchmarked by
 ``deckpose.detect.bench_report.run_benchmark`` (the ``bench-detectors`` command's
@@ -75,6 +76,7 @@ def datasets() -> dict[str, tuple[dict, str]]:
     easy_with("fog", "0.5 km visibility", leds={"visibility_km": hard["leds"]["visibility_km"]})
     easy_with("occlusion", "hard's occluders (10 %, up to wholly)", occlusion=hard["occlusion"])
     easy_with("other_lights", "hard's ship lights and glints", ship_lights=hard["ship_lights"])
+    easy_with("optics", "hard's optics (misfocus, diffraction, cos^4, lateral colour)", optics=hard["optics"])
     return out
 
 

@@ -434,7 +434,8 @@ def apply_optics(splats: list[Splat], depth_m: NDArray[np.float64], optics: Opti
         patch = _lens_patch(sp.patch, parts) * np.float32(gain)
         r = (patch.shape[0] - sp.patch.shape[0]) // 2
         # the composed kernels (the bound and sigma need them) for beacons; other lights record neither
-        kernels = _compose(parts) if sp.beacon_id >= 0 else (np.ones((1, 1)),) * 3
+        one: Kernel = np.ones((1, 1))
+        kernels = _compose(parts) if sp.beacon_id >= 0 else (one, one, one)
         cov = sp.cov_px2 + _kernel_cov(kernels[1])
         out.append(replace(sp, row0=sp.row0 - r, col0=sp.col0 - r, patch=patch.astype(np.float32),
                            sigma_px=float(np.linalg.det(cov)) ** 0.25, core_flux=sp.core_flux * gain,
