@@ -28,7 +28,13 @@ from deckpose.render.optics import LensedFrame, OpticsRecord, optics_row, throug
 from deckpose.render.plan import FrameSpec
 from deckpose.render.scene import DeckRenderer, radiance_scale
 from deckpose.render.sensor import SpotRecord, expose, splat_electrons, spot_record
-from deckpose.render.ship_lights import GLINT_STREAM, ShipLight, _to_cam, light_splats, ship_lights
+from deckpose.render.ship_lights import (
+    GLINT_STREAM,
+    ShipLight,
+    light_splats,
+    lights_in_camera_m,
+    ship_lights,
+)
 
 from deckpose.camera import CameraModel
 from deckpose.projection import BeaconProjection, project_layout
@@ -80,7 +86,7 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
     scale = radiance_scale(spec.lighting, cfg.scene.shading)
     lens: LensedFrame | None = None
     if cfg.optics.enabled():  # off: today's spots, bit for bit
-        depth = np.array([_to_cam(lights[-1 - sp.beacon_id], spec.ship, cam_pose)[2] for sp in extra])
+        depth = lights_in_camera_m(lights, spec.ship, cam_pose)[[-1 - sp.beacon_id for sp in extra], 2]
         lens = through_lens(cfg.optics, camera, cfg.sensor, raster, scale, splats, extra, proj.points_px,
                             proj.depth_m, depth)
         splats, extra = lens.beacons, lens.lights

@@ -333,7 +333,8 @@ def test_frames_bit_for_bit_with_optics_off_and_recorded_with_it_on(egl_renderer
     from deckpose.render.plan import plan_frames
 
     doc = tiny_doc(heights_m=[30.0], lighting=["night"], cameras=[{"preset": "8mp-square", "size": [320, 180]}],
-                   sensor={"bit_depth": 12, "read_noise_e": 4, "full_well_e": 15000})
+                   sensor={"bit_depth": 12, "read_noise_e": 4, "full_well_e": 15000},
+                   ship_lights={"navigation": True, "floodlights": 2, "glints": 2})
     plain = config_from_dict(doc)
     off = config_from_dict({**doc, "optics": {"f_number": 4.0, "pixel_pitch_um": 3.0}})  # every effect off
     on = config_from_dict({**doc, "optics": {"focus_distance_m": 2.0, "diffraction": True, "glare_fraction": 0.03,
@@ -347,6 +348,10 @@ def test_frames_bit_for_bit_with_optics_off_and_recorded_with_it_on(egl_renderer
     pd.testing.assert_frame_equal(pd.DataFrame(beacon_rows(a)), pd.DataFrame(beacon_rows(b)))
     assert pd.DataFrame(beacon_rows(a))["spot_crb_px"].isna().all()
     assert not np.array_equal(a.frame.image, c.frame.image)
+    np.testing.assert_array_equal(a.lights_flux_e, b.lights_flux_e)
+    seen_lights = a.lights_flux_e > 0
+    assert seen_lights.any()  # the other lights went through the lens too, dimmed by the vignetting
+    assert np.all(c.lights_flux_e[seen_lights] < a.lights_flux_e[seen_lights])
     rows = pd.DataFrame(beacon_rows(c))
     seen = rows[rows["visible"]]
     assert len(seen) > 3 and (seen["spot_crb_px"] > 0).all()
