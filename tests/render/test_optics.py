@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from typing import cast
 
 import numpy as np
 import pandas as pd
@@ -362,3 +363,18 @@ def test_frames_bit_for_bit_with_optics_off_and_recorded_with_it_on(egl_renderer
     # the spot's flux carries the vignetting: the same beacon's flux with and without the optics
     ratio = (rows["spot_flux_e"] / pd.DataFrame(beacon_rows(a))["spot_flux_e"])[rows["visible"]]
     np.testing.assert_allclose(ratio, seen["vignetting"], rtol=1e-9)
+
+
+def test_manifest_block_holds_the_fixed_kernels_and_each_camera_lens() -> None:
+    from deckpose.render.optics import optics_block
+
+    optics = OpticsSpec(diffraction=True, f_number=2.0, pixel_pitch_um=2.0, glare_fraction=0.02)
+    block = optics_block(optics, {"cam": CAMERA})
+    lens = cast("dict[str, dict[str, float]]", block["cameras"])["cam"]
+    assert lens["focal_length_mm"] == pytest.approx(600.0 * 2.0e-3)  # fx x pitch
+    assert lens["aperture_mm"] == pytest.approx(600.0 * 2.0e-3 / 2.0)  # f / N
+    kernels = cast("list[list[list[float]]]", block["airy_kernels"])
+    assert len(kernels) == 3
+    for k, w in zip(kernels, optics.wavelength_nm):
+        np.testing.assert_allclose(np.array(k), airy_kernel(w, optics), atol=1e-9)  # stored rounded to 1e-9
+    assert block["glare_kernel_size_px"] == 2 * math.ceil(8 * optics.glare_radius_px) + 1
