@@ -378,3 +378,13 @@ def test_manifest_block_holds_the_fixed_kernels_and_each_camera_lens() -> None:
     for k, w in zip(kernels, optics.wavelength_nm):
         np.testing.assert_allclose(np.array(k), airy_kernel(w, optics), atol=1e-9)  # stored rounded to 1e-9
     assert block["glare_kernel_size_px"] == 2 * math.ceil(8 * optics.glare_radius_px) + 1
+
+
+def test_a_mono_sensor_sees_the_channels_mean_of_the_optical_spot() -> None:
+    optics = OpticsSpec(diffraction=True, f_number=8.0, pixel_pitch_um=1.0, lateral_ca_ppm=(1500.0, -1200.0))
+    _, lensed, _ = _splats(optics)
+    rgb_light = _light(lensed)
+    grey = np.zeros((CAMERA.height_px, CAMERA.width_px, 1), np.float32)
+    add_splats(grey, lensed)
+    # the grey pixel is the mean of the three channels' light (as for a plain splat, rgb.mean() x patch)
+    np.testing.assert_allclose(grey[..., 0], rgb_light.mean(axis=2), rtol=1e-5, atol=1e-7 * rgb_light.max())
