@@ -21,22 +21,19 @@ from deckpose.detect.benchmark import crb_per_beacon
 from deckpose.detect.crb import centroid_crb_px2
 from deckpose.detect.synthetic import SensorModel
 from deckpose.render.beacons import Splat, add_splats, beacon_splats, spot_splat
+from deckpose.render.blooming import bloom_column, bloom_splats
 from deckpose.render.config import OpticsSpec, SensorSpec, config_from_dict
 from deckpose.render.optics import (
-    SpotOptics,
-    airy_first_zero_px,
-    airy_kernel,
     apply_optics,
-    bloom_column,
-    bloom_splats,
     ca_centres_px,
     defocus_diameter_px,
-    disk_kernel,
-    spot_crb_px,
+    optics_block,
     vignetting_gain,
     vignetting_rows,
 )
+from deckpose.render.psf_kernels import airy_first_zero_px, airy_kernel, disk_kernel
 from deckpose.render.sensor import expose
+from deckpose.render.spot_bound import spot_crb_px
 from scipy.special import j1, jn_zeros
 
 from deckpose.camera import CameraModel
@@ -261,7 +258,7 @@ def test_numeric_crb_of_a_defocused_spot_against_brute_force() -> None:
     d = 3.0
     disk = disk_kernel(d)
     bg = 30.0
-    got = spot_crb_px(base, SpotOptics((disk, disk, disk), 1.0), bg, sensor)
+    got = spot_crb_px(base, (disk, disk, disk), 1.0, bg, sensor)
     # brute force: the Gaussian sampled at pixel centres (as the renderer draws it) convolved with a
     # uniform disc integrated over each pixel on a 41 x 41 grid (the renderer's kernel: 7 x 7)
     sub = (np.arange(41) + 0.5) / 41 - 0.5
@@ -296,7 +293,7 @@ def test_numeric_crb_of_a_defocused_spot_against_brute_force() -> None:
     # moves the bound by 0.25 % here: 1 %
     assert got == pytest.approx(want, rel=1e-2)
     # and the disc matters: the bound of the plain Gaussian is clearly smaller
-    plain = spot_crb_px(base, SpotOptics((np.ones((1, 1)),) * 3, 1.0), bg, sensor)
+    plain = spot_crb_px(base, (np.ones((1, 1)),) * 3, 1.0, bg, sensor)
     assert plain < 0.8 * got
 
 
@@ -366,8 +363,6 @@ def test_frames_bit_for_bit_with_optics_off_and_recorded_with_it_on(egl_renderer
 
 
 def test_manifest_block_holds_the_fixed_kernels_and_each_camera_lens() -> None:
-    from deckpose.render.optics import optics_block
-
     optics = OpticsSpec(diffraction=True, f_number=2.0, pixel_pitch_um=2.0, glare_fraction=0.02)
     block = optics_block(optics, {"cam": CAMERA})
     lens = cast("dict[str, dict[str, float]]", block["cameras"])["cam"]
