@@ -9,7 +9,7 @@ Each case runs in a fresh process (so its peak RSS is its own):
   full-frame readback, ``cv2.imwrite`` at default settings (no tiling, no reuse);
 * ``real``, with ``--realism``: ``ours`` with the realism effects of
   ``configs/detector_benchmark_hard.yaml`` (LED model, fog, occluders, ship lights and
-  glints), the rolling shutter, UAV motion and vibration of
+  glints), the optics of ``configs/detector_benchmark_optics.yaml``, the rolling shutter, UAV motion and vibration of
   ``configs/detector_benchmark_rolling_shutter.yaml`` (vibration 0.05 deg RMS, 10 ms) and the
   sensor effects of ``configs/detector_benchmark_exposure.yaml`` (Bayer, fixed pattern,
   auto-exposure); ``ours`` and ``real`` run ``--repeat`` times interleaved, and the ratio of
@@ -70,6 +70,8 @@ def _case_ours(size: str, frames: int, backend: str, out: Path, realism: bool = 
         hard = yaml.safe_load((Path(__file__).resolve().parent.parent / "configs"
                                / "detector_benchmark_hard.yaml").read_text())
         doc.update({k: hard[k] for k in REALISM_SECTIONS})
+        doc["optics"] = yaml.safe_load((Path(__file__).resolve().parent.parent / "configs"
+                                        / "detector_benchmark_optics.yaml").read_text())["optics"]
         rs = yaml.safe_load((Path(__file__).resolve().parent.parent / "configs"
                              / "detector_benchmark_rolling_shutter.yaml").read_text())
         doc["shutter"] = {**rs["shutter"], "vibration_deg_rms": 0.05}  # and vibration, over a 10 ms exposure

@@ -8,7 +8,9 @@ breaks which detector:
 * ``uneven_leds``: point LEDs cos^6, units U(0.4, 1), bow at 0.4 (clear air);
 * ``fog``: 0.5 km visibility alone;
 * ``occlusion``: 10 % of beacons cut, up to wholly;
-* ``other_lights``: navigation lights, 8 floodlights (3x a beacon), 12 glints.
+* ``other_lights``: navigation lights, 8 floodlights (3x a beacon), 12 glints;
+* ``rolling_shutter``, ``defocus``, ``exposure``, ``optics``: the easy rung with the effect of
+  ``configs/detector_benchmark_<name>.yaml`` (its values justified there).
 
 Each dataset is rendered once into ``--work`` (resumed if there), benchmarked by
 ``deckpose.detect.bench_report.run_benchmark`` (the ``bench-detectors`` command's
@@ -58,6 +60,7 @@ CONDITION_CONFIGS = {
     "rolling_shutter": "a rolling shutter (10 us a row) while the UAV drifts and turns",
     "defocus": "defocus",
     "exposure": "auto-exposure, a Bayer sensor and fixed-pattern noise",
+    "optics": "a misfocused lens with diffraction, cos^4 vignetting and lateral colour",
 }
 
 

@@ -136,6 +136,16 @@ BEACON_COLUMNS: tuple[Column, ...] = (
     _C("global_u_px", "float64", "px", "true centre at the frame time (global shutter), column; u_px is "
        "the beacon at its own row's time when a rolling shutter is on, else the same"),
     _C("global_v_px", "float64", "px", "true centre at the frame time (global shutter), row"),
+    _C("spot_crb_px", "float64", "px", "per-axis centroid Cramér-Rao bound computed numerically from the PSF "
+       "drawn (optics on; null: off, the benchmark's Gaussian bound applies)"),
+    _C("defocus_px", "float64", "px", "thin-lens blur-circle diameter at the beacon's depth (optics; null: off)"),
+    _C("field_blur_sigma_px", "float64", "px", "field-dependent blur sigma at the beacon (optics; null: off)"),
+    _C("vignetting", "float64", "", "cos(theta)^n vignetting gain at the beacon, in spot_flux_e (optics; null: off)"),
+    _C("u_r_px", "float64", "px", "true centre of the red channel under lateral chromatic aberration, column "
+       "(u_px, v_px are the green, geometric centre; optics; null: off)"),
+    _C("v_r_px", "float64", "px", "true centre of the red channel, row"),
+    _C("u_b_px", "float64", "px", "true centre of the blue channel under lateral chromatic aberration, column"),
+    _C("v_b_px", "float64", "px", "true centre of the blue channel, row"),
 )
 
 #: ``lights.parquet``: one row per frame x non-beacon light (navigation lights, floodlights, glints).

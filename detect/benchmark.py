@@ -98,15 +98,27 @@ def match_frame(det: pd.DataFrame, gt: pd.DataFrame) -> pd.DataFrame:
 
 
 def crb_per_beacon(beacons: pd.DataFrame, sensor: SensorModel | None) -> np.ndarray:
-    """Per-axis CRB variance (trace / 2, px^2) of each beacon row (NaN where unknown)."""
+    """Per-axis CRB variance (trace / 2, px^2) of each beacon row (NaN where unknown).
+
+    Where the dataset recorded the bound of the PSF it drew (``spot_crb_px``, optics on:
+    :func:`deckpose.render.optics.spot_crb_px`), that is used; otherwise the Gaussian bound
+    of :mod:`deckpose.detect.crb` from the spot model and ``sensor``.
+    """
     out = np.full(len(beacons), np.nan)
+    recorded = (beacons["spot_crb_px"].to_numpy(float) if "spot_crb_px" in beacons.columns
+                else np.full(len(beacons), np.nan))
     if sensor is None or not {"spot_sigma_px", "spot_flux_e"} <= set(beacons.columns):
-        return out
+        sensor = None
     has_bg = "spot_background_e" in beacons.columns
     for k, r in enumerate(beacons.to_dict("records")):
-        if not (r["spot_flux_e"] > 0 and r["spot_sigma_px"] > 0):  # also False for NaN
+        if r.get("occluded_fraction", 0.0) > 0:  # a cut spot: not the PSF the bound is for
             continue
-        if r.get("occluded_fraction", 0.0) > 0:  # a cut spot: not the Gaussian the bound is for
+        if np.isfinite(recorded[k]):
+            out[k] = float(recorded[k]) ** 2
+            continue
+        if sensor is None:
+            continue
+        if not (r["spot_flux_e"] > 0 and r["spot_sigma_px"] > 0):  # also False for NaN
             continue
         s = sensor
         if has_bg and np.isfinite(r["spot_background_e"]):

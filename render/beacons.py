@@ -40,8 +40,9 @@ class Splat:
     ----------
     row0, col0 : int
         Image position of ``patch[0, 0]`` (may lie outside the image).
-    patch : (h, w) array of float32
-        Radiance profile (white = 1 before the colour).
+    patch : (h, w) or (h, w, 3) array of float32
+        Radiance profile (white = 1 before the colour); (h, w, 3) after the optics
+        (:mod:`deckpose.render.optics`), one profile per channel, each times ``rgb[c]``.
     rgb : (3,) array of float32
         Beacon colour.
     beacon_id : int
@@ -223,9 +224,14 @@ def add_splats(image: NDArray[np.float32], splats: list[Splat], row_offset: int 
         c1 = min(sp.col0 + sp.patch.shape[1], W)
         if r0 >= r1 or c0 >= c1:
             continue
+        rows = slice(r0 - row_offset, r1 - row_offset)
+        if sp.patch.ndim == 3:  # one patch per channel (deckpose.render.optics): patch[..., c] x rgb[c]
+            q = sp.patch[r0 - sp.row0: r1 - sp.row0, c0 - sp.col0: c1 - sp.col0] * (sp.rgb * np.float32(gain))
+            image[rows, c0:c1] += q.mean(axis=2, keepdims=True) if mono else q
+            touched.append((rows, slice(c0, c1)))
+            continue
         p = sp.patch[r0 - sp.row0: r1 - sp.row0, c0 - sp.col0: c1 - sp.col0, None]
         col = (sp.rgb.mean(keepdims=True) if mono else sp.rgb) * np.float32(gain)
-        rows = slice(r0 - row_offset, r1 - row_offset)
         image[rows, c0:c1] += p * col
         touched.append((rows, slice(c0, c1)))
     return touched

@@ -178,6 +178,9 @@ def render_one(cfg: RenderConfig, spec: FrameSpec, out_dir: str, detection: Rend
 
 def _manifest(cfg: RenderConfig, plan: list[FrameSpec], complete: bool,
               detection: RenderDetection | None = None) -> dict[str, Any]:
+    # with the frame's modules (scipy, OpenCV), not when the CLI imports this one
+    from deckpose.render.optics import optics_block
+
     cams = cfg.cameras_by_name()
     extra: dict[str, Any] = {}
     if detection is not None:  # absent otherwise: the manifests of earlier versions are unchanged
@@ -196,6 +199,7 @@ def _manifest(cfg: RenderConfig, plan: list[FrameSpec], complete: bool,
         "cameras": manifest_cameras(cams),
         "preview_px": PREVIEW_PX,
         **extra,
+        **({"optics": optics_block(cfg.optics, cams)} if cfg.optics.enabled() else {}),
     }
 
 

@@ -6,8 +6,8 @@ cost one rasterisation per sub-pose). The ground truth is the mid-exposure pose.
 
 Realism on top of the raster, each off by default (:mod:`deckpose.render.config`):
 the beacons' light model and unit tolerance (:mod:`deckpose.render.light`), occluders
-(:mod:`deckpose.render.occlusion`) and lights that are not beacons
-(:mod:`deckpose.render.ship_lights`). Each draws from its own stream,
+(:mod:`deckpose.render.occlusion`), lights that are not beacons
+(:mod:`deckpose.render.ship_lights`) and the lens beyond a Gaussian (:mod:`deckpose.render.optics`). Each draws from its own stream,
 ``SeedSequence([frame seed, stream])``, so switching one on leaves the others' and the
 sensor noise's realisations as they were. The rolling shutter and the UAV's motion and
 vibration (:mod:`deckpose.render.rolling_shutter`) place each beacon at its own row's time;
@@ -30,11 +30,18 @@ from deckpose.render.fixed_pattern import fixed_pattern
 from deckpose.render.lens import distort, raster_camera
 from deckpose.render.light import unit_factors
 from deckpose.render.occlusion import OCCLUSION_STREAM, OcclusionRecord, occlude
+from deckpose.render.optics import LensedFrame, OpticsRecord, optics_row, through_lens
 from deckpose.render.plan import FrameSpec
 from deckpose.render.rolling_shutter import ShutterFrame, rolling_shutter_beacons
 from deckpose.render.scene import DeckRenderer, radiance_scale
 from deckpose.render.sensor import SpotRecord, expose, splat_electrons, spot_record
-from deckpose.render.ship_lights import GLINT_STREAM, ShipLight, light_splats, ship_lights
+from deckpose.render.ship_lights import (
+    GLINT_STREAM,
+    ShipLight,
+    light_splats,
+    lights_in_camera_m,
+    ship_lights,
+)
 
 from deckpose.camera import CameraModel
 from deckpose.projection import BeaconProjection, project_layout
@@ -59,6 +66,7 @@ class RenderedFrame:
     global_points_px: np.ndarray | None = None  # frame-time projection (None: projection.points_px)
     #: The exposure the auto-exposure chose (:mod:`deckpose.render.auto_exposure`); None: ``sensor.exposure``.
     exposure: float | None = None
+    optics: OpticsRecord | None = None
 
 
 def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
@@ -86,27 +94,36 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
     lights = ship_lights(cfg.ship_lights, cfg.deck_half_size_m(), cfg.scene.freeboard_m,
                          _stream(spec.seed, GLINT_STREAM))
     extra, lights_px, lights_in = light_splats(lights, poses, cam_pose, camera, cfg.sensor, cfg.leds, cfg.layout)
-    rng = np.random.default_rng(spec.seed)
+    proj = project_layout(cfg.layout, spec.ship, cam_pose, camera) if shutter is None else shutter.projection
     scale = radiance_scale(spec.lighting, cfg.scene.shading)
     sensor = cfg.sensor  # with auto-exposure, the exposure this frame's metering chose (and the truth uses)
     if sensor.auto_exposure is not None:
         sensor = dataclasses.replace(sensor, exposure=metered_exposure(raster, scale, sensor, sensor.auto_exposure))
+    lens: LensedFrame | None = None
+    if cfg.optics.enabled():  # off: today's spots, bit for bit
+        depth = lights_in_camera_m(lights, spec.ship, cam_pose)[[-1 - sp.beacon_id for sp in extra], 2]
+        lens = through_lens(cfg.optics, camera, sensor, raster, scale, splats, extra, proj.points_px,
+                            proj.depth_m, depth)
+        splats, extra = lens.beacons, lens.lights
     flux_e = np.zeros(len(lights))
     for sp in extra:
         flux_e[-1 - sp.beacon_id] = splat_electrons(sp, sensor)
+    rng = np.random.default_rng(spec.seed)
+    spots = lens.spots if lens else spot_record(raster, scale, splats, sensor, cfg.layout.n_beacons)
     pattern = fixed_pattern(sensor, cfg.seed, camera.name, *raster.shape[:2])
-    image = expose(raster, scale, splats + extra, sensor, rng, pattern=pattern)
+    image = expose(raster, scale, splats + extra, sensor, rng, pattern=pattern,
+                   background_gain=lens.background_gain if lens else None)
     if sensor.jpeg_quality is not None:
         image = jpeg_round_trip(image, sensor.jpeg_quality)
-    spots = spot_record(raster, scale, splats, sensor, cfg.layout.n_beacons)
     image.setflags(write=False)  # Frame keeps a read-only array as is (no 200 MB copy at 64 MP)
-    proj = project_layout(cfg.layout, spec.ship, cam_pose, camera) if shutter is None else shutter.projection
     truth = GroundTruth(spec.ship, cam_pose, proj.points_px, proj.visible, proj.apparent_radius_px,
                         spec.frame_id, spec.stamp_ns, spec.seed)
     frame = Frame(image, camera, spec.frame_id, spec.stamp_ns)
     return RenderedFrame(frame, truth, proj, spec, spots, factors, occlusion, tuple(lights), lights_px,
-                         lights_in, flux_e, None if shutter is None else shutter.global_points_px,
-                         None if cfg.sensor.auto_exposure is None else sensor.exposure)
+                         lights_in, flux_e,
+                         global_points_px=None if shutter is None else shutter.global_points_px,
+                         exposure=None if cfg.sensor.auto_exposure is None else sensor.exposure,
+                         optics=lens.record if lens else None)
 
 
 def _shutter(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel, factors: np.ndarray) -> ShutterFrame | None:
@@ -155,7 +172,8 @@ def beacon_rows(rf: RenderedFrame) -> list[dict[str, Any]]:
     the detector benchmark turns into the centroid Cramér–Rao bound; the unit's
     intensity factor (``unit_factor``), and the occluder's ``occluded_fraction`` with the
     centroid of the light left (``light_u_px``, ``light_v_px``); ``global_u_px``,
-    ``global_v_px``: the projection at the frame time (``u_px, v_px`` without a rolling shutter).
+    ``global_v_px``: the projection at the frame time (``u_px, v_px`` without a rolling shutter),
+    and the optics' per-beacon record (:func:`deckpose.render.optics.optics_row`; NaN without optics).
     """
     p, sp, oc = rf.projection, rf.spots, rf.occlusion
     g = p.points_px if rf.global_points_px is None else rf.global_points_px
@@ -167,7 +185,8 @@ def beacon_rows(rf: RenderedFrame) -> list[dict[str, Any]]:
          "spot_background_e": float(sp.background_e[i]), "spot_peak_e": float(sp.peak_e[i]),
          "unit_factor": float(rf.unit_factors[i]), "occluded_fraction": float(oc.hidden_fraction[i]),
          "light_u_px": float(oc.light_u_px[i]), "light_v_px": float(oc.light_v_px[i]),
-         "global_u_px": float(g[i, 0]), "global_v_px": float(g[i, 1])}
+         "global_u_px": float(g[i, 0]), "global_v_px": float(g[i, 1]),
+         **optics_row(rf.optics, i)}
         for i in range(p.points_px.shape[0])
     ]
 

@@ -33,6 +33,7 @@ seed; the law (mean and variance at every signal level) is the same.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import cv2
@@ -95,7 +96,8 @@ def _fill_standard_normal(out: NDArray[np.float32], radius: NDArray[np.float32],
 
 
 def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: list[Splat],
-           sensor: SensorSpec, rng: np.random.Generator, *, pattern: FixedPattern | None = None) -> np.ndarray:
+           sensor: SensorSpec, rng: np.random.Generator, *, pattern: FixedPattern | None = None,
+           background_gain: Callable[[int, int], NDArray[np.float32]] | None = None) -> np.ndarray:
     """Raster plus beacons to a quantised sensor image.
 
     A pixel (per channel) of mean ``m`` DN reads ``clip(round(m + sigma z), 0, 2**bit_depth - 1)``
@@ -131,6 +133,9 @@ def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: li
         (:mod:`deckpose.render.fixed_pattern`). With ``sensor.bayer`` set, each pixel keeps
         its filter's channel before the pattern and the noise, and the quantised mosaic
         is demosaiced (:mod:`deckpose.render.bayer`).
+    background_gain : callable, optional
+        ``f(r0, r1) -> (r1 - r0, W)`` float32 gain of the raster's rows (vignetting,
+        :func:`deckpose.render.optics.vignetting_rows`), applied before the beacon light.
 
     Returns
     -------
@@ -172,6 +177,9 @@ def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: li
         dst = out[r0:r1].reshape(h, W * Cn)
         mean = mean_buf[:h]
         cv2.LUT(block, lut_mean, dst=mean.reshape(block.shape))
+        if background_gain is not None:
+            m3 = mean.reshape(h, W, C)
+            m3 *= background_gain(r0, r1)[:, :, None]
         if k in by_strip:
             add_splats(mean.reshape(h, W, C), by_strip[k], r0, gain=e_per_rad * dn_per_e)
         if bayer:
@@ -289,5 +297,10 @@ def spot_record(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splat
         out["sigma_px"][i] = sp.sigma_px
         out["flux_e"][i] = splat_electrons(sp, sensor)
         out["background_e"][i] = float(bg.sum())
-        out["peak_e"][i] = float(np.max(float(sp.patch.max()) * e_per_rad * weights + bg))
+        # per-channel patches (optics): each channel's own peak, the grey's as their weighted mean
+        peak = (sp.patch.reshape(-1, 3).max(axis=0).astype(np.float64) if sp.patch.ndim == 3
+                else float(sp.patch.max()))
+        if sp.patch.ndim == 3 and mono:
+            peak = float(np.max(sp.patch.astype(np.float64) @ rgb) / 3.0) / float(rgb.mean())
+        out["peak_e"][i] = float(np.max(peak * e_per_rad * weights + bg))
     return SpotRecord(**out)

@@ -158,3 +158,9 @@ def light_splats(lights: list[ShipLight], poses: tuple[ShipPose, ...], camera_po
         if sp is not None:
             out.append(sp)
     return out, uv, in_image
+
+
+def lights_in_camera_m(lights: list[ShipLight] | tuple[ShipLight, ...], ship: ShipPose, camera_pose: CameraPose
+                       ) -> NDArray[np.float64]:
+    """Each light's position in the camera frame at the deck pose ``ship``, metres; (L, 3)."""
+    return np.array([_to_cam(light, ship, camera_pose) for light in lights]).reshape(-1, 3)
