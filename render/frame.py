@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 from deckpose.render.beacons import beacon_splats
+from deckpose.render.bloom import bloom, bloom_sigma_px
 from deckpose.render.config import RenderConfig
 from deckpose.render.lens import distort, raster_camera
 from deckpose.render.light import unit_factors
@@ -74,6 +75,10 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
     lights = ship_lights(cfg.ship_lights, cfg.deck_half_size_m(), cfg.scene.freeboard_m,
                          _stream(spec.seed, GLINT_STREAM))
     extra, lights_px, lights_in = light_splats(lights, poses, cam_pose, camera, cfg.sensor, cfg.leds, cfg.layout)
+    if cfg.scene.bloom_fraction > 0:  # glare around every light, point-symmetric (truth unchanged)
+        glare_px = bloom_sigma_px(cfg.scene.bloom_sigma_mrad, camera)
+        splats = bloom(splats, cfg.scene.bloom_fraction, glare_px)
+        extra = bloom(extra, cfg.scene.bloom_fraction, glare_px)
     flux_e = np.zeros(len(lights))
     for sp in extra:
         flux_e[-1 - sp.beacon_id] = splat_electrons(sp, cfg.sensor)
