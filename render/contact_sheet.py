@@ -2,7 +2,9 @@
 
 Each tile is a whole frame shrunk to fit, with an inset at native resolution
 (enlarged, nearest neighbour) around the red bow beacon, so the glow, colour and
-noise are visible. ``python -m deckpose.render.contact_sheet reports/contact_sheet.png``
+noise are visible. ``python -m deckpose.render.contact_sheet reports/contact_sheet.png``;
+``--config configs/realistic_ship.yaml`` takes that config's ``scene`` section (the ship look),
+with ``flat`` shading at night and dusk and ``pbr`` by day as always.
 """
 
 from __future__ import annotations
@@ -10,10 +12,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
-from deckpose.render.config import Lighting, Shading, config_from_dict
+from deckpose.render.config import Lighting, Shading, config_from_dict, load_config
 from deckpose.render.frame import render_frame
 from deckpose.render.plan import FrameSpec
 from deckpose.render.scene import DeckRenderer
@@ -25,10 +28,16 @@ PRESETS = ("4mp", "8mp", "16mp", "64mp")
 
 
 def contact_sheet(presets: tuple[str, ...] = PRESETS, *, tile_w: int = 480, height_m: float = 30.0,
-                  seed: int = 1) -> np.ndarray:
-    """Render the sheet; returns a BGR uint8 image (rows = presets, columns = lighting)."""
-    cfg = config_from_dict({"cameras": [{"preset": p} for p in presets], "heights_m": [height_m],
-                            "lighting": [x.value for x in Lighting], "seed": seed})
+                  seed: int = 1, scene: dict[str, Any] | None = None) -> np.ndarray:
+    """Render the sheet; returns a BGR uint8 image (rows = presets, columns = lighting).
+
+    ``scene``: a config's ``scene`` section (YAML data) instead of the default scene.
+    """
+    doc: dict[str, Any] = {"cameras": [{"preset": p} for p in presets], "heights_m": [height_m],
+                           "lighting": [x.value for x in Lighting], "seed": seed}
+    if scene is not None:
+        doc["scene"] = {**scene, "shading": "flat"}
+    cfg = config_from_dict(doc)
     pbr = dataclasses.replace(cfg, scene=dataclasses.replace(cfg.scene, shading=Shading.PBR))
     flat_r = DeckRenderer(cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
     pbr_r = DeckRenderer(pbr.layout, pbr.scene, pbr.deck_half_size_m(), pbr.backend)
@@ -61,8 +70,15 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
     ap.add_argument("out", type=Path, nargs="?", default=Path("reports/contact_sheet.png"))
     ap.add_argument("--presets", nargs="+", default=list(PRESETS))
+    ap.add_argument("--config", type=Path, default=None,
+                    help="a render config whose scene section (ship, sea, light pools, bloom) the sheet uses")
     args = ap.parse_args()
-    sheet = contact_sheet(tuple(args.presets))
+    scene = None
+    if args.config is not None:
+        from deckpose.render.config import config_to_dict
+
+        scene = config_to_dict(load_config(args.config))["scene"]
+    sheet = contact_sheet(tuple(args.presets), scene=scene)
     with atomic_path(args.out) as tmp:
         cv2.imwrite(str(tmp), sheet)
     print(f"wrote {args.out} ({sheet.shape[1]}x{sheet.shape[0]})")
