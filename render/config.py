@@ -431,9 +431,10 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
                               + ("a list of cameras (e.g. [{preset: 8mp}])" if key == "cameras"
                                  else "a list of camera heights, metres"))
     scene_doc = doc.get("scene")
-    auto_texture = isinstance(scene_doc, dict) and scene_doc.get("texture_px") == "auto"
-    if auto_texture:  # sized below from the cameras and heights (render/texture_size.py)
+    auto_texture = False
+    if isinstance(scene_doc, dict) and scene_doc.get("texture_px") == "auto":  # sized from the GSD below
         doc = {**doc, "scene": {k: v for k, v in scene_doc.items() if k != "texture_px"}}
+        auto_texture = True
     cfg = from_mapping(RenderConfig, doc, f"{source}:", convert=_SECTIONS)
     if auto_texture:
         px = deck_texture_px([c.model() for c in cfg.cameras], min(cfg.heights_m), cfg.deck_half_size_m())

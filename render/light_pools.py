@@ -35,6 +35,8 @@ __all__ = ["AMBIENT_LUX", "POOL_TEXTURE_PX", "apply_light_pools", "pool_gain", "
 #: Ambient illuminance on the deck per preset, lux: full moonlight ~0.1 lux (night), a deck in
 #: civil twilight ~20 lux (dusk; twilight spans ~3-400 lux), an overcast day ~20,000 lux.
 AMBIENT_LUX: dict[Lighting, float] = {Lighting.NIGHT: 0.1, Lighting.DUSK: 20.0, Lighting.DAY: 20000.0}
+#: Fixed-point one of the gain in :func:`apply_light_pools` (gains are applied in 1/256 steps).
+_GAIN_ONE = 256
 #: Side of the deck-frame gain texture, texels (5.5 cm texels on a 28 m deck; the pools are smooth).
 POOL_TEXTURE_PX = 512
 
@@ -81,7 +83,7 @@ def pool_gain(layout: DeckLayout, deck_half_size_m: float, intensity_cd: float, 
     xx, yy = np.meshgrid(c, c, indexing="ij")
     src = np.asarray(layout.positions_deck_m(), float).copy()
     src[:, 2] += layout.beacon_radius_m
-    lux = pool_illuminance_lux(src, intensity_cd, np.column_stack([xx.ravel(), yy.ravel()]))
+    lux = pool_illuminance_lux(src, intensity_cd, np.column_stack([xx.ravel(), yy.ravel()]).astype(np.float64))
     rgb = np.array([layout.bow_rgb if i == layout.bow_id else layout.beacon_rgb
                     for i in range(layout.n_beacons)], float)  # (N, 3)
     gain = 1.0 + (lux @ rgb) / ambient_lux
@@ -122,8 +124,9 @@ def apply_light_pools(raster: NDArray[np.uint8], gain: NDArray[np.float32], deck
     if c0 >= c1 or r0 >= r1:
         return
     shift = np.array([[1.0, 0.0, -c0], [0.0, 1.0, -r0], [0.0, 0.0, 1.0]])
-    g = cv2.warpPerspective(gain, shift @ Hm, (c1 - c0, r1 - r0), flags=cv2.INTER_LINEAR,
-                            borderMode=cv2.BORDER_CONSTANT, borderValue=(1.0, 1.0, 1.0))
+    # fixed point, 1/256 steps (gains to 255): 16-bit warp and multiply, rounded and saturated to 8 bits
+    gain_q = np.round(np.minimum(gain, 255.0) * _GAIN_ONE).astype(np.uint16)
+    g = cv2.warpPerspective(gain_q, shift @ Hm, (c1 - c0, r1 - r0), flags=cv2.INTER_LINEAR,
+                            borderMode=cv2.BORDER_CONSTANT, borderValue=(_GAIN_ONE,) * 3)
     region = raster[r0:r1, c0:c1]
-    lit = cv2.multiply(region.astype(np.float32), g)
-    region[...] = np.clip(lit + 0.5, 0.0, 255.0).astype(np.uint8)
+    region[...] = cv2.multiply(region.astype(np.uint16), g, scale=1.0 / _GAIN_ONE, dtype=cv2.CV_8U)

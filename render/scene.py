@@ -43,7 +43,7 @@ import numpy as np
 from deckpose.render.config import Backend, Lighting, SceneSpec, Shading
 from deckpose.render.lens import MAX_SIDE_PX
 from deckpose.render.light_pools import AMBIENT_LUX, apply_light_pools, pool_gain
-from deckpose.render.sea import Waves, sea_colour, sea_grid_m, sea_height_m, sea_normals, sea_waves
+from deckpose.render.sea import Waves, sea_colour, sea_grid_m, sea_grid_surface, sea_waves
 from deckpose.render.ship_model import hull_mesh, superstructure_mesh
 from numpy.typing import NDArray
 
@@ -204,6 +204,7 @@ class DeckRenderer:
         self._pool_gain: dict[Lighting, NDArray[np.float32]] = {}
         self._sea_mat: Any = None
         self._sea_grid = np.zeros(0)
+        self._sea_faces = np.zeros((0, 3), np.uint32)
 
     def _build(self) -> Any:
         """Make the scene (pyrender's Scene), kept as ``_scene``; returns it."""
@@ -236,7 +237,7 @@ class DeckRenderer:
         for name, on, mesh in (("hull", ship.hull, lambda: hull_mesh(self.half_m, self.spec.freeboard_m)),
                                ("superstructure", ship.superstructure, lambda: superstructure_mesh(self.half_m))):
             if on:
-                self._nodes[name] = s.add(pyrender.Mesh.from_trimesh(mesh(), material=hull_mat, smooth=False))
+                self._nodes[name] = s.add(_solid_mesh(pyrender, mesh(), hull_mat, linear=pbr))
         sun = pyrender.DirectionalLight(color=np.ones(3), intensity=1.0)
         if self.spec.shadows:
             sun._get_shadow_camera = types.MethodType(_deck_shadow_camera, sun)
@@ -297,7 +298,7 @@ class DeckRenderer:
             sky = np.asarray(light.sky_rgb) * (1.0 if pbr else 1.0 / max(light.level, 1e-6))
             self._set_wave_sea(self._waves, camera_pose.position_world_m, t_s, sky, None if pbr else z)
         flags = 0 if pbr else pr.RenderFlags.FLAT
-        if pbr and self.spec.shadows:
+        if pbr and self.spec.shadows and light.sun_intensity > 0:
             flags |= pr.RenderFlags.SHADOWS_DIRECTIONAL
         W, H = camera.width_px, camera.height_px
         # tiles small enough for the MSAA buffers and no taller than OpenGL's side limit
@@ -327,22 +328,22 @@ class DeckRenderer:
     def _set_wave_sea(self, sea: tuple[Waves, Waves], camera_m: NDArray[np.float64], t_s: float,
                       sky_rgb: NDArray[np.float64], sun_dir: NDArray[np.float64] | None) -> None:
         """Replace the sea node by the wave grid at ``t_s`` (heights, normals, Fresnel colours)."""
-        waves, ripples = sea
         g = self._sea_grid
         n = len(g)
-        xx, yy = np.meshgrid(g, g, indexing="ij")
-        xy = np.column_stack([xx.ravel(), yy.ravel()])
-        z = sea_height_m(waves, xy, t_s) - self.spec.freeboard_m
-        pos = np.column_stack([xy, z])
-        normals = sea_normals(waves, ripples, xy, t_s)
+        if self._sea_faces.shape[0] == 0:  # the grid's triangles, made once
+            i = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
+            self._sea_faces = np.concatenate([np.column_stack([i, i + n, i + n + 1]),
+                                              np.column_stack([i, i + n + 1, i + 1])]).astype(np.uint32)
+        eta, normals = sea_grid_surface(*sea, g, t_s)
+        pos = np.column_stack([np.repeat(g, n), np.tile(g, n), eta - self.spec.freeboard_m])
         to_cam = camera_m[None, :] - pos
         to_cam /= np.linalg.norm(to_cam, axis=1, keepdims=True)
         rgb = sea_colour(normals, to_cam, sky_rgb, sun_dir)
+        if sun_dir is None:  # pbr: pyrender lights linear colours and encodes its output
+            rgb = srgb_to_linear(rgb)
         colour = np.column_stack([rgb, np.ones(len(rgb))]).astype(np.float32)
-        i = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
-        faces = np.concatenate([np.column_stack([i, i + n, i + n + 1]), np.column_stack([i, i + n + 1, i + 1])])
         prim = self._pr.Primitive(positions=pos.astype(np.float32), normals=normals.astype(np.float32),
-                                  color_0=colour, indices=faces.astype(np.uint32), material=self._sea_mat)
+                                  color_0=colour, indices=self._sea_faces, material=self._sea_mat)
         if "sea" in self._nodes:
             self._scene.remove_node(self._nodes["sea"])
         self._nodes["sea"] = self._scene.add(self._pr.Mesh([prim]))
@@ -351,6 +352,24 @@ class DeckRenderer:
         """Forget this scene (the process's GL context lives until the process exits)."""
         self._scene = None
         self._nodes.clear()
+
+
+def srgb_to_linear(rgb: NDArray[np.float64]) -> NDArray[np.float64]:
+    """sRGB-encoded colours in [0, 1] to linear ones (IEC 61966-2-1), as pyrender decodes its textures."""
+    c = np.asarray(rgb, float)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def _solid_mesh(pr: Any, mesh: Any, material: Any, *, linear: bool) -> Any:
+    """A pyrender mesh of a trimesh with face colours, flat-shaded (colours sRGB-decoded for ``pbr``)."""
+    faces = np.asarray(mesh.faces)
+    rgb = np.asarray(mesh.visual.face_colors, float)[:, :3] / 255.0
+    rgb = srgb_to_linear(rgb) if linear else rgb
+    colour = np.repeat(np.column_stack([rgb, np.ones(len(rgb))]), 3, axis=0).astype(np.float32)
+    prim = pr.Primitive(positions=np.asarray(mesh.vertices)[faces].reshape(-1, 3).astype(np.float32),
+                        normals=np.repeat(np.asarray(mesh.face_normals), 3, axis=0).astype(np.float32),
+                        color_0=colour, material=material)
+    return pr.Mesh([prim])
 
 
 def _deck_shadow_camera(self: Any, scene_scale: float) -> Any:

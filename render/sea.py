@@ -28,8 +28,8 @@ import numpy as np
 from deckpose.render.config import SeaSpec
 from numpy.typing import NDArray
 
-__all__ = ["GRAVITY_M_PER_S2", "SEA_STREAM", "Waves", "sea_colour", "sea_grid_m", "sea_height_m",
-           "sea_normals", "sea_waves"]
+__all__ = ["GRAVITY_M_PER_S2", "SEA_STREAM", "Waves", "sea_colour", "sea_grid_m", "sea_grid_surface",
+           "sea_height_m", "sea_normals", "sea_waves"]
 
 GRAVITY_M_PER_S2 = 9.81
 #: Stream index of the sea's draws in ``SeedSequence([scene.sea.seed, stream])``.
@@ -126,6 +126,37 @@ def sea_normals(waves: Waves, ripples: Waves, xy_m: NDArray[np.float64], t_s: fl
         grad += (np.cos(_phase(w, xy, t_s)) * w.amplitude_m) @ w.k_per_m
     n = np.column_stack([-grad, np.ones(len(xy))])
     return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+def sea_grid_surface(waves: Waves, ripples: Waves, grid_m: NDArray[np.float64], t_s: float
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Heights and unit normals on the square grid ``grid_m x grid_m`` (x index first), fast.
+
+    The same values as :func:`sea_height_m` and :func:`sea_normals` at the grid's points, by
+    the angle-sum identity ``sin(a + b) = sin a cos b + cos a sin b`` with ``a = k_x x`` per row
+    and ``b = k_y y - omega t + phi`` per column: two outer products per wave instead of a sine
+    per vertex (about 1 ms for a 275 x 275 grid against 0.4 s).
+
+    Returns
+    -------
+    height_m : (n * n,) array of float
+    normals : (n * n, 3) array of float
+    """
+    g = np.asarray(grid_m, float)
+    n = len(g)
+    eta = np.zeros((n, n))
+    gx, gy = np.zeros((n, n)), np.zeros((n, n))
+    for w, heights in ((waves, True), (ripples, False)):
+        for A, (kx, ky), om, ph in zip(w.amplitude_m, w.k_per_m, w.omega_rad_per_s, w.phase_rad, strict=True):
+            a, b = kx * g, ky * g - om * t_s + ph
+            sa, ca, sb, cb = np.sin(a), np.cos(a), np.sin(b), np.cos(b)
+            cos_ab = np.outer(ca, cb) - np.outer(sa, sb)  # cos(a + b)
+            if heights:
+                eta += A * (np.outer(sa, cb) + np.outer(ca, sb))
+            gx += A * kx * cos_ab
+            gy += A * ky * cos_ab
+    nrm = np.stack([-gx.ravel(), -gy.ravel(), np.ones(n * n)], axis=1)
+    return eta.ravel(), nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
 
 
 def sea_grid_m(half_size_m: float, inner_half_m: float = 150.0, step_m: float = 1.5,

@@ -31,7 +31,7 @@ HULL_TOP_GAP_M = 0.02
 #: Colours (RGBA, 0-255): hull sides (dark grey), main deck, superstructure (light grey).
 HULL_RGBA = (70, 74, 80, 255)
 MAIN_DECK_RGBA = (92, 98, 92, 255)
-SUPERSTRUCTURE_RGBA = (205, 208, 210, 255)
+SUPERSTRUCTURE_RGBA = (150, 154, 158, 255)
 WINDOW_RGBA = (25, 32, 40, 255)
 
 
@@ -54,29 +54,29 @@ def hull_mesh(deck_half_size_m: float, freeboard_m: float) -> trimesh.Trimesh:
     xy = hull_outline_m(deck_half_size_m)
     top = np.column_stack([xy, np.full(len(xy), -HULL_TOP_GAP_M)])
     bottom = np.column_stack([xy, np.full(len(xy), -freeboard_m)])
-    mesh = trimesh.convex.convex_hull(np.vstack([top, bottom]))
-    up = mesh.face_normals[:, 2] > 0.99
-    colours = np.tile(np.array(HULL_RGBA, np.uint8), (len(mesh.faces), 1))
-    colours[up] = MAIN_DECK_RGBA
-    mesh.visual.face_colors = colours
-    return mesh
+    hull = trimesh.convex.convex_hull(np.vstack([top, bottom]))
+    colours = np.tile(np.array(HULL_RGBA, np.uint8), (len(hull.faces), 1))
+    colours[hull.face_normals[:, 2] > 0.99] = MAIN_DECK_RGBA
+    return trimesh.Trimesh(hull.vertices, hull.faces, face_colors=colours, process=False)
 
 
-def _box(lo: tuple[float, float, float], hi: tuple[float, float, float], rgba: tuple[int, ...]) -> trimesh.Trimesh:
+def _box(lo: tuple[float, float, float], hi: tuple[float, float, float]) -> trimesh.Trimesh:
     lo_a, hi_a = np.asarray(lo, float), np.asarray(hi, float)
     box = trimesh.creation.box(extents=hi_a - lo_a)
-    box.apply_translation((lo_a + hi_a) / 2)
-    box.visual.face_colors = np.tile(np.array(rgba, np.uint8), (len(box.faces), 1))
-    return box
+    return trimesh.Trimesh(box.vertices + (lo_a + hi_a) / 2, box.faces, process=False)
 
 
 def superstructure_mesh(deck_half_size_m: float) -> trimesh.Trimesh:
     """Deckhouse, bridge (with a dark window band facing aft) and mast, deck frame, metres."""
     a = deck_half_size_m
     parts = [
-        _box((a + 4.0, -(a - 4.0), 0.0), (a + 18.0, a - 4.0, 6.0), SUPERSTRUCTURE_RGBA),
-        _box((a + 8.0, -(a - 1.5), 6.0), (a + 14.0, a - 1.5, 10.0), SUPERSTRUCTURE_RGBA),
-        _box((a + 7.9, -(a - 2.0), 8.2), (a + 8.0, a - 2.0, 9.4), WINDOW_RGBA),
-        _box((a + 13.8, -0.2, 10.0), (a + 14.2, 0.2, 12.0), SUPERSTRUCTURE_RGBA),
+        (_box((a + 4.0, -(a - 4.0), 0.0), (a + 18.0, a - 4.0, 6.0)), SUPERSTRUCTURE_RGBA),
+        (_box((a + 8.0, -(a - 1.5), 6.0), (a + 14.0, a - 1.5, 10.0)), SUPERSTRUCTURE_RGBA),
+        (_box((a + 7.9, -(a - 2.0), 8.2), (a + 8.0, a - 2.0, 9.4)), WINDOW_RGBA),
+        (_box((a + 13.8, -0.2, 10.0), (a + 14.2, 0.2, 12.0)), SUPERSTRUCTURE_RGBA),
     ]
-    return trimesh.util.concatenate(parts)
+    offsets = np.cumsum([0] + [len(m.vertices) for m, _ in parts[:-1]])
+    return trimesh.Trimesh(np.vstack([m.vertices for m, _ in parts]),
+                           np.vstack([m.faces + o for (m, _), o in zip(parts, offsets, strict=True)]),
+                           face_colors=np.vstack([np.tile(np.array(c, np.uint8), (len(m.faces), 1)) for m, c in parts]),
+                           process=False)

@@ -17,7 +17,7 @@ from deckpose.render.config import Lighting, SeaSpec, config_from_dict
 from deckpose.render.frame import render_frame
 from deckpose.render.light_pools import AMBIENT_LUX, pool_illuminance_lux
 from deckpose.render.plan import FrameSpec
-from deckpose.render.sea import Waves, sea_height_m, sea_normals, sea_waves
+from deckpose.render.sea import Waves, sea_grid_m, sea_grid_surface, sea_height_m, sea_normals, sea_waves
 from deckpose.render.ship_model import hull_mesh, superstructure_mesh
 from deckpose.render.texture_size import deck_texture_px
 
@@ -118,6 +118,16 @@ def test_sea_normals_are_the_surface_gradient() -> None:
     want = np.column_stack([-dx, -dy, np.ones(len(xy))])
     want /= np.linalg.norm(want, axis=1, keepdims=True)
     np.testing.assert_allclose(sea_normals(waves, still, xy, 2.0), want, atol=1e-7)
+
+
+def test_rendered_sea_grid_is_the_formula_at_its_vertices() -> None:
+    """The renderer's fast grid (angle-sum outer products) against the per-point formula."""
+    waves, ripples = sea_waves(SeaSpec(waves=5, seed=7))
+    g = sea_grid_m(500.0, inner_half_m=30.0, step_m=3.0)
+    xy = np.column_stack([np.repeat(g, len(g)), np.tile(g, len(g))])  # x index first
+    eta, normals = sea_grid_surface(waves, ripples, g, 12.5)
+    np.testing.assert_allclose(eta, sea_height_m(waves, xy, 12.5), atol=1e-10)  # float64 rounding
+    np.testing.assert_allclose(normals, sea_normals(waves, ripples, xy, 12.5), atol=1e-10)
 
 
 def test_light_pool_illuminance_is_inverse_square_times_cosine() -> None:
