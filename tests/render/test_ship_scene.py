@@ -17,7 +17,14 @@ from deckpose.render.config import Lighting, SeaSpec, config_from_dict
 from deckpose.render.frame import render_frame
 from deckpose.render.light_pools import AMBIENT_LUX, pool_illuminance_lux
 from deckpose.render.plan import FrameSpec
-from deckpose.render.sea import Waves, sea_grid_m, sea_grid_surface, sea_height_m, sea_normals, sea_waves
+from deckpose.render.sea import (
+    Waves,
+    sea_grid_m,
+    sea_grid_surface,
+    sea_height_m,
+    sea_normals,
+    sea_waves,
+)
 from deckpose.render.ship_model import hull_mesh, superstructure_mesh
 from deckpose.render.texture_size import deck_texture_px
 
