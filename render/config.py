@@ -432,6 +432,9 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
                                  else "a list of camera heights, metres"))
     scene_doc = doc.get("scene")
     auto_texture = False
+    if isinstance(scene_doc, dict) and isinstance(scene_doc.get("texture_px"), str) \
+            and scene_doc["texture_px"] != "auto":
+        raise ConfigError(f"{source}: scene.texture_px: an integer (64-8192) or auto, got {scene_doc['texture_px']!r}")
     if isinstance(scene_doc, dict) and scene_doc.get("texture_px") == "auto":  # sized from the GSD below
         doc = {**doc, "scene": {k: v for k, v in scene_doc.items() if k != "texture_px"}}
         auto_texture = True

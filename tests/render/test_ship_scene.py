@@ -29,6 +29,7 @@ from deckpose.render.ship_model import hull_mesh, superstructure_mesh
 from deckpose.render.texture_size import deck_texture_px
 
 from deckpose.camera import preset
+from deckpose.errors import ConfigError
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose
 
@@ -234,3 +235,16 @@ def test_frame_truth_and_spots_unchanged_by_the_ship_look(egl_renderer_factory) 
     np.testing.assert_array_equal(a.occlusion.light_u_px, b.occlusion.light_u_px)
     np.testing.assert_allclose(b.spots.flux_e, 0.95 * a.spots.flux_e, rtol=1e-6)  # 5 % gone to glare
     assert not np.array_equal(a.frame.image, b.frame.image)
+
+
+@pytest.mark.parametrize(("scene", "message"), [
+    ({"texture_px": "big"}, r"scene\.texture_px: an integer \(64-8192\) or auto, got 'big'"),
+    ({"ship": {"hull": True, "mast": True}}, r"scene\.ship: unknown key\(s\) \['mast'\]"),
+    ({"sea": {"waves": 4, "height_m": 4.0}}, r"scene\.sea\.height_m"),
+    ({"bloom_fraction": 1.0}, r"scene\.bloom_fraction"),
+    ({"light_pools_cd": -1.0}, r"scene\.light_pools_cd"),
+])
+def test_ship_look_keys_are_checked(scene: dict, message: str) -> None:
+    with pytest.raises(ConfigError, match=message) as err:
+        config_from_dict(tiny_doc(scene=scene))
+    assert "\n" not in str(err.value)  # one line
