@@ -135,7 +135,7 @@ def sea_grid_surface(waves: Waves, ripples: Waves, grid_m: NDArray[np.float64], 
     The same values as :func:`sea_height_m` and :func:`sea_normals` at the grid's points, by
     the angle-sum identity ``sin(a + b) = sin a cos b + cos a sin b`` with ``a = k_x x`` per row
     and ``b = k_y y - omega t + phi`` per column: two outer products per wave instead of a sine
-    per vertex (about 1 ms for a 275 x 275 grid against 0.4 s).
+    per vertex (27 ms for a 275 x 275 grid against 0.43 s, measured at load 8 on 2 cores).
 
     Returns
     -------
@@ -159,7 +159,7 @@ def sea_grid_surface(waves: Waves, ripples: Waves, grid_m: NDArray[np.float64], 
     return eta.ravel(), nrm / np.linalg.norm(nrm, axis=1, keepdims=True)
 
 
-def sea_grid_m(half_size_m: float, inner_half_m: float = 150.0, step_m: float = 1.5,
+def sea_grid_m(half_size_m: float, inner_half_m: float = 100.0, step_m: float = 2.0,
                growth: float = 1.15) -> NDArray[np.float64]:
     """Grid line positions along one axis, metres: ``step_m`` apart within ``+-inner_half_m``,
     then growing by ``growth`` per step out to ``+-half_size_m`` (fine where the camera looks)."""
