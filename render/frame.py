@@ -6,8 +6,8 @@ cost one rasterisation per sub-pose). The ground truth is the mid-exposure pose.
 
 Realism on top of the raster, each off by default (:mod:`deckpose.render.config`):
 the beacons' light model and unit tolerance (:mod:`deckpose.render.light`), occluders
-(:mod:`deckpose.render.occlusion`), lights that are not beacons
-(:mod:`deckpose.render.ship_lights`) and bloom around every light (:mod:`deckpose.render.bloom`). Each draws from its own stream,
+(:mod:`deckpose.render.occlusion`) and lights that are not beacons
+(:mod:`deckpose.render.ship_lights`). Each draws from its own stream,
 ``SeedSequence([frame seed, stream])``, so switching one on leaves the others' and the
 sensor noise's realisations as they were.
 """
