@@ -13,7 +13,10 @@ Each case runs in a fresh process (so its peak RSS is its own):
   ``configs/detector_benchmark_rolling_shutter.yaml`` (vibration 0.05 deg RMS, 10 ms) and the
   sensor effects of ``configs/detector_benchmark_exposure.yaml`` (Bayer, fixed pattern,
   auto-exposure); ``ours`` and ``real`` run ``--repeat`` times interleaved, and the ratio of
-  their medians is printed (issue 23's budget: 1.5x).
+  their medians is printed (issue 23's budget: 1.5x);
+* ``ship``, with ``--ship``: ``ours`` with the ``scene`` section of
+  ``configs/realistic_ship.yaml`` (hull, superstructure, wave sea, light pools, bloom,
+  shadows, auto-sized deck texture, ``pbr`` shading), timed and compared the same way.
 
 Usage::
 
@@ -54,9 +57,12 @@ REALISM_SECTIONS = ("leds", "occlusion", "ship_lights")
 #: The sensor effects of ``configs/detector_benchmark_exposure.yaml`` the ``real`` case adds (Bayer, fixed
 #: pattern, auto-exposure; on the 8-bit sensor of ``ours``).
 SENSOR_EFFECT_KEYS = ("bayer", "prnu", "dsnu_e", "hot_pixel_fraction", "hot_pixel_e", "auto_exposure")
+#: Where each realism case takes its sections from (a config in configs/).
+CASE_SECTIONS = {"real": ("detector_benchmark_hard.yaml", REALISM_SECTIONS),
+                 "ship": ("realistic_ship.yaml", ("scene",))}
 
 
-def _case_ours(size: str, frames: int, backend: str, out: Path, realism: bool = False) -> dict[str, float]:
+def _case_ours(size: str, frames: int, backend: str, out: Path, realism: str = "") -> dict[str, float]:
     import yaml
     from deckpose.render.config import config_from_dict
     from deckpose.render.dataset import render_one
@@ -67,18 +73,19 @@ def _case_ours(size: str, frames: int, backend: str, out: Path, realism: bool = 
         "motion": {"source": "fixed", "attitudes_deg": [[3.0 + i, -2.0, 5.0 * i] for i in range(frames + 1)]},
     }
     if realism:
-        hard = yaml.safe_load((Path(__file__).resolve().parent.parent / "configs"
-                               / "detector_benchmark_hard.yaml").read_text())
-        doc.update({k: hard[k] for k in REALISM_SECTIONS})
-        doc["optics"] = yaml.safe_load((Path(__file__).resolve().parent.parent / "configs"
-                                        / "detector_benchmark_optics.yaml").read_text())["optics"]
-        rs = yaml.safe_load((Path(__file__).resolve().parent.parent / "configs"
-                             / "detector_benchmark_rolling_shutter.yaml").read_text())
-        doc["shutter"] = {**rs["shutter"], "vibration_deg_rms": 0.05}  # and vibration, over a 10 ms exposure
-        doc["motion"] = {**doc["motion"], "exposure_s": 0.01}
-        exposure = yaml.safe_load((Path(__file__).resolve().parent.parent / "configs"
-                                   / "detector_benchmark_exposure.yaml").read_text())
-        doc["sensor"] = {k: exposure["sensor"][k] for k in SENSOR_EFFECT_KEYS}
+        name, sections = CASE_SECTIONS[realism]
+        base = yaml.safe_load((Path(__file__).resolve().parent.parent / "configs" / name).read_text())
+        doc.update({k: base[k] for k in sections})
+        if realism == "real":  # and the effects that have configs of their own
+            doc["optics"] = yaml.safe_load((Path(__file__).resolve().parent.parent / "configs"
+                                            / "detector_benchmark_optics.yaml").read_text())["optics"]
+            rs = yaml.safe_load((Path(__file__).resolve().parent.parent / "configs"
+                                 / "detector_benchmark_rolling_shutter.yaml").read_text())
+            doc["shutter"] = {**rs["shutter"], "vibration_deg_rms": 0.05}  # and vibration, over a 10 ms exposure
+            doc["motion"] = {**doc["motion"], "exposure_s": 0.01}
+            exposure = yaml.safe_load((Path(__file__).resolve().parent.parent / "configs"
+                                       / "detector_benchmark_exposure.yaml").read_text())
+            doc["sensor"] = {k: exposure["sensor"][k] for k in SENSOR_EFFECT_KEYS}
     cfg = config_from_dict(doc)
     plan = plan_frames(cfg)
     t0 = time.perf_counter()
@@ -140,7 +147,8 @@ def _child(args: argparse.Namespace) -> None:
         if args.case == "naive":
             res = _case_naive(args.size, args.frames, args.backend, Path(tmp))
         else:
-            res = _case_ours(args.size, args.frames, args.backend, Path(tmp), realism=args.case == "real")
+            res = _case_ours(args.size, args.frames, args.backend, Path(tmp),
+                             realism=args.case if args.case in CASE_SECTIONS else "")
     res["peak_rss_gib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2 ** 20
     print(json.dumps(res))
 
@@ -153,7 +161,8 @@ def main() -> None:
     ap.add_argument("--backend", default="egl", choices=["egl", "osmesa"])
     ap.add_argument("--skip-naive", action="store_true")
     ap.add_argument("--realism", action="store_true", help="also time the hard rung's realism effects")
-    ap.add_argument("--repeat", type=int, default=3, help="interleaved runs of ours and real (--realism)")
+    ap.add_argument("--ship", action="store_true", help="also time configs/realistic_ship.yaml's scene (ship look)")
+    ap.add_argument("--repeat", type=int, default=3, help="interleaved runs of ours and real/ship")
     ap.add_argument("--case", help=argparse.SUPPRESS)
     ap.add_argument("--size", help=argparse.SUPPRESS)
     args = ap.parse_args()
@@ -175,8 +184,8 @@ def main() -> None:
 
     for size in args.sizes:
         res: dict[str, list[dict[str, float]]] = {}
-        cases = ("ours", "real") if args.realism else ("ours",)
-        for _ in range(args.repeat if args.realism else 1):
+        cases = ("ours",) + (("real",) if args.realism else ()) + (("ship",) if args.ship else ())
+        for _ in range(args.repeat if len(cases) > 1 else 1):
             for case in cases:
                 res.setdefault(case, []).append(run(case, size, args.frames))
         if not args.skip_naive:
@@ -187,6 +196,9 @@ def main() -> None:
         if "real" in med:
             print(f"{size:>6} realism (hard rung) / ours, medians of {args.repeat} interleaved: "
                   f"{med['real'] / med['ours']:.2f}x (budget 1.5x)")
+        if "ship" in med:
+            print(f"{size:>6} ship look (realistic_ship.yaml scene) / ours, medians of {args.repeat} interleaved: "
+                  f"{med['ship'] / med['ours']:.2f}x (budget 1.5x)")
 
 
 if __name__ == "__main__":

@@ -21,10 +21,11 @@ from __future__ import annotations
 
 import enum
 import os
-from dataclasses import asdict, dataclass, fields
+from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
 from deckpose.render.camera_spec import CameraSpec, camera_spec
+from deckpose.render.texture_size import deck_texture_px
 
 from deckpose.camera import CameraModel
 from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH, epoch_ns
@@ -451,8 +452,38 @@ def _optics_spec(doc: object, where: str = "optics") -> OpticsSpec:
 
 
 @dataclass(frozen=True)
+class ShipModelSpec:
+    """The ship around the deck (:mod:`deckpose.render.ship_model`): ``hull`` (sides down to
+    the waterline and a bow) and ``superstructure`` (a bridge block forward of the deck)."""
+
+    hull: bool = False
+    superstructure: bool = False
+
+
+@dataclass(frozen=True)
+class SeaSpec:
+    """An animated sea of ``waves`` directional sine waves (:mod:`deckpose.render.sea`; 0: the flat
+    textured plane): significant height ``height_m``, peak wavelength ``wavelength_m``,
+    from ``direction_deg`` (world, from +x), phases and spread from ``seed``."""
+
+    waves: int = 0
+    height_m: float = 1.5
+    wavelength_m: float = 60.0
+    direction_deg: float = 30.0
+    seed: int = 1
+
+
+@dataclass(frozen=True)
 class SceneSpec:
-    """Deck plate and sea. ``deck_half_size_m`` must exceed the beacon ring radius."""
+    """Deck plate and sea. ``deck_half_size_m`` must exceed the beacon ring radius.
+
+    Ship look (issue 23 item 8, all off by default): ``ship``, ``sea``; ``light_pools_cd``,
+    the beacons' light on the deck (:mod:`deckpose.render.light_pools`; candela toward
+    the deck, 0: off); ``bloom_fraction`` of each light's flux spread as glare over a
+    Gaussian of ``bloom_sigma_mrad`` (:mod:`deckpose.render.bloom`); ``shadows``: sun
+    shadows in ``pbr`` shading; ``texture_px: auto`` sizes the deck texture from the
+    cameras' ground sampling distance at the lowest height (:mod:`deckpose.render.texture_size`).
+    """
 
     shading: Shading = Shading.FLAT
     deck_half_size_m: float | None = None
@@ -460,6 +491,12 @@ class SceneSpec:
     sea_half_size_m: float = 2000.0
     sea_drift_m_per_s: float = 0.8
     texture_px: int = 2048
+    ship: ShipModelSpec = ShipModelSpec()
+    sea: SeaSpec = SeaSpec()
+    light_pools_cd: float = 0.0
+    bloom_fraction: float = 0.0
+    bloom_sigma_mrad: float = 4.0
+    shadows: bool = False
 
 
 def _scene_spec(doc: object, where: str = "scene") -> SceneSpec:
@@ -470,6 +507,13 @@ def _scene_spec(doc: object, where: str = "scene") -> SceneSpec:
     if spec.deck_half_size_m is not None:
         check_range(spec.deck_half_size_m, f"{where}.deck_half_size_m", low=0, low_open=True)
     check_range(spec.texture_px, f"{where}.texture_px", low=64, high=8192)
+    check_range(spec.sea.waves, f"{where}.sea.waves", low=0, high=16)
+    check_range(spec.sea.height_m, f"{where}.sea.height_m", low=0, high=0.5 * spec.freeboard_m)
+    check_range(spec.sea.wavelength_m, f"{where}.sea.wavelength_m", low=2.0, high=500.0)
+    check_range(spec.sea.seed, f"{where}.sea.seed", low=0)
+    check_range(spec.light_pools_cd, f"{where}.light_pools_cd", low=0, high=1e5)
+    check_range(spec.bloom_fraction, f"{where}.bloom_fraction", low=0, high=1, high_open=True)
+    check_range(spec.bloom_sigma_mrad, f"{where}.bloom_sigma_mrad", low=0, low_open=True, high=100)
     return spec
 
 
@@ -565,7 +609,18 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
             raise ConfigError(f"{source}: {key!r} is missing: "
                               + ("a list of cameras (e.g. [{preset: 8mp}])" if key == "cameras"
                                  else "a list of camera heights, metres"))
+    scene_doc = doc.get("scene")
+    auto_texture = False
+    if isinstance(scene_doc, dict) and isinstance(scene_doc.get("texture_px"), str) \
+            and scene_doc["texture_px"] != "auto":
+        raise ConfigError(f"{source}: scene.texture_px: an integer (64-8192) or auto, got {scene_doc['texture_px']!r}")
+    if isinstance(scene_doc, dict) and scene_doc.get("texture_px") == "auto":  # sized from the GSD below
+        doc = {**doc, "scene": {k: v for k, v in scene_doc.items() if k != "texture_px"}}
+        auto_texture = True
     cfg = from_mapping(RenderConfig, doc, f"{source}:", convert=_SECTIONS)
+    if auto_texture:
+        px = deck_texture_px([c.model() for c in cfg.cameras], min(cfg.heights_m), cfg.deck_half_size_m())
+        cfg = replace(cfg, scene=replace(cfg.scene, texture_px=px))
     check_range(cfg.seed, f"{source}: seed", low=0)
     epoch_ns(cfg.capture_epoch, f"{source}: capture_epoch")  # a time with a zone, this century
     half = cfg.deck_half_size_m()

@@ -2,7 +2,10 @@
 
 Each tile is a whole frame shrunk to fit, with an inset at native resolution
 (enlarged, nearest neighbour) around the red bow beacon, so the glow, colour and
-noise are visible. ``python -m deckpose.render.contact_sheet reports/contact_sheet.png``
+noise are visible. ``python -m deckpose.render.contact_sheet reports/contact_sheet.png``;
+``--config configs/realistic_ship.yaml`` takes that config's ``scene`` section (the ship look);
+shading is ``flat`` at night and dusk and ``pbr`` by day either way. ``--height-m`` sets the
+camera height (30 m).
 """
 
 from __future__ import annotations
@@ -10,10 +13,11 @@ from __future__ import annotations
 import argparse
 import dataclasses
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
-from deckpose.render.config import Lighting, Shading, config_from_dict
+from deckpose.render.config import Lighting, Shading, config_from_dict, load_config
 from deckpose.render.frame import render_frame
 from deckpose.render.plan import FrameSpec
 from deckpose.render.scene import DeckRenderer
@@ -25,10 +29,17 @@ PRESETS = ("4mp", "8mp", "16mp", "64mp")
 
 
 def contact_sheet(presets: tuple[str, ...] = PRESETS, *, tile_w: int = 480, height_m: float = 30.0,
-                  seed: int = 1) -> np.ndarray:
-    """Render the sheet; returns a BGR uint8 image (rows = presets, columns = lighting)."""
-    cfg = config_from_dict({"cameras": [{"preset": p} for p in presets], "heights_m": [height_m],
-                            "lighting": [x.value for x in Lighting], "seed": seed})
+                  seed: int = 1, scene: dict[str, Any] | None = None) -> np.ndarray:
+    """Render the sheet; returns a BGR uint8 image (rows = presets, columns = lighting).
+
+    ``scene``: a config's ``scene`` section (YAML data) instead of the default scene (its
+    shading is replaced: ``flat`` at night and dusk, ``pbr`` by day).
+    """
+    doc: dict[str, Any] = {"cameras": [{"preset": p} for p in presets], "heights_m": [height_m],
+                           "lighting": [x.value for x in Lighting], "seed": seed}
+    if scene is not None:
+        doc["scene"] = {**scene, "shading": "flat"}
+    cfg = config_from_dict(doc)
     pbr = dataclasses.replace(cfg, scene=dataclasses.replace(cfg.scene, shading=Shading.PBR))
     flat_r = DeckRenderer(cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
     pbr_r = DeckRenderer(pbr.layout, pbr.scene, pbr.deck_half_size_m(), pbr.backend)
@@ -49,7 +60,9 @@ def contact_sheet(presets: tuple[str, ...] = PRESETS, *, tile_w: int = 480, heig
             tile[-inset.shape[0] - 4: -4, -inset.shape[1] - 4: -4] = inset
             cv2.rectangle(tile, (tile_w - inset.shape[1] - 5, th - inset.shape[0] - 5), (tile_w - 4, th - 4),
                           (255, 255, 255), 1)
-            label = f"{cam.name}  {light.value}{' (pbr)' if light is Lighting.DAY else ''}  h={height_m:g} m"
+            label = f"{cam.name}  {light.value} ({c.scene.shading.value})  h={height_m:g} m"
+            (tw, _), _ = cv2.getTextSize(label, cv2.FONT_HERSHEY_SIMPLEX, 0.5, 1)
+            cv2.rectangle(tile, (2, 4), (10 + tw, 24), (0, 0, 0), -1)  # readable on a bright deck
             cv2.putText(tile, label, (6, 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
             tiles.append(cv2.copyMakeBorder(tile, 2, 2, 2, 2, cv2.BORDER_CONSTANT, value=(40, 40, 40)))
         h = max(t.shape[0] for t in tiles)
@@ -61,8 +74,16 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
     ap.add_argument("out", type=Path, nargs="?", default=Path("reports/contact_sheet.png"))
     ap.add_argument("--presets", nargs="+", default=list(PRESETS))
+    ap.add_argument("--height-m", type=float, default=30.0, help="camera height above the deck, metres")
+    ap.add_argument("--config", type=Path, default=None,
+                    help="a render config whose scene section (ship, sea, light pools, bloom) the sheet uses")
     args = ap.parse_args()
-    sheet = contact_sheet(tuple(args.presets))
+    scene = None
+    if args.config is not None:
+        from deckpose.render.config import config_to_dict
+
+        scene = config_to_dict(load_config(args.config))["scene"]
+    sheet = contact_sheet(tuple(args.presets), height_m=args.height_m, scene=scene)
     with atomic_path(args.out) as tmp:
         cv2.imwrite(str(tmp), sheet)
     print(f"wrote {args.out} ({sheet.shape[1]}x{sheet.shape[0]})")

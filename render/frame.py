@@ -25,6 +25,7 @@ from deckpose.render.auto_exposure import metered_exposure
 from deckpose.render.beacons import beacon_splats
 from deckpose.render.camera_motion import VIBRATION_STREAM, camera_motion
 from deckpose.render.compression import jpeg_round_trip
+from deckpose.render.bloom import bloom, bloom_sigma_px
 from deckpose.render.config import RenderConfig
 from deckpose.render.fixed_pattern import fixed_pattern
 from deckpose.render.lens import distort, raster_camera
@@ -99,6 +100,10 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
     sensor = cfg.sensor  # with auto-exposure, the exposure this frame's metering chose (and the truth uses)
     if sensor.auto_exposure is not None:
         sensor = dataclasses.replace(sensor, exposure=metered_exposure(raster, scale, sensor, sensor.auto_exposure))
+    if cfg.scene.bloom_fraction > 0:  # glare around every light, point-symmetric (truth unchanged)
+        glare_px = bloom_sigma_px(cfg.scene.bloom_sigma_mrad, camera)
+        splats = bloom(splats, cfg.scene.bloom_fraction, glare_px)
+        extra = bloom(extra, cfg.scene.bloom_fraction, glare_px)
     lens: LensedFrame | None = None
     if cfg.optics.enabled():  # off: today's spots, bit for bit
         depth = lights_in_camera_m(lights, spec.ship, cam_pose)[[-1 - sp.beacon_id for sp in extra], 2]

@@ -42,6 +42,9 @@ import cv2
 import numpy as np
 from deckpose.render.config import Backend, Lighting, SceneSpec, Shading
 from deckpose.render.lens import MAX_SIDE_PX
+from deckpose.render.light_pools import AMBIENT_LUX, apply_light_pools, pool_gain
+from deckpose.render.sea import Waves, sea_colour, sea_grid_m, sea_grid_surface, sea_waves
+from deckpose.render.ship_model import hull_mesh, superstructure_mesh
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -120,9 +123,13 @@ def deck_texture(layout: DeckLayout, half_size_m: float, size_px: int) -> NDArra
     s = size_px
     base = 0.42 + 0.05 * rng.standard_normal((s // 8, s // 8))
     base = cv2.resize(base.astype(np.float32), (s, s), interpolation=cv2.INTER_CUBIC)
-    base += 0.03 * rng.standard_normal((s, s)).astype(np.float32)
-    img = np.repeat(np.clip(base, 0, 1)[..., None], 3, axis=2) * np.array([1.0, 1.0, 0.97], np.float32)
-    img = (img * 255).astype(np.uint8)
+    rows = max(1, 2**20 // s)  # noise in row blocks (the same draws as one call; less memory at 8k)
+    for r0 in range(0, s, rows):
+        base[r0:r0 + rows] += 0.03 * rng.standard_normal((min(rows, s - r0), s)).astype(np.float32)
+    np.clip(base, 0, 1, out=base)
+    img = np.empty((s, s, 3), np.uint8)
+    for c, tint in enumerate((1.0, 1.0, 0.97)):  # channel by channel: one float32 plane at a time
+        img[..., c] = (base * np.float32(tint) * 255).astype(np.uint8)
     px_per_m = s / (2.0 * half_size_m)
 
     def pt(x_m: float, y_m: float) -> tuple[int, int]:
@@ -193,6 +200,11 @@ class DeckRenderer:
         self._scene: Any = None
         self._nodes: dict[str, Any] = {}
         self._sea_tile_m = 40.0
+        self._waves = sea_waves(scene.sea) if scene.sea.waves > 0 else None
+        self._pool_gain: dict[Lighting, NDArray[np.float32]] = {}
+        self._sea_mat: Any = None
+        self._sea_grid = np.zeros(0)
+        self._sea_faces = np.zeros((0, 3), np.uint32)
 
     def _build(self) -> Any:
         """Make the scene (pyrender's Scene), kept as ``_scene``; returns it."""
@@ -214,8 +226,22 @@ class DeckRenderer:
         sea = pyrender.Mesh([pyrender.Primitive(**plane_primitive(L, L, 0.0, 2 * L / self._sea_tile_m), material=sea_mat)])
         s = pyrender.Scene(bg_color=[0, 0, 0, 1], ambient_light=[0.3] * 3)
         self._nodes["deck"] = s.add(deck)
-        self._nodes["sea"] = s.add(sea)
-        self._nodes["sun"] = s.add(pyrender.DirectionalLight(color=np.ones(3), intensity=1.0))
+        if self._waves is None:
+            self._nodes["sea"] = s.add(sea)
+        else:  # the wave grid is re-made each frame (:meth:`_set_wave_sea`)
+            self._sea_mat = pyrender.MetallicRoughnessMaterial(metallicFactor=0.3 if pbr else 0.0,
+                                                               roughnessFactor=0.12)
+            self._sea_grid = sea_grid_m(L)
+        ship = self.spec.ship
+        hull_mat = pyrender.MetallicRoughnessMaterial(metallicFactor=0.0, roughnessFactor=0.7)
+        for name, on, mesh in (("hull", ship.hull, lambda: hull_mesh(self.half_m, self.spec.freeboard_m)),
+                               ("superstructure", ship.superstructure, lambda: superstructure_mesh(self.half_m))):
+            if on:
+                self._nodes[name] = s.add(_solid_mesh(pyrender, mesh(), hull_mat, linear=pbr))
+        sun = pyrender.DirectionalLight(color=np.ones(3), intensity=1.0)
+        if self.spec.shadows:
+            sun._get_shadow_camera = types.MethodType(_deck_shadow_camera, sun)
+        self._nodes["sun"] = s.add(sun)
         self._scene = s
         return s
 
@@ -247,10 +273,14 @@ class DeckRenderer:
         light = PRESETS[lighting]
         pbr = self.spec.shading is Shading.PBR
         s.set_pose(self._nodes["deck"], ship.T_world_from_deck)
-        drift = (self.spec.sea_drift_m_per_s * t_s) % self._sea_tile_m
-        T_sea = np.eye(4)
-        T_sea[:3, 3] = [drift, 0.3 * drift, -self.spec.freeboard_m]
-        s.set_pose(self._nodes["sea"], T_sea)
+        for name in ("hull", "superstructure"):
+            if name in self._nodes:
+                s.set_pose(self._nodes[name], ship.T_world_from_deck)
+        if self._waves is None:
+            drift = (self.spec.sea_drift_m_per_s * t_s) % self._sea_tile_m
+            T_sea = np.eye(4)
+            T_sea[:3, 3] = [drift, 0.3 * drift, -self.spec.freeboard_m]
+            s.set_pose(self._nodes["sea"], T_sea)
         s.bg_color = np.array([*light.sky_rgb, 1.0]) * (1.0 if pbr else 1.0 / max(light.level, 1e-6))
         s.ambient_light = np.full(3, light.ambient) * np.array(light.tint)
         sun = self._nodes["sun"]
@@ -264,7 +294,12 @@ class DeckRenderer:
         T_sun = np.eye(4)
         T_sun[:3, :3] = np.stack([x, np.cross(z, x), z], 1)
         s.set_pose(sun, T_sun)
+        if self._waves is not None:
+            sky = np.asarray(light.sky_rgb) * (1.0 if pbr else 1.0 / max(light.level, 1e-6))
+            self._set_wave_sea(self._waves, camera_pose.position_world_m, t_s, sky, None if pbr else z)
         flags = 0 if pbr else pr.RenderFlags.FLAT
+        if pbr and self.spec.shadows and light.sun_intensity > 0:
+            flags |= pr.RenderFlags.SHADOWS_DIRECTIONAL
         W, H = camera.width_px, camera.height_px
         # tiles small enough for the MSAA buffers and no taller than OpenGL's side limit
         n_tiles = max(1, math.ceil(W * H / MAX_TILE_PX), math.ceil(H / MAX_SIDE_PX))
@@ -283,12 +318,69 @@ class DeckRenderer:
             finally:
                 s.remove_node(node)
             out[r0:r1] = color[: r1 - r0]
+        if self.spec.light_pools_cd > 0 and lighting is not Lighting.DAY:
+            if lighting not in self._pool_gain:
+                self._pool_gain[lighting] = pool_gain(self.layout, self.half_m, self.spec.light_pools_cd,
+                                                      AMBIENT_LUX[lighting])
+            apply_light_pools(out, self._pool_gain[lighting], self.half_m, camera, camera_pose, ship)
         return out
+
+    def _set_wave_sea(self, sea: tuple[Waves, Waves], camera_m: NDArray[np.float64], t_s: float,
+                      sky_rgb: NDArray[np.float64], sun_dir: NDArray[np.float64] | None) -> None:
+        """Replace the sea node by the wave grid at ``t_s`` (heights, normals, Fresnel colours)."""
+        g = self._sea_grid
+        n = len(g)
+        if self._sea_faces.shape[0] == 0:  # the grid's triangles, made once
+            i = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
+            self._sea_faces = np.concatenate([np.column_stack([i, i + n, i + n + 1]),
+                                              np.column_stack([i, i + n + 1, i + 1])]).astype(np.uint32)
+        eta, normals = sea_grid_surface(*sea, g, t_s)
+        pos = np.column_stack([np.repeat(g, n), np.tile(g, n), eta - self.spec.freeboard_m])
+        to_cam = camera_m[None, :] - pos
+        to_cam /= np.linalg.norm(to_cam, axis=1, keepdims=True)
+        rgb = sea_colour(normals, to_cam, sky_rgb, sun_dir)
+        if sun_dir is None:  # pbr: pyrender lights linear colours and encodes its output
+            rgb = srgb_to_linear(rgb)
+        colour = np.column_stack([rgb, np.ones(len(rgb))]).astype(np.float32)
+        prim = self._pr.Primitive(positions=pos.astype(np.float32), normals=normals.astype(np.float32),
+                                  color_0=colour, indices=self._sea_faces, material=self._sea_mat)
+        if "sea" in self._nodes:
+            self._scene.remove_node(self._nodes["sea"])
+        self._nodes["sea"] = self._scene.add(self._pr.Mesh([prim]))
 
     def close(self) -> None:
         """Forget this scene (the process's GL context lives until the process exits)."""
         self._scene = None
         self._nodes.clear()
+
+
+def srgb_to_linear(rgb: NDArray[np.float64]) -> NDArray[np.float64]:
+    """sRGB-encoded colours in [0, 1] to linear ones (IEC 61966-2-1), as pyrender decodes its textures."""
+    c = np.asarray(rgb, float)
+    return np.where(c <= 0.04045, c / 12.92, ((c + 0.055) / 1.055) ** 2.4)
+
+
+def _solid_mesh(pr: Any, mesh: Any, material: Any, *, linear: bool) -> Any:
+    """A pyrender mesh of a trimesh with face colours, flat-shaded (colours sRGB-decoded for ``pbr``)."""
+    faces = np.asarray(mesh.faces)
+    rgb = np.asarray(mesh.visual.face_colors, float)[:, :3] / 255.0
+    rgb = srgb_to_linear(rgb) if linear else rgb
+    colour = np.repeat(np.column_stack([rgb, np.ones(len(rgb))]), 3, axis=0).astype(np.float32)
+    prim = pr.Primitive(positions=np.asarray(mesh.vertices)[faces].reshape(-1, 3).astype(np.float32),
+                        normals=np.repeat(np.asarray(mesh.face_normals), 3, axis=0).astype(np.float32),
+                        color_0=colour, material=material)
+    return pr.Mesh([prim])
+
+
+def _deck_shadow_camera(self: Any, scene_scale: float) -> Any:
+    """A directional light's shadow camera over the ship (120 m square), not the whole sea.
+
+    pyrender's own covers the scene's scale (the 4 km sea), 2 m a shadow texel; this one
+    keeps its depth range and frames the 120 m around the scene's centre, 6 cm a texel.
+    """
+    import pyrender
+
+    return pyrender.OrthographicCamera(xmag=60.0, ymag=60.0, znear=0.01 * scene_scale, zfar=10 * scene_scale)
 
 
 _OFFSCREEN: list[Any] = []
