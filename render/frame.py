@@ -23,9 +23,9 @@ from typing import Any
 import numpy as np
 from deckpose.render.auto_exposure import metered_exposure
 from deckpose.render.beacons import beacon_splats
+from deckpose.render.bloom import bloom, bloom_sigma_px
 from deckpose.render.camera_motion import VIBRATION_STREAM, camera_motion
 from deckpose.render.compression import jpeg_round_trip
-from deckpose.render.bloom import bloom, bloom_sigma_px
 from deckpose.render.config import RenderConfig
 from deckpose.render.fixed_pattern import fixed_pattern
 from deckpose.render.lens import distort, raster_camera
