@@ -169,7 +169,7 @@ def test_vignetting_is_cos4_of_the_ray_angle_on_spots_and_raster() -> None:
     raster = np.full((CAMERA.height_px, CAMERA.width_px, 3), 200, np.uint8)
     scale = np.full(3, 0.5 / 200, np.float32)  # 200 -> half the well
     img = expose(raster, scale, [], SENSOR, np.random.default_rng(0),
-                 vignetting_rows(CAMERA, 4.0)).astype(float)
+                 background_gain=vignetting_rows(CAMERA, 4.0)).astype(float)
     v, u = np.mgrid[0:CAMERA.height_px:37, 0:CAMERA.width_px:41]
     r = np.stack([(u - CAMERA.cx) / CAMERA.fx, (v - CAMERA.cy) / CAMERA.fy, np.ones(u.shape)], axis=-1)
     cos_t = r[..., 2] / np.linalg.norm(r, axis=-1)
