@@ -124,11 +124,13 @@ def detect_run(
         frameset = open_dataset(source)
         if frameset.manifest.get("images_kept") is False:
             at_render = frameset.manifest.get("detect_at_render", {}).get("detectors", [])
-            raise InputDataError(
-                f"{source} keeps no frames (rendered with --no-images), so there is nothing to "
-                f"detect in; its detections were made at render time ({', '.join(at_render) or 'none'}: "
-                f"{RunPaths(frameset.root).detections_dir}); render it again with "
-                f"--detect {detector} (or without --no-images)")
+            where = RunPaths(frameset.root).detections(detector)
+            fix = (f"its {detector} detections were made at render time ({where}): estimate from them "
+                   f"(deckpose estimate --run {source} --detector {detector})" if detector in at_render else
+                   f"its detections were made at render time ({', '.join(at_render) or 'none'}); for "
+                   f"{detector}, render it again with --detect {detector} (or without --no-images)")
+            raise InputDataError(f"{source} keeps no frames (rendered with --no-images), so there is "
+                                 f"nothing to detect in; {fix}")
     else:
         if not camera_file:
             raise ConfigError(

@@ -172,6 +172,14 @@ def _canonical_command(args: argparse.Namespace) -> tuple[str, ...]:
     return tuple(cmd)
 
 
+def _images_not_kept(manifest: Path) -> bool:
+    """Whether the run at ``manifest`` was rendered with ``--no-images`` (its detections made at render time)."""
+    try:
+        return json.loads(manifest.read_text()).get("images_kept") is False
+    except (OSError, ValueError):
+        return False
+
+
 def check_names(options: PipelineOptions) -> None:
     """Fail before the (long) render stage if a detector or estimator name is unknown."""
     from deckpose.detect import registry as detectors
@@ -260,8 +268,12 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         seconds["render"] = time.perf_counter() - t
         log.info("stage render: %.1f s", seconds["render"])
     t = time.perf_counter()
-    if runs("detect") and options.detect_at_render:
+    if runs("detect") and (options.detect_at_render or _images_not_kept(paths.manifest)):
         say(2, total, f"detect beacons ({', '.join(options.detectors)}): done at render time")
+        for det in options.detectors:  # a run that keeps no frames has only those
+            if not paths.detections(det).is_file():
+                raise DeckposeError(f"{run_dir} has no {det} detections made at render time and keeps no "
+                                    f"frames to detect in; render into a new folder with --detect-at-render")
     elif runs("detect"):
         say(2, total, f"detect beacons ({', '.join(options.detectors)})")
         for det in options.detectors:  # a stage whose every frame failed still ran: the report says so

@@ -72,6 +72,8 @@ def run(args: argparse.Namespace) -> int:
         from deckpose.render.render_detection import RenderDetection, resolve_detection
 
         names = tuple(n.strip() for n in (args.detect or "").split(",") if n.strip())
+        if args.detect is not None and not names:
+            raise ConfigError("--detect needs detector names, e.g. --detect cog,gauss (see 'deckpose detect --list')")
         # checked before the output folder is claimed (created), as a config is
         detection = resolve_detection(RenderDetection(detectors=names, keep_images=not args.no_images),
                                       sensor_block(cfg))
@@ -83,4 +85,9 @@ def run(args: argparse.Namespace) -> int:
     path = render_dataset(cfg, out, workers=workers(args), resume=args.resume, scheduler=args.scheduler,
                           progress=not args.no_progress, detection=detection)
     print(f"dataset written to {path}")
+    if detection is not None and detection.detectors:
+        from deckpose.run_folder import RunPaths
+
+        for name in detection.detectors:
+            print(f"detections at render time: {RunPaths(path).detections(name)}")
     return 0

@@ -115,6 +115,14 @@ def test_pipeline_detects_at_render_and_reports_from_previews(tmp_path: Path,
     assert record["detect_at_render"] is True and record["images_kept"] is False
     assert "--detect-at-render" in record["command"] and "--no-images" in record["command"]
     assert list((run / "report" / "figures").glob("example_*.png"))  # drawn on the preview
+    # later stages again, without repeating the flags: the detect stage finds the detections there
+    assert main(["pipeline", str(cfg), str(run), "--method", "pnp", "--no-progress", "--no-mcap",
+                 "--from-stage", "detect"]) == 0
+    assert "done at render time" in capsys.readouterr().out
+    assert main(["detect", str(run), "--detector", "cog"]) == 2
+    assert "estimate from them" in capsys.readouterr().err  # not "render it again"
+    assert main(["render", str(cfg), str(tmp_path / "r3"), "--detect", ""]) == 2
+    assert "--detect needs detector names" in capsys.readouterr().err
     # exports need the frames: one line saying why
     assert main(["export", str(run), "--format", "coco", "-o", str(tmp_path / "coco")]) == 2
     assert "keeps no frames" in capsys.readouterr().err
