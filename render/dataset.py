@@ -52,6 +52,7 @@ from deckpose.render.plan import FrameSpec, plan_frames
 from deckpose.render.render_detection import (
     RenderDetection,
     detect_rendered,
+    manifest_fields,
     resolve_detection,
     write_rendered_detections,
 )
@@ -182,9 +183,6 @@ def _manifest(cfg: RenderConfig, plan: list[FrameSpec], complete: bool,
     from deckpose.render.optics import optics_block
 
     cams = cfg.cameras_by_name()
-    extra: dict[str, Any] = {}
-    if detection is not None:  # absent otherwise: the manifests of earlier versions are unchanged
-        extra = {"images_kept": detection.keep_images, "detect_at_render": detection.manifest_entry()}
     return {
         "format": DATASET_FORMAT,
         "name": cfg.name,
@@ -198,7 +196,7 @@ def _manifest(cfg: RenderConfig, plan: list[FrameSpec], complete: bool,
         "sensor_channels": 1 if cfg.sensor.color == "mono" else 3,
         "cameras": manifest_cameras(cams),
         "preview_px": PREVIEW_PX,
-        **extra,
+        **manifest_fields(detection),
         **({"optics": optics_block(cfg.optics, cams)} if cfg.optics.enabled() else {}),
     }
 
@@ -276,21 +274,18 @@ def _missing_keys(old: dict[str, Any], new: dict[str, Any], prefix: str = "") ->
 
 def _detection_mismatch(out: Path, old: dict[str, Any], detection: RenderDetection | None) -> str:
     """Why a dataset cannot be resumed with another choice of detection at render time ("" if it can)."""
-    new = _manifest_detection(detection)
-    was = (old.get("images_kept", True), old.get("detect_at_render"))
+    new = json.loads(json.dumps(manifest_fields(detection)))
+    was = {k: old[k] for k in ("images_kept", "detect_at_render") if k in old}
     if was == new:
         return ""
-    def say(kept: object, det: object) -> str:
-        names = ",".join(det.get("detectors", [])) if isinstance(det, dict) else ""
+
+    def say(fields: dict[str, Any]) -> str:
+        names = ",".join(fields.get("detect_at_render", {}).get("detectors", []))
+        kept = fields.get("images_kept", True)
         return (f"--detect {names}" if names else "no --detect") + ("" if kept else " --no-images")
-    return (f"{out} was rendered with {say(*was)}, this run asks for {say(*new)}; resume with the "
+
+    return (f"{out} was rendered with {say(was)}, this run asks for {say(new)}; resume with the "
             "same choice, or render into a new folder")
-
-
-def _manifest_detection(detection: RenderDetection | None) -> tuple[bool, dict[str, Any] | None]:
-    if detection is None:
-        return True, None
-    return detection.keep_images, json.loads(json.dumps(detection.manifest_entry()))
 
 
 def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool,

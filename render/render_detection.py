@@ -34,7 +34,8 @@ from deckpose.errors import ConfigError
 from deckpose.layout import DeckLayout
 from deckpose.records import Frame
 
-__all__ = ["RenderDetection", "detect_rendered", "resolve_detection", "write_rendered_detections"]
+__all__ = ["RenderDetection", "detect_rendered", "manifest_fields", "resolve_detection",
+           "write_rendered_detections"]
 
 
 @dataclass(frozen=True)
@@ -58,10 +59,16 @@ class RenderDetection:
     identify_options: IdentifyOptions = IdentifyOptions()
     keep_images: bool = True
 
-    def manifest_entry(self) -> dict[str, Any]:
-        """The manifest's ``detect_at_render`` block (compared on ``--resume``)."""
-        return {"detectors": list(self.detectors), "options": dataclasses.asdict(self.options),
-                "identify_options": dataclasses.asdict(self.identify_options)}
+
+
+def manifest_fields(job: RenderDetection | None) -> dict[str, Any]:
+    """The manifest's record of the choice: ``images_kept`` and ``detect_at_render`` (compared on
+    ``--resume``); empty without ``job``, so the manifests of earlier versions are unchanged."""
+    if job is None:
+        return {}
+    return {"images_kept": job.keep_images,
+            "detect_at_render": {"detectors": list(job.detectors), "options": dataclasses.asdict(job.options),
+                                 "identify_options": dataclasses.asdict(job.identify_options)}}
 
 
 def resolve_detection(job: RenderDetection, sensor_block: dict[str, Any]) -> RenderDetection:
