@@ -21,12 +21,13 @@ mean); this module only makes sure each value is the type it claims to be.
 from __future__ import annotations
 
 import dataclasses
+import difflib
 import enum
 import math
 import os
 import types
 import typing
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
@@ -196,6 +197,21 @@ def coerce(hint: Any, value: object, where: str) -> Any:
     raise TypeError(f"typed_config: no rule for the annotation {hint!r} of {where}")
 
 
+def did_you_mean(unknown: Iterable[object], valid: Iterable[str]) -> str:
+    """`` (did you mean 'heights_m'?)`` for unknown keys close to a valid one, else ``""``.
+
+    Closeness is :func:`difflib.get_close_matches`' ratio (at least 0.75), so a
+    typo or a singular/plural slip is named and an unrelated key is not.
+    """
+    names = list(valid)
+    pairs = []
+    for key in unknown:
+        near = difflib.get_close_matches(str(key), names, n=1, cutoff=0.75)
+        if near:
+            pairs.append(f"{near[0]!r} instead of {str(key)!r}")
+    return f" (did you mean {', '.join(pairs)}?)" if pairs else ""
+
+
 def from_mapping(
     cls: type[T],
     doc: object,
@@ -221,7 +237,8 @@ def from_mapping(
     unknown = [k for k in doc if k not in fields]
     if unknown:
         raise ConfigError(
-            f"{here}: unknown key(s) {sorted(map(str, unknown))}; valid keys are {sorted(fields)}"
+            f"{here}: unknown key(s) {sorted(map(str, unknown))}{did_you_mean(unknown, fields)}; "
+            f"valid keys are {sorted(fields)}"
         )
     hints = typing.get_type_hints(cls)
     kwargs: dict[str, Any] = {}

@@ -32,7 +32,7 @@ from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH, epoch_ns
 from deckpose.errors import ConfigError
 from deckpose.image_store import ImageFormat
 from deckpose.layout import DeckLayout, layout_from_dict, layout_to_dict
-from deckpose.typed_config import check_range, coerce, from_mapping, load_yaml
+from deckpose.typed_config import check_range, coerce, did_you_mean, from_mapping, load_yaml
 
 
 class Backend(enum.Enum):
@@ -606,7 +606,10 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
         raise ConfigError(f"{source}: expected a YAML mapping at the top level")
     for key in ("cameras", "heights_m"):
         if key not in doc:
-            raise ConfigError(f"{source}: {key!r} is missing: "
+            # a mistyped key names the typo, not only the key it left missing
+            top = {f.name for f in fields(RenderConfig)}
+            typo = did_you_mean([k for k in doc if k not in top], [key])
+            raise ConfigError(f"{source}: {key!r} is missing{typo}: "
                               + ("a list of cameras (e.g. [{preset: 8mp}])" if key == "cameras"
                                  else "a list of camera heights, metres"))
     scene_doc = doc.get("scene")

@@ -188,3 +188,23 @@ def test_render_cli_says_one_line_for_a_type_hole(tmp_path, capsys):
 def test_coerce_keeps_good_values(hint, value, expected):
     got = coerce(hint, value, "x")
     assert got == expected and type(got) is type(expected)
+
+
+def test_a_mistyped_key_is_named_with_the_key_it_was_meant_for():
+    # a required key mistyped: the message names the typo, not only the missing key
+    doc = copy.deepcopy(DEFAULT_CONFIG)
+    doc["height_m"] = doc.pop("heights_m")
+    with pytest.raises(ConfigError, match=r"'heights_m' is missing \(did you mean 'heights_m' instead of 'height_m'\?\)"):
+        config_from_dict(doc, "job.yaml")
+    # an optional key mistyped inside a section
+    doc = copy.deepcopy(DEFAULT_CONFIG)
+    doc["sensor"] = {**doc.get("sensor", {}), "bitdepth": 12}
+    with pytest.raises(ConfigError, match=r"sensor: unknown key\(s\) \['bitdepth'\] \(did you mean 'bit_depth' instead of 'bitdepth'\?\)"):
+        config_from_dict(doc, "job.yaml")
+
+
+def test_an_unrelated_unknown_key_gets_no_guess():
+    doc = {**copy.deepcopy(DEFAULT_CONFIG), "colour_grading": 1}
+    with pytest.raises(ConfigError, match=r"unknown key\(s\) \['colour_grading'\]; valid keys") as info:
+        config_from_dict(doc, "job.yaml")
+    assert "did you mean" not in str(info.value)
