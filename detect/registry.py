@@ -336,6 +336,8 @@ def get(name: str) -> DetectorFn:
                 f"detector {name!r} needs the optional package {OPTIONAL_DETECTORS[name]!r}: "
                 "pip install 'deckpose[peers]'"
             ) from None
+        several = (" (one detector per call: run once for each, or use `bench-detectors` to "
+                   "compare several)") if "," in name else ""
         raise ConfigError(
-            f"unknown detector {name!r}; choose one of {', '.join(sorted(_REGISTRY))}"
+            f"unknown detector {name!r}{several}; choose one of {', '.join(sorted(_REGISTRY))}"
         ) from None

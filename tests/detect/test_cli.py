@@ -78,6 +78,13 @@ def test_unknown_detector_lists_the_known_ones(tiny_dataset, capsys):
     assert "cog" in capsys.readouterr().err
 
 
+def test_a_list_of_detectors_is_told_one_per_call(tiny_dataset, capsys):
+    assert main(["detect", str(tiny_dataset), "--detector", "cog,gauss"]) == 2
+    err = capsys.readouterr().err
+    assert "one detector per call" in err and "bench-detectors" in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1
+
+
 def test_plugin_detector_appears_in_the_cli(tmp_path, monkeypatch, capsys):
     (tmp_path / "my_detector_plugin.py").write_text(
         "from deckpose.detect import registry\n"
