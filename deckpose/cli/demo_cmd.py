@@ -75,12 +75,19 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.output)
     run_dir = out / "run"
     _drop_stale_demo(run_dir, default_config())
-    total = 6
     options = PipelineOptions(run_dir=run_dir, detectors=(args.detector,), methods=METHODS, workers=workers(args),
                               progress=not args.no_progress, command=("deckpose", "demo", "-o", str(out)))
+    # the demo's steps are the pipeline's, then the thesis tables
+    pipeline_steps = [0]
+
+    def pipeline_step(n: int, total: int, text: str) -> None:
+        pipeline_steps[0] = total
+        _step(n, total + 1, text)
+
     paths = run_pipeline(default_config(), options, config_label="the embedded default (configs/smoke.yaml)",
-                         step=lambda n, _total, text: _step(n, total, text))
-    _step(6, total, f"thesis tables 4.2-4.15, {args.repetitions} x 495 images per cell")
+                         step=pipeline_step)
+    total = pipeline_steps[0] + 1
+    _step(total, total, f"thesis tables 4.2-4.15, {args.repetitions} x 495 images per cell")
     config = ThesisTablesConfig(repetitions=args.repetitions, seed=args.seed)
     bar = tqdm(total=len(cell_specs()), desc="thesis tables", unit="cell", disable=True if args.no_progress else None)
     md = run_thesis_tables(config, out, lambda done, _total: bar.update(done - bar.n))

@@ -1,3 +1,5 @@
+import re
+
 from deckpose.cli import main
 
 
@@ -12,3 +14,7 @@ def test_demo_runs_the_whole_pipeline(tmp_path, capsys):
         assert (run / p).exists(), p
     printed = capsys.readouterr().out
     assert str(run / "report" / "report.md") in printed and str(run / "log.mcap") in printed
+    # each step is numbered once, counting up to the total: [1/N] .. [N/N]
+    steps = [(int(n), int(t)) for n, t in re.findall(r"^\[(\d+)/(\d+)\]", printed, re.MULTILINE)]
+    total = steps[-1][1]
+    assert steps == [(n, total) for n in range(1, total + 1)], steps
