@@ -144,6 +144,7 @@ def _run_title(run: rl.RunPaths) -> str:
 
 def write_report(run: rl.RunPaths) -> Path:
     """Write ``report/report.md`` and its figures for an evaluated run; return the Markdown path."""
+    rl.require_dataset(run)  # a missing run folder is named as such, not as a missing stage
     if not run.errors.exists():
         raise InputDataError(f"{run.errors} is missing; make it with: deckpose evaluate {run.root}")
     errors = read_table(run.errors, "errors")

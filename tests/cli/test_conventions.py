@@ -58,3 +58,14 @@ def test_verbosity_after_the_command(tmp_path, capsys):
     assert args.verbose == 1
     args = PARSER.parse_args(["-q", "detect", "--list"])
     assert args.quiet is True
+
+
+@pytest.mark.parametrize("command", ["evaluate", "report"])
+def test_a_missing_run_folder_is_named_as_such(tmp_path, capsys, command):
+    # `report` on a folder that does not exist used to ask for `evaluate`, which then said
+    # the folder does not exist: both now name the missing folder and the render step
+    missing = tmp_path / "no_such_run"
+    assert main([command, str(missing)]) != 0
+    err = capsys.readouterr().err
+    assert f"run folder {missing} does not exist" in err and "deckpose render" in err
+    assert len(err.strip().splitlines()) == 1
