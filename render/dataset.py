@@ -36,6 +36,7 @@ import json
 import logging
 import os
 import platform
+import shutil
 import threading
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor, as_completed
@@ -405,6 +406,36 @@ def collect_tables(out: Path, plan: list[FrameSpec], parts: list[dict[str, Any]]
     return fdf, bdf, ldf
 
 
+def _render_todo(cfg: RenderConfig, plan: list[FrameSpec], out: Path, workers: int, scheduler: str | None,
+                 client: Any, progress: bool, detection: RenderDetection | None) -> None:
+    """Render the frames of ``plan`` that have no finished part yet, with a progress bar."""
+    todo = [s for s in plan if not _part_path(out, s.frame_id).exists()]
+    log.info("%d of %d frames to render into %s (%s)", len(todo), len(plan), out,
+             f"scheduler {scheduler}" if scheduler else f"{workers} worker processes")
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(plan), initial=len(plan) - len(todo), unit="frame",
+               disable=None if progress else True, desc=f"render {cfg.name}")
+    runner = (_run_dask(client, cfg, todo, out, detection) if client is not None
+              else _run_local(cfg, todo, out, workers, detection))
+    try:
+        for _ in runner:
+            bar.update(1)
+    finally:
+        bar.close()
+
+
+def _remove_unfinished(out: Path) -> None:
+    """Remove what :func:`_prepare` wrote into ``out`` (all but another job's lock file)."""
+    for p in out.iterdir():
+        if p.name == LOCK_NAME:
+            continue
+        if p.is_dir():
+            shutil.rmtree(p)
+        else:
+            p.unlink()
+
+
 def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str | os.PathLike[str], *,
                    workers: int = 1, resume: bool = False, scheduler: str | None = None,
                    progress: bool = True, detection: RenderDetection | None = None) -> Path:
@@ -442,21 +473,21 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
     out = Path(out_dir)
     if detection is not None:  # checked before anything is written
         detection = resolve_detection(detection, sensor_block(cfg))
+    fresh = not RunPaths(out).manifest.exists()
     with _connect(scheduler) if scheduler else contextlib.nullcontext() as client:  # before writing
         _prepare(cfg, plan, out, resume, detection)
-        todo = [s for s in plan if not _part_path(out, s.frame_id).exists()]
-        log.info("%d of %d frames to render into %s (%s)", len(todo), len(plan), out,
-                 f"scheduler {scheduler}" if scheduler else f"{workers} worker processes")
-        from tqdm import tqdm
-
-        bar = tqdm(total=len(plan), initial=len(plan) - len(todo), unit="frame",
-                   disable=None if progress else True, desc=f"render {cfg.name}")
-        runner = (_run_dask(client, cfg, todo, out, detection) if client is not None
-                  else _run_local(cfg, todo, out, workers, detection))
-        for _ in runner:
-            bar.update(1)
-        bar.close()
+        try:
+            _render_todo(cfg, plan, out, workers, scheduler, client, progress, detection)
+        except ConfigError as exc:
+            # A config fault only a frame can show (a rolling shutter whose rows do not
+            # converge): a new dataset that has no finished frame is removed, so the same
+            # folder can be used again once the config is fixed.
+            if fresh and not any((out / ".parts").glob("*.json")):
+                _remove_unfinished(out)
+                raise ConfigError(f"{exc} (nothing was kept in {out})") from None
+            raise
     parts = read_parts(out, plan)
+
     fdf, bdf, ldf = collect_tables(out, plan, parts)
     write_table(fdf, RunPaths(out).frames, "frames")
     write_table(bdf, RunPaths(out).beacons, "beacons")

@@ -209,6 +209,22 @@ def test_fixed_point_refuses_a_line_delay_no_camera_has() -> None:
                                 SENSOR, LedSpec(), np.ones(LAYOUT.n_beacons))
 
 
+@pytest.mark.parametrize("workers", [0, 1])
+def test_a_shutter_that_cannot_converge_leaves_no_dataset_behind(tmp_path: Path, workers: int) -> None:
+    # 1 ms a row while the UAV turns 700 deg/s: the fault shows only when a frame is drawn.
+    # A new dataset with no finished frame is removed, so the same folder takes the fixed config.
+    doc = tiny_doc(heights_m=[30.0], lighting=["night"], shutter={"line_delay_s": 1e-3,
+                   "uav_rate_deg_per_s": [700.0, 0.0, 0.0]})
+    out = tmp_path / "ds"
+    with pytest.raises(ConfigError, match=r"converge.*\(nothing was kept in .*ds\)"):
+        render_dataset(config_from_dict(doc), out, workers=workers, progress=False)
+    assert not out.exists() or not any(out.iterdir())
+    doc["shutter"] = {"line_delay_s": 1e-5}
+    doc["motion"] = {"source": "fixed", "attitudes_deg": [[0, 0, 0]]}
+    render_dataset(config_from_dict(doc), out, workers=0, progress=False)
+    assert (out / "manifest.json").exists()
+
+
 @pytest.mark.parametrize(("shutter", "key"), [
     ({"line_delay_s": -1e-5}, "shutter.line_delay_s"),
     ({"line_delay_s": 0.01}, "shutter.line_delay_s"),
