@@ -25,6 +25,7 @@ import difflib
 import enum
 import math
 import os
+import re
 import types
 import typing
 from collections.abc import Callable, Iterable, Mapping
@@ -63,6 +64,18 @@ def _mapping_without_duplicates(loader: yaml.SafeLoader, node: yaml.MappingNode,
 
 _UniqueKeyLoader.add_constructor(
     yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _mapping_without_duplicates
+)
+# YAML 1.1 (PyYAML) reads ``1e-5`` as a string: its floats need a dot (``1.0e-5``). YAML 1.2
+# and every other reader take it as a number, and so does a config author, so exponent
+# floats without a dot are floats here too. The resolver lists are copied first: PyYAML's
+# add_implicit_resolver would append to the lists it shares with SafeLoader.
+_UniqueKeyLoader.yaml_implicit_resolvers = {
+    k: list(v) for k, v in yaml.SafeLoader.yaml_implicit_resolvers.items()
+}
+_UniqueKeyLoader.add_implicit_resolver(
+    "tag:yaml.org,2002:float",
+    re.compile(r"^[-+]?[0-9][0-9_]*(?:\.[0-9_]*)?[eE][-+]?[0-9]+$"),
+    list("-+0123456789"),
 )
 
 

@@ -11,6 +11,7 @@ import copy
 from pathlib import Path
 
 import pytest
+import yaml
 from deckpose.detect.synthetic_dataset import read_config as read_synthetic_config
 from deckpose.render.config import DEFAULT_CONFIG, config_from_dict, load_config
 
@@ -18,7 +19,7 @@ from deckpose.camera_info import read_camera_info
 from deckpose.cli import main
 from deckpose.errors import CameraFileError, ConfigError
 from deckpose.layout import read_layout
-from deckpose.typed_config import coerce
+from deckpose.typed_config import coerce, parse_yaml
 
 STRING_HINT = "a string; numbers and true/false go without quotes"
 
@@ -208,3 +209,15 @@ def test_an_unrelated_unknown_key_gets_no_guess():
     with pytest.raises(ConfigError, match=r"unknown key\(s\) \['colour_grading'\]; valid keys") as info:
         config_from_dict(doc, "job.yaml")
     assert "did you mean" not in str(info.value)
+
+
+def test_exponent_numbers_without_a_dot_are_numbers(tmp_path):
+    # PyYAML (YAML 1.1) reads 1e-5 as the string '1e-5'; a config author means the number,
+    # as YAML 1.2 and other readers do. Quoted, it stays a string.
+    doc = parse_yaml("a: 1e-5\nb: -2E+3\nc: 1.5e2\nd: '1e-5'\ne: e5\nf: 7\n", "x.yaml")
+    assert doc == {"a": 1e-5, "b": -2000.0, "c": 150.0, "d": "1e-5", "e": "e5", "f": 7}
+    assert type(doc["a"]) is float and type(doc["f"]) is int
+    assert yaml.safe_load("a: 1e-5") == {"a": "1e-5"}  # PyYAML's own loader is left as it was
+    p = tmp_path / "job.yaml"
+    p.write_text("cameras: [{preset: 4mp, size: [64, 48]}]\nheights_m: [30]\nshutter: {line_delay_s: 1e-5}\n")
+    assert load_config(p).shutter.line_delay_s == 1e-5
