@@ -67,8 +67,11 @@ class CameraSpec:
         return f"{base}-{w}x{h}" + ("-dist" if any(self.dist_coeffs) else "")
 
 
-#: Memory one rendered frame needs while the sensor model runs on it, bytes per pixel
-#: (float64 RGB planes and their temporaries; 64 MP frames take about 3 GiB).
+#: Memory one rendered frame needs, bytes per pixel, for the check that refuses a frame larger
+#: than the machine's memory. Measured by ``benchmarks/bench_render_memory.py`` (peak resident
+#: memory above a tiny frame's): 64 MP 27 B/px by default and 36 B/px with every realism effect;
+#: 8 MP 58 and 68 B/px, where fixed buffers weigh more. The frames this check is for are the
+#: largest, so 48 keeps a third of a margin over the 64 MP figure.
 BYTES_PER_PX = 48
 
 
