@@ -34,6 +34,7 @@ import atexit
 import math
 import os
 import sys
+import threading
 import types
 from dataclasses import dataclass
 from typing import Any
@@ -384,6 +385,8 @@ def _deck_shadow_camera(self: Any, scene_scale: float) -> Any:
 
 
 _OFFSCREEN: list[Any] = []
+#: The thread that made the GL context (it is current there).
+_OFFSCREEN_THREAD: list[int] = []
 
 
 def _offscreen(pr: Any, width: int, height: int) -> Any:
@@ -397,6 +400,7 @@ def _offscreen(pr: Any, width: int, height: int) -> Any:
         r = pr.OffscreenRenderer(width, height)
         r._renderer._read_main_framebuffer = types.MethodType(_read_colour_only, r._renderer)
         _OFFSCREEN.append(r)
+        _OFFSCREEN_THREAD[:] = [threading.get_ident()]
         atexit.register(_delete_offscreen)
     r = _OFFSCREEN[0]
     r.viewport_width = width
@@ -426,8 +430,18 @@ def _read_colour_only(self: Any, scene: Any, flags: int) -> tuple[np.ndarray, No
 
 
 def _delete_offscreen() -> None:
+    """Release the GL context at exit, from the thread it is current in.
+
+    A Dask worker renders in a task thread, while ``atexit`` runs in the main one: EGL
+    refuses to make the context current there (EGL_BAD_ACCESS, printed as an ignored
+    exception at every worker's exit). The process is ending, so the context is then
+    left to the driver's teardown.
+    """
     while _OFFSCREEN:
-        _OFFSCREEN.pop().delete()
+        r = _OFFSCREEN.pop()
+        if _OFFSCREEN_THREAD and _OFFSCREEN_THREAD[0] != threading.get_ident():
+            continue
+        r.delete()
 
 
 def radiance_scale(lighting: Lighting, shading: Shading) -> NDArray[np.float32]:

@@ -160,3 +160,24 @@ def test_raster_camera_refuses_a_fisheye_past_80_degrees() -> None:
     cam = CameraModel(200, 150, [[f, 0, 99.5], [0, f, 74.5], [0, 0, 1]], [0.0] * 4, distortion_model="equidistant")
     with pytest.raises(ConfigError, match=r"200x150 equidistant camera: its edge pixels see rays 85\.0 deg off"):
         raster_camera(cam)
+
+
+def test_the_gl_context_is_released_only_from_the_thread_it_is_current_in(monkeypatch):
+    # A Dask worker renders in a task thread and atexit runs in the main thread, where EGL
+    # refuses the context (EGL_BAD_ACCESS printed at every worker's exit): leave it there.
+    import threading
+
+    deleted = []
+
+    class FakeRenderer:
+        def delete(self):
+            deleted.append(threading.get_ident())
+
+    monkeypatch.setattr(scene_mod, "_OFFSCREEN", [FakeRenderer()])
+    monkeypatch.setattr(scene_mod, "_OFFSCREEN_THREAD", [threading.get_ident() + 1])
+    scene_mod._delete_offscreen()
+    assert deleted == [] and scene_mod._OFFSCREEN == []
+    monkeypatch.setattr(scene_mod, "_OFFSCREEN", [FakeRenderer()])
+    monkeypatch.setattr(scene_mod, "_OFFSCREEN_THREAD", [threading.get_ident()])
+    scene_mod._delete_offscreen()
+    assert deleted == [threading.get_ident()]
