@@ -483,6 +483,9 @@ class SceneSpec:
     Gaussian of ``bloom_sigma_mrad`` (:mod:`deckpose.render.bloom`); ``shadows``: sun
     shadows in ``pbr`` shading; ``texture_px: auto`` sizes the deck texture from the
     cameras' ground sampling distance at the lowest height (:mod:`deckpose.render.texture_size`).
+    ``antialias_samples``: multisample anti-aliasing of the deck and sea raster (4, as
+    pyrender draws; 0 off: a 64 MP draw 1.6x faster, with edges of markings aliased; the
+    beacons are drawn analytically and their truth does not change).
     """
 
     shading: Shading = Shading.FLAT
@@ -497,6 +500,11 @@ class SceneSpec:
     bloom_fraction: float = 0.0
     bloom_sigma_mrad: float = 4.0
     shadows: bool = False
+    antialias_samples: int = 4
+
+
+#: Multisample counts the deck raster may use (0: no multisampling).
+ANTIALIAS_SAMPLES = (0, 2, 4, 8)
 
 
 def _scene_spec(doc: object, where: str = "scene") -> SceneSpec:
@@ -514,6 +522,9 @@ def _scene_spec(doc: object, where: str = "scene") -> SceneSpec:
     check_range(spec.light_pools_cd, f"{where}.light_pools_cd", low=0, high=1e5)
     check_range(spec.bloom_fraction, f"{where}.bloom_fraction", low=0, high=1, high_open=True)
     check_range(spec.bloom_sigma_mrad, f"{where}.bloom_sigma_mrad", low=0, low_open=True, high=100)
+    if spec.antialias_samples not in ANTIALIAS_SAMPLES:
+        raise ConfigError(f"{where}.antialias_samples: one of {', '.join(map(str, ANTIALIAS_SAMPLES))} "
+                          f"(0: off), got {spec.antialias_samples}")
     return spec
 
 

@@ -247,7 +247,7 @@ class DeckRenderer:
         return s
 
     def _renderer(self, width: int, height: int) -> Any:
-        return _offscreen(self._pr, width, height)
+        return _offscreen(self._pr, width, height, self.spec.antialias_samples)
 
     def offscreen(self, width: int, height: int) -> Any:
         """This renderer's pyrender OffscreenRenderer, sized ``width x height``.
@@ -389,23 +389,67 @@ _OFFSCREEN: list[Any] = []
 _OFFSCREEN_THREAD: list[int] = []
 
 
-def _offscreen(pr: Any, width: int, height: int) -> Any:
-    """The process's single OffscreenRenderer, resized to ``width x height``.
+def _offscreen(pr: Any, width: int, height: int, samples: int = 4) -> Any:
+    """The process's single OffscreenRenderer, resized to ``width x height``, ``samples`` MSAA.
 
     One GL context per process: pyrender's EGL platform terminates the shared
     display when any renderer is deleted, so two contexts in one process break each
-    other. Scenes share the context; the framebuffer is re-made when the size changes.
+    other. Scenes share the context; the framebuffer is re-made when the size or the
+    sample count changes.
     """
     if not _OFFSCREEN:
         r = pr.OffscreenRenderer(width, height)
         r._renderer._read_main_framebuffer = types.MethodType(_read_colour_only, r._renderer)
+        r._renderer._configure_main_framebuffer = types.MethodType(_configure_framebuffer, r._renderer)
         _OFFSCREEN.append(r)
         _OFFSCREEN_THREAD[:] = [threading.get_ident()]
         atexit.register(_delete_offscreen)
     r = _OFFSCREEN[0]
     r.viewport_width = width
     r.viewport_height = height
+    r._renderer.deckpose_samples = samples
     return r
+
+
+def _configure_framebuffer(self: Any) -> None:
+    """pyrender's ``Renderer._configure_main_framebuffer`` with ``self.deckpose_samples`` samples.
+
+    pyrender draws into a 4-sample buffer and resolves it into a plain one; the count is
+    fixed there. Here it is the scene's ``antialias_samples`` (0: a single-sample draw
+    buffer, resolved by a plain copy). The buffers are re-made when the size or the count
+    changes.
+    """
+    from OpenGL import GL
+
+    samples = int(getattr(self, "deckpose_samples", 4))
+    w, h = self.viewport_width, self.viewport_height
+    if self._main_fb is not None and (self._main_fb_dims != (w, h)
+                                      or getattr(self, "_deckpose_fb_samples", 4) != samples):
+        self._delete_main_framebuffer()
+    if self._main_fb is not None:
+        return
+    self._main_cb, self._main_db = GL.glGenRenderbuffers(2)
+    GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, self._main_cb)
+    GL.glRenderbufferStorage(GL.GL_RENDERBUFFER, GL.GL_RGBA, w, h)
+    GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, self._main_db)
+    GL.glRenderbufferStorage(GL.GL_RENDERBUFFER, GL.GL_DEPTH_COMPONENT24, w, h)
+    self._main_fb = GL.glGenFramebuffers(1)
+    GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+    GL.glFramebufferRenderbuffer(GL.GL_DRAW_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER, self._main_cb)
+    GL.glFramebufferRenderbuffer(GL.GL_DRAW_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, self._main_db)
+    self._main_cb_ms, self._main_db_ms = GL.glGenRenderbuffers(2)
+    GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, self._main_cb_ms)
+    GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, samples, GL.GL_RGBA, w, h)
+    GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, self._main_db_ms)
+    GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, samples, GL.GL_DEPTH_COMPONENT24, w, h)
+    self._main_fb_ms = GL.glGenFramebuffers(1)
+    GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb_ms)
+    GL.glFramebufferRenderbuffer(GL.GL_DRAW_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER,
+                                 self._main_cb_ms)
+    GL.glFramebufferRenderbuffer(GL.GL_DRAW_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER,
+                                 self._main_db_ms)
+    self._main_fb_dims = (w, h)
+    self._deckpose_fb_samples = samples
 
 
 def _read_colour_only(self: Any, scene: Any, flags: int) -> tuple[np.ndarray, None]:

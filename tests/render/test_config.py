@@ -33,6 +33,7 @@ REPO = Path(__file__).resolve().parents[2]
         ({"motion": {"source": "file"}}, r"needs motion.path"),
         ({"motion": {"source": "fixed", "attitudes_deg": [[1, 2]]}}, r"attitudes_deg"),
         ({"scene": {"deck_half_size_m": 5.0}}, r"must exceed the ring radius"),
+        ({"scene": {"antialias_samples": 3}}, r"scene.antialias_samples: one of 0, 2, 4, 8 \(0: off\), got 3"),
     ],
 )
 def test_bad_config_is_rejected_with_a_clear_message(over: dict, match: str) -> None:
