@@ -1,7 +1,8 @@
 """Read and validate detection tables (CSV or Parquet) into :class:`Detections` per frame.
 
 Required columns: ``frame_id, beacon_id, u_px, v_px``. Optional: ``cov_uu, cov_uv,
-cov_vv`` (px^2) and ``score``. ``beacon_id = -1`` marks an unassigned detection; a
+cov_vv`` (px^2) and ``snr`` (each detection's signal-to-noise ratio; ``score``, its name before
+deckpose-table/3, is read as it). ``beacon_id = -1`` marks an unassigned detection; a
 frame whose detections are all unassigned can be identified from their positions
 (:func:`identify_unassigned`, with ``is_bow`` or ``flux_r, flux_g, flux_b`` telling
 the bow).
@@ -18,6 +19,7 @@ from deckpose.camera import CameraModel
 from deckpose.errors import InputDataError, short_repr
 from deckpose.layout import DeckLayout
 from deckpose.records import UNASSIGNED, Detections
+from deckpose.table_schemas import upgrade_legacy_columns
 from deckpose.tables import read_table
 
 REQUIRED = ("frame_id", "beacon_id", "u_px", "v_px")
@@ -79,6 +81,7 @@ def detections_from_frame(df: pd.DataFrame, layout: DeckLayout, source: str = "d
         Missing columns, NaN or non-integer ids, ids outside the layout, or a
         beacon id listed twice in one frame; the message names the row or frame.
     """
+    df = upgrade_legacy_columns(df, "detections")  # an older table's score is the snr
     missing = [c for c in REQUIRED if c not in df.columns]
     if missing:
         raise InputDataError(
@@ -107,7 +110,7 @@ def detections_from_frame(df: pd.DataFrame, layout: DeckLayout, source: str = "d
         raise InputDataError(
             f"{source}: beacon_id {key['b'].iloc[i]} appears more than once in frame {key['f'].iloc[i]}"
         )
-    for col in ("cov_uu", "cov_uv", "cov_vv", "score"):  # optional, but numeric when given
+    for col in ("cov_uu", "cov_uv", "cov_vv", "snr"):  # optional, but numeric when given
         if col in df.columns:
             num = pd.to_numeric(df[col], errors="coerce")
             bad = num.isna() & df[col].notna()
@@ -132,7 +135,7 @@ def detections_from_frame(df: pd.DataFrame, layout: DeckLayout, source: str = "d
                 "is not positive definite; variances must be positive and cov_uv^2 < cov_uu * cov_vv "
                 "(leave all three empty where a detection's covariance is unknown)")
         cov = np.stack([np.stack([c[:, 0], c[:, 1]], -1), np.stack([c[:, 1], c[:, 2]], -1)], -2)
-    score = df["score"].to_numpy(float) if "score" in df.columns else None
+    score = df["snr"].to_numpy(float) if "snr" in df.columns else None
     out: dict[int, Detections] = {}
     order = np.argsort(frames, kind="stable")
     bounds = np.flatnonzero(np.diff(frames[order])) + 1

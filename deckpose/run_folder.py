@@ -20,6 +20,7 @@ the file and the command that makes it.
 from __future__ import annotations
 
 import json
+import math
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -33,7 +34,12 @@ from deckpose.camera_info import camera_to_dict, read_camera_info
 from deckpose.errors import InputDataError
 from deckpose.layout import DeckLayout, layout_from_dict
 from deckpose.pose import CameraPose, ShipPose
-from deckpose.table_schemas import LIGHT_COLUMNS, typed_frame
+from deckpose.table_schemas import (
+    LIGHT_COLUMNS,
+    ROTATION_COLUMN_NAMES,
+    typed_frame,
+    upgrade_legacy_columns,
+)
 from deckpose.tables import read_table
 
 #: Format of a rendered (or synthetic) dataset, recorded in its manifest.
@@ -199,8 +205,9 @@ def read_layout(run: RunPaths) -> DeckLayout:
 
 
 def read_frames(run: RunPaths) -> pd.DataFrame:
+    """The run's frames table (an older run's columns under today's names and units)."""
     require_dataset(run)
-    return read_table(run.frames, "frames table")
+    return upgrade_legacy_columns(read_table(run.frames, "frames table"), "frames")
 
 
 def read_beacons(run: RunPaths) -> pd.DataFrame:
@@ -232,7 +239,7 @@ def read_cameras(run: RunPaths, names: list[str] | None = None) -> dict[str, Cam
 def read_detections(run: RunPaths, detector: str) -> pd.DataFrame:
     p = run.detections(detector)
     _require(p, f"deckpose detect {run.root} --detector {detector}")
-    return read_table(p, "detections")
+    return upgrade_legacy_columns(read_table(p, "detections"), "detections")
 
 
 def read_estimates(run: RunPaths, detector: str, method: str) -> pd.DataFrame:
@@ -254,19 +261,48 @@ def check_frames_match(frames: pd.DataFrame, other: pd.DataFrame, what: str, com
 
 
 def R_world_from_cam(row: pd.Series) -> np.ndarray:
-    """The camera rotation stored in a frames-table row (columns r00..r22)."""
-    return np.array([[row[f"r{i}{j}"] for j in range(3)] for i in range(3)], dtype=float)
+    """The camera rotation stored in a frames-table row (columns ``R_world_from_cam_00..22``)."""
+    return np.array([row[c] for c in ROTATION_COLUMN_NAMES], dtype=float).reshape(3, 3)
 
 
 def R_world_from_cam_all(frames: pd.DataFrame) -> np.ndarray:
-    """The camera rotations of every frames-table row, (F, 3, 3) (columns r00..r22)."""
-    return frames[[f"r{i}{j}" for i in range(3) for j in range(3)]].to_numpy(float).reshape(-1, 3, 3)
+    """The camera rotations of every frames-table row, (F, 3, 3) (columns ``R_world_from_cam_00..22``)."""
+    return frames[list(ROTATION_COLUMN_NAMES)].to_numpy(float).reshape(-1, 3, 3)
+
+
+def true_attitudes_rad(frames: pd.DataFrame) -> np.ndarray:
+    """The true deck roll, pitch and yaw (ZYX) of every frames-table row, (F, 3), radians."""
+    return np.radians(frames[["roll_deg", "pitch_deg", "yaw_deg"]].to_numpy(float))
+
+
+def frame_truth_row(frame_id: int, image: str, camera: str, stamp_ns: int, t_s: float, camera_height_m: float,
+                    ship: ShipPose, camera_pose: CameraPose, lighting: str, seed: int,
+                    n_visible: int) -> dict[str, Any]:
+    """A ``frames.parquet`` row (:data:`~deckpose.table_schemas.FRAME_COLUMNS`): the one rule
+    that the render stage and the synthetic dataset writer both use.
+
+    The deck attitude goes in degrees (ZYX, and the thesis's convention), the camera's
+    rotation as its nine ``R_world_from_cam_ij`` entries and its position in metres.
+    """
+    roll, pitch, yaw = (math.degrees(a) for a in (ship.roll_rad, ship.pitch_rad, ship.yaw_rad))
+    tr, tp, ty = (math.degrees(float(a)) for a in ship.thesis_angles_rad())
+    row: dict[str, Any] = {
+        "frame_id": frame_id, "image": image, "camera": camera, "stamp_ns": stamp_ns, "t_s": t_s,
+        "camera_height_m": camera_height_m, "roll_deg": roll, "pitch_deg": pitch, "yaw_deg": yaw,
+        "heave_m": ship.heave_m, "surge_m": ship.surge_m, "sway_m": ship.sway_m,
+        "thesis_roll_deg": tr, "thesis_pitch_deg": tp, "thesis_yaw_deg": ty, "lighting": lighting,
+        "seed": seed, "n_visible": n_visible,
+    }
+    R = np.asarray(camera_pose.R_world_from_cam, float)
+    row.update({c: float(v) for c, v in zip(ROTATION_COLUMN_NAMES, R.ravel())})
+    row["cam_x_m"], row["cam_y_m"], row["cam_z_m"] = (float(x) for x in camera_pose.position_world_m)
+    return row
 
 
 def frame_poses(row: pd.Series) -> tuple[ShipPose, CameraPose]:
     """The ship pose (``T_world_from_deck``) and camera pose (``T_world_from_cam``) of a frames-table row."""
-    ship = ShipPose(row["roll_rad"], row["pitch_rad"], row["yaw_rad"], row["heave_m"], row["surge_m"],
-                    row["sway_m"])
+    ship = ShipPose(math.radians(row["roll_deg"]), math.radians(row["pitch_deg"]), math.radians(row["yaw_deg"]),
+                    row["heave_m"], row["surge_m"], row["sway_m"])
     camera = CameraPose(R_world_from_cam(row), np.array([row["cam_x_m"], row["cam_y_m"], row["cam_z_m"]]))
     return ship, camera
 

@@ -11,13 +11,15 @@ together by glob).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Literal
 
 import pandas as pd
 
 __all__ = ["BEACON_COLUMNS", "DETECTION_COLUMNS", "DETECT_FRAME_COLUMNS", "FRAME_COLUMNS", "HOT_PIXEL_COLUMNS",
-           "Column", "Dtype", "column", "pandas_dtype"]
+           "LEGACY_COLUMNS", "ROTATION_COLUMN_NAMES", "Column", "Dtype", "column", "pandas_dtype", "rotation_column",
+           "upgrade_legacy_columns"]
 
 #: A column's type: its Arrow/Parquet type (``int64``, ``double``, ``bool``, ``string``).
 Dtype = Literal["int64", "float64", "bool", "string"]
@@ -77,9 +79,19 @@ def typed_frame(rows: list[dict[str, object]], columns: tuple[Column, ...]) -> p
 
 
 _C = column
+
+
+def rotation_column(i: int, j: int) -> str:
+    """The frames-table column of ``R_world_from_cam[i, j]`` (``R_world_from_cam_01``)."""
+    return f"R_world_from_cam_{i}{j}"
+
+
+#: The frames table's nine camera-rotation columns, row-major.
+ROTATION_COLUMN_NAMES: tuple[str, ...] = tuple(rotation_column(i, j) for i in range(3) for j in range(3))
+
 _ROTATION = tuple(
-    _C(f"r{i}{j}", "float64", "", f"R_world_from_cam[{i}, {j}]: the camera's attitude, row {i} column {j} "
-       "(camera axes OpenCV: x right, y down, z along the optical axis)", nullable=False)
+    _C(rotation_column(i, j), "float64", "", f"R_world_from_cam[{i}, {j}]: the camera's attitude, row {i} "
+       f"column {j} (camera axes OpenCV: x right, y down, z along the optical axis)", nullable=False)
     for i in range(3) for j in range(3))
 
 #: ``frames.parquet``: one row per rendered frame, the ground truth of its scene.
@@ -90,9 +102,9 @@ FRAME_COLUMNS: tuple[Column, ...] = (
     _C("stamp_ns", "int64", "ns", "capture time", nullable=False),
     _C("t_s", "float64", "s", "time in the sea-state motion series", nullable=False),
     _C("camera_height_m", "float64", "m", "nominal camera height of the frame's cell", nullable=False),
-    _C("roll_rad", "float64", "rad", "true deck roll (ZYX)", nullable=False),
-    _C("pitch_rad", "float64", "rad", "true deck pitch (ZYX)", nullable=False),
-    _C("yaw_rad", "float64", "rad", "true deck yaw (ZYX)", nullable=False),
+    _C("roll_deg", "float64", "deg", "true deck roll (ZYX)", nullable=False),
+    _C("pitch_deg", "float64", "deg", "true deck pitch (ZYX)", nullable=False),
+    _C("yaw_deg", "float64", "deg", "true deck yaw (ZYX)", nullable=False),
     _C("heave_m", "float64", "m", "true deck-centre displacement along world z (up)", nullable=False),
     _C("surge_m", "float64", "m", "true deck-centre displacement along world x", nullable=False),
     _C("sway_m", "float64", "m", "true deck-centre displacement along world y", nullable=False),
@@ -175,10 +187,10 @@ DETECTION_COLUMNS: tuple[Column, ...] = (
     _C("cov_uu", "float64", "px^2", "the centre's covariance, u-u entry", nullable=False),
     _C("cov_uv", "float64", "px^2", "the centre's covariance, u-v entry", nullable=False),
     _C("cov_vv", "float64", "px^2", "the centre's covariance, v-v entry", nullable=False),
-    _C("flux", "float64", "DN", "background-subtracted flux of the spot (digital numbers, summed over pixels)"),
+    _C("flux_dn", "float64", "DN", "background-subtracted flux of the spot (digital numbers, summed over pixels)"),
     _C("size_px", "float64", "px", "Gaussian-equivalent sigma of the spot"),
-    _C("score", "float64", "",
-       "detection confidence: flux over the background noise in the spot's area (signal-to-noise; larger = better)"),
+    _C("snr", "float64", "",
+       "signal-to-noise ratio: the flux over the background noise in the spot's area (the detection's confidence)"),
     _C("detector", "string", "", "the detector's name", nullable=False),
 )
 
@@ -195,3 +207,33 @@ DETECT_FRAME_COLUMNS: tuple[Column, ...] = (
     _C("stamp_ns", "int64", "ns", "capture time"),
     _C("image", "string", "", "the frame's image, relative to the run folder"),
 )
+
+
+#: Columns renamed by table format ``deckpose-table/3``, by table kind: old name -> (new name,
+#: factor from the old unit to the new). Tables written before it are read with the new names
+#: (:func:`upgrade_legacy_columns`), so runs made by an older deckpose stay usable.
+LEGACY_COLUMNS: dict[str, dict[str, tuple[str, float]]] = {
+    "frames": {
+        "roll_rad": ("roll_deg", 180.0 / math.pi), "pitch_rad": ("pitch_deg", 180.0 / math.pi),
+        "yaw_rad": ("yaw_deg", 180.0 / math.pi),
+        **{f"r{i}{j}": (rotation_column(i, j), 1.0) for i in range(3) for j in range(3)},
+    },
+    "detections": {"flux": ("flux_dn", 1.0), "score": ("snr", 1.0)},
+}
+
+
+def upgrade_legacy_columns(df: pd.DataFrame, kind: str) -> pd.DataFrame:
+    """``df`` with the columns :data:`LEGACY_COLUMNS` renamed for ``kind``, in the new units.
+
+    A column is renamed only where the new name is absent; ``df`` itself is not changed.
+    """
+    renames = {old: new for old, (new, _f) in LEGACY_COLUMNS.get(kind, {}).items()
+               if old in df.columns and new not in df.columns}
+    if not renames:
+        return df
+    out = df.rename(columns=renames)
+    for old, new in renames.items():
+        factor = LEGACY_COLUMNS[kind][old][1]
+        if factor != 1.0:
+            out[new] = out[new].astype(float) * factor
+    return out

@@ -37,7 +37,7 @@ if TYPE_CHECKING:
 
 TABLE_SUFFIXES = (".csv", ".parquet", ".pq")
 #: Version of the tables' layout, in each Parquet file's metadata.
-TABLE_FORMAT = "deckpose-table/2"
+TABLE_FORMAT = "deckpose-table/3"
 #: Column-name suffix -> unit (the longest matching suffix wins).
 UNIT_SUFFIXES: dict[str, str] = {
     "_deg": "deg", "_rad": "rad", "_m": "m", "_px": "px", "_px2": "px^2", "_s": "s", "_ns": "ns",

@@ -33,7 +33,13 @@ from deckpose.errors import ConfigError
 from deckpose.layout import DeckLayout, layout_from_dict, layout_to_dict
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.projection import project_layout
-from deckpose.run_folder import DATASET_FORMAT, RunPaths, image_relpath, manifest_cameras
+from deckpose.run_folder import (
+    DATASET_FORMAT,
+    RunPaths,
+    frame_truth_row,
+    image_relpath,
+    manifest_cameras,
+)
 from deckpose.tables import write_table
 from deckpose.typed_config import from_mapping, load_yaml
 
@@ -249,30 +255,5 @@ def _frame_row(
     n_visible: int,
     seed: int,
 ) -> dict[str, Any]:
-    tr, tp, ty = np.degrees(ship.thesis_angles_rad())
-    row: dict[str, Any] = {
-        "frame_id": fid,
-        "image": rel,
-        "camera": cam,
-        "stamp_ns": fid * 100_000_000,
-        "t_s": fid * 0.1,
-        "camera_height_m": h,
-        "roll_rad": ship.roll_rad,
-        "pitch_rad": ship.pitch_rad,
-        "yaw_rad": ship.yaw_rad,
-        "heave_m": ship.heave_m,
-        "surge_m": ship.surge_m,
-        "sway_m": ship.sway_m,
-        "thesis_roll_deg": tr,
-        "thesis_pitch_deg": tp,
-        "thesis_yaw_deg": ty,
-        "lighting": "synthetic-analytic",
-        "seed": seed,
-        "n_visible": n_visible,
-    }
-    R = cpose.R_world_from_cam
-    for i in range(3):
-        for j in range(3):
-            row[f"r{i}{j}"] = R[i, j]
-    row["cam_x_m"], row["cam_y_m"], row["cam_z_m"] = (float(x) for x in cpose.position_world_m)
-    return row
+    return frame_truth_row(fid, rel, cam, fid * 100_000_000, fid * 0.1, h, ship, cpose, "synthetic-analytic",
+                           seed, n_visible)

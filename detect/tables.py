@@ -19,21 +19,12 @@ from deckpose.detect.frame_detection import FrameDetections
 
 from deckpose.errors import InputDataError
 from deckpose.records import Detections
+from deckpose.table_schemas import DETECTION_COLUMNS as DETECTION_SCHEMA
+from deckpose.table_schemas import upgrade_legacy_columns
 from deckpose.tables import write_table
 
-DETECTION_COLUMNS = (
-    "frame_id",
-    "beacon_id",
-    "u_px",
-    "v_px",
-    "cov_uu",
-    "cov_uv",
-    "cov_vv",
-    "flux",
-    "size_px",
-    "score",
-    "detector",
-)
+#: ``detections.parquet``'s columns, in order (their schema: :data:`deckpose.table_schemas.DETECTION_COLUMNS`).
+DETECTION_COLUMNS: tuple[str, ...] = tuple(c.name for c in DETECTION_SCHEMA)
 FRAME_COLUMNS = ("frame_id", "ok", "reason", "n_detections", "seconds")
 
 
@@ -50,9 +41,9 @@ def detection_rows(fd: FrameDetections) -> pd.DataFrame:
             "cov_uu": d.covariance_px2[:, 0, 0],
             "cov_uv": d.covariance_px2[:, 0, 1],
             "cov_vv": d.covariance_px2[:, 1, 1],
-            "flux": np.asarray(fd.flux_dn, float),
+            "flux_dn": np.asarray(fd.flux_dn, float),
             "size_px": np.asarray(fd.size_px, float),
-            "score": np.asarray(d.score, float),
+            "snr": np.asarray(d.score, float),
             "detector": pd.Series([fd.detector] * n, dtype=str),
         },
         columns=list(DETECTION_COLUMNS),
@@ -73,7 +64,7 @@ def write_tables(
 def read_detections(path: str | os.PathLike[str]) -> dict[int, Detections]:
     """Read ``detections.parquet`` into one :class:`Detections` per frame id."""
     try:
-        df = pd.read_parquet(path)
+        df = upgrade_legacy_columns(pd.read_parquet(path), "detections")
     except Exception as exc:
         raise InputDataError(f"cannot read detections table {path}: {exc}") from exc
     missing = set(DETECTION_COLUMNS) - set(df.columns)
@@ -87,7 +78,7 @@ def read_detections(path: str | os.PathLike[str]) -> dict[int, Detections]:
             g[["u_px", "v_px"]].to_numpy(float),
             g.beacon_id.to_numpy(np.int64),
             cov,
-            g.score.to_numpy(float),
+            g.snr.to_numpy(float),
             frame_id=fid,
         )
     return out

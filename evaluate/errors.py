@@ -68,7 +68,7 @@ def frame_errors(frames: pd.DataFrame, estimates: pd.DataFrame) -> pd.DataFrame:
     Parameters
     ----------
     frames : DataFrame
-        The dataset's frames table (truth): ``roll_rad, pitch_rad, yaw_rad, heave_m,
+        The dataset's frames table (truth): ``roll_deg, pitch_deg, yaw_deg, heave_m,
         surge_m, sway_m, cam_x_m, cam_y_m, cam_z_m, thesis_*_deg, camera, camera_height_m``.
     estimates : DataFrame
         An estimates table (``deckpose estimate`` output).
@@ -83,8 +83,8 @@ def frame_errors(frames: pd.DataFrame, estimates: pd.DataFrame) -> pd.DataFrame:
     out["method"] = e["method"]
     out["ok"] = e["ok"].astype(bool)
     out["reason"] = e["reason"].fillna("").astype(str)
-    for name, col in (("roll", "roll_rad"), ("pitch", "pitch_rad"), ("yaw", "yaw_rad")):
-        out[f"{name}_err_deg"] = _wrap_deg(e[f"{name}_deg"].to_numpy(float) - np.degrees(t[col].to_numpy(float)))
+    for name in ("roll", "pitch", "yaw"):
+        out[f"{name}_err_deg"] = _wrap_deg(e[f"{name}_deg"].to_numpy(float) - t[f"{name}_deg"].to_numpy(float))
     true_height = t["cam_z_m"].to_numpy(float) - t["heave_m"].to_numpy(float)
     out["true_height_m"] = true_height
     out["height_err_m"] = e["height_m"].to_numpy(float) - true_height

@@ -311,7 +311,7 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
                 sel = ddf.loc[[f]] if f in ddf.index else ddf.iloc[0:0]
                 log.proto(f"/annotations/{d}", annotations_msg(sel[["u_px", "v_px"]].to_numpy(float),
                                                                sel["beacon_id"].to_numpy(), sx, sy, ts, DETECTION_RGBA, ""), ts)
-            R_deck = R_from_zyx(row["roll_rad"], row["pitch_rad"], row["yaw_rad"])
+            R_deck = R_from_zyx(*(math.radians(row[f"{q}_deg"]) for q in ("roll", "pitch", "yaw")))
             tfs = FrameTransforms()
             tfs.transforms.append(_transform("world", "deck", R_deck,
                                              np.array([row["surge_m"], row["sway_m"], row["heave_m"]]), ts))

@@ -29,7 +29,6 @@ def frame_crb(run: rl.RunPaths, frames: pd.DataFrame, centroid_rms_px: pd.Series
     import numpy as np
     from deckpose.estimate.crb import cramer_rao_bound
 
-    from deckpose.pose import CameraPose, ShipPose
     from deckpose.records import POSE_PARAMS
 
     layout = rl.read_layout(run)
@@ -42,8 +41,7 @@ def frame_crb(run: rl.RunPaths, frames: pd.DataFrame, centroid_rms_px: pd.Series
         out = {"frame_id": f, "crb_roll_deg": math.nan, "crb_pitch_deg": math.nan,
                "crb_yaw_deg": math.nan, "crb_height_m": math.nan}
         if math.isfinite(rms) and rms > 0:
-            ship = ShipPose(fr["roll_rad"], fr["pitch_rad"], fr["yaw_rad"], fr["heave_m"], fr["surge_m"], fr["sway_m"])
-            pose = CameraPose(rl.R_world_from_cam(fr), np.array([fr["cam_x_m"], fr["cam_y_m"], fr["cam_z_m"]]))
+            ship, pose = rl.frame_poses(fr)
             sd = np.sqrt(np.diag(cramer_rao_bound(layout, cameras[fr["camera"]], ship, pose, rms / math.sqrt(2.0)).covariance))
             out.update(crb_roll_deg=math.degrees(sd[idx["roll_rad"]]), crb_pitch_deg=math.degrees(sd[idx["pitch_rad"]]),
                        crb_yaw_deg=math.degrees(sd[idx["yaw_rad"]]), crb_height_m=float(sd[idx["height_m"]]))

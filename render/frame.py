@@ -47,6 +47,7 @@ from deckpose.render.ship_lights import (
 from deckpose.camera import CameraModel
 from deckpose.projection import BeaconProjection, project_layout
 from deckpose.records import Frame, GroundTruth
+from deckpose.run_folder import frame_truth_row
 
 
 @dataclass(frozen=True)
@@ -148,21 +149,8 @@ def _stream(seed: int, stream: int) -> np.random.Generator:
 def frame_row(rf: RenderedFrame, image_relpath: str) -> dict[str, Any]:
     """The ``frames.parquet`` row of a rendered frame (dataset contract)."""
     s, t = rf.spec, rf.truth
-    tr, tp, ty = s.ship.thesis_angles_rad()
-    R = t.camera_pose.R_world_from_cam
-    row: dict[str, Any] = {
-        "frame_id": s.frame_id, "image": image_relpath, "camera": s.camera_name,
-        "stamp_ns": s.stamp_ns, "t_s": s.t_s, "camera_height_m": s.height_m,
-        "roll_rad": s.ship.roll_rad, "pitch_rad": s.ship.pitch_rad, "yaw_rad": s.ship.yaw_rad,
-        "heave_m": s.ship.heave_m, "surge_m": s.ship.surge_m, "sway_m": s.ship.sway_m,
-        "thesis_roll_deg": float(np.degrees(tr)), "thesis_pitch_deg": float(np.degrees(tp)),
-        "thesis_yaw_deg": float(np.degrees(ty)), "lighting": s.lighting.value, "seed": s.seed,
-        "n_visible": int(np.count_nonzero(t.visible)),
-    }
-    for i in range(3):
-        for j in range(3):
-            row[f"r{i}{j}"] = float(R[i, j])
-    row["cam_x_m"], row["cam_y_m"], row["cam_z_m"] = (float(x) for x in t.camera_pose.position_world_m)
+    row = frame_truth_row(s.frame_id, image_relpath, s.camera_name, s.stamp_ns, s.t_s, s.height_m, s.ship,
+                          t.camera_pose, s.lighting.value, s.seed, int(np.count_nonzero(t.visible)))
     if rf.exposure is not None:  # the column exists only with sensor.auto_exposure (default tables unchanged)
         row["exposure"] = rf.exposure
     return row

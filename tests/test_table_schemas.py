@@ -15,12 +15,15 @@ import numpy as np
 import pandas as pd
 import pyarrow.parquet as pq
 import pytest
+from deckpose.detect.tables import read_detections as read_detections_file
 from deckpose.estimate.results_table import COLUMN_NAMES, estimates_frame, estimates_from_frame
+from scipy.spatial.transform import Rotation
 
 from deckpose.cli import main
 from deckpose.errors import InputDataError
 from deckpose.estimates_schema import ESTIMATE_COLUMNS, EXTRAS_JSON, SIGMA_COLUMNS
 from deckpose.records import PoseEstimate
+from deckpose.run_folder import R_world_from_cam_all, RunPaths, read_detections, read_frames
 from deckpose.table_schemas import Column
 from deckpose.tables import SCHEMAS, arrow_schema, column_units, table_metadata, write_table
 from tests.evaluate.fake_run import make_fake_run
@@ -182,11 +185,37 @@ def test_every_column_is_documented_with_a_unit_that_agrees_with_its_name(kind):
 
 
 def test_other_tables_carry_their_columns_descriptions_and_units(tmp_path):
-    df = pd.DataFrame({"frame_id": [0], "beacon_id": [3], "flux": [120.0], "score": [40.0],
+    df = pd.DataFrame({"frame_id": [0], "beacon_id": [3], "flux_dn": [120.0], "snr": [40.0],
                        "cov_uu": [0.1], "mine_m": [1.0]})
     path = tmp_path / "d.parquet"
     write_table(df, path, "detections")  # not held to its schema: descriptions for what it knows
     meta = table_metadata(path)
-    assert meta["units"] == {"flux": "DN", "cov_uu": "px^2", "mine_m": "m"}
-    assert set(meta["descriptions"]) == {"frame_id", "beacon_id", "flux", "score", "cov_uu"}
-    assert "signal-to-noise" in meta["descriptions"]["score"]
+    assert meta["units"] == {"flux_dn": "DN", "cov_uu": "px^2", "mine_m": "m"}
+    assert set(meta["descriptions"]) == {"frame_id", "beacon_id", "flux_dn", "snr", "cov_uu"}
+    assert "signal-to-noise" in meta["descriptions"]["snr"]
+
+
+def test_tables_of_an_older_deckpose_read_with_todays_names_and_units(tmp_path):
+    # deckpose-table/2 named the truth attitude roll_rad (radians), the camera rotation r00..r22
+    # and the detections' flux and score; they read as roll_deg (degrees), R_world_from_cam_ij,
+    # flux_dn and snr. Written out here as an older deckpose wrote them.
+    root = tmp_path / "old"
+    (root / "detections").mkdir(parents=True)
+    R = Rotation.from_euler("ZYX", [0.3, -0.2, 0.1]).as_matrix()
+    old = {"frame_id": [0], "roll_rad": [0.1], "pitch_rad": [-0.2], "yaw_rad": [math.pi]}
+    old.update({f"r{i}{j}": [R[i, j]] for i in range(3) for j in range(3)})
+    pd.DataFrame(old).to_parquet(root / "frames.parquet")
+    (root / "beacons.parquet").write_bytes((root / "frames.parquet").read_bytes())
+    (root / "manifest.json").write_text("{}")
+    pd.DataFrame({"frame_id": [0], "beacon_id": [2], "u_px": [1.0], "v_px": [2.0], "cov_uu": [1.0], "cov_uv": [0.0],
+                  "cov_vv": [1.0], "flux": [7.0], "size_px": [1.5], "score": [12.5], "detector": ["cog"]}
+                 ).to_parquet(root / "detections" / "cog.parquet")
+    run = RunPaths(root)
+    frames = read_frames(run)
+    assert "roll_rad" not in frames and "r00" not in frames
+    assert frames.loc[0, ["roll_deg", "pitch_deg", "yaw_deg"]].tolist() == pytest.approx(
+        [math.degrees(0.1), math.degrees(-0.2), 180.0], rel=1e-15)
+    np.testing.assert_array_equal(R_world_from_cam_all(frames)[0], R)
+    dets = read_detections(run, "cog")
+    assert dets.loc[0, "flux_dn"] == 7.0 and dets.loc[0, "snr"] == 12.5 and "score" not in dets
+    assert read_detections_file(run.detections("cog"))[0].score.tolist() == [12.5]

@@ -354,11 +354,11 @@ def test_frame_ids_stay_64_bit_integers(setup, tmp_path, capsys):
     assert "beyond 2^53" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("col", ["cov_uu", "cov_uv", "cov_vv", "score"])
+@pytest.mark.parametrize("col", ["cov_uu", "cov_uv", "cov_vv", "snr"])
 def test_a_string_in_an_optional_numeric_column_names_the_row(setup, capsys, col):
     # was a Python traceback (ValueError in to_numpy(float))
     tmp, cam_path, df, _ = setup
-    d = df.assign(cov_uu=1.0, cov_uv=0.0, cov_vv=1.0, score=5.0)
+    d = df.assign(cov_uu=1.0, cov_uv=0.0, cov_vv=1.0, snr=5.0)
     d[col] = d[col].astype(object)
     d.loc[3, col] = "high"
     err = _run_bad(tmp, cam_path, d, capsys)

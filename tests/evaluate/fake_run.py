@@ -46,13 +46,14 @@ def make_fake_run(root: Path, *, sigma_px: float = 0.3, seed: int = 0,
                 cv2.imwrite(str(root / rel), img)
                 tr, tp, ty = np.degrees(ship.thesis_angles_rad())
                 row = {"frame_id": fid, "image": rel, "camera": cname, "stamp_ns": k * 100_000_000, "t_s": k * 0.1,
-                           "camera_height_m": h, "roll_rad": ship.roll_rad, "pitch_rad": ship.pitch_rad, "yaw_rad": ship.yaw_rad,
+                           "camera_height_m": h, "roll_deg": np.degrees(ship.roll_rad), "pitch_deg": np.degrees(ship.pitch_rad),
+                           "yaw_deg": np.degrees(ship.yaw_rad),
                            "heave_m": ship.heave_m, "surge_m": 0.0, "sway_m": 0.0, "thesis_roll_deg": tr, "thesis_pitch_deg": tp,
                            "thesis_yaw_deg": ty, "lighting": "night", "seed": seed, "n_visible": int(proj.visible.sum()),
                            "cam_x_m": 0.0, "cam_y_m": 0.0, "cam_z_m": h}
                 for i in range(3):
                     for j in range(3):
-                        row[f"r{i}{j}"] = pose.R_world_from_cam[i, j]
+                        row[f"R_world_from_cam_{i}{j}"] = pose.R_world_from_cam[i, j]
                 frames.append(row)
                 for b in range(layout.n_beacons):
                     beacons.append({"frame_id": fid, "beacon_id": b, "u_px": proj.points_px[b, 0], "v_px": proj.points_px[b, 1],
@@ -61,7 +62,7 @@ def make_fake_run(root: Path, *, sigma_px: float = 0.3, seed: int = 0,
                     if proj.visible[b]:
                         u, v = proj.points_px[b] + rng.normal(0, sigma_px, 2)
                         dets.append({"frame_id": fid, "beacon_id": b, "u_px": u, "v_px": v, "cov_uu": sigma_px**2, "cov_uv": 0.0,
-                                         "cov_vv": sigma_px**2, "flux": 1.0, "size_px": 3.0, "score": 1.0, "detector": "fake"})
+                                         "cov_vv": sigma_px**2, "flux_dn": 1.0, "size_px": 3.0, "snr": 1.0, "detector": "fake"})
                 fid += 1
     pd.DataFrame(frames).to_parquet(root / "frames.parquet", index=False)
     pd.DataFrame(beacons).to_parquet(root / "beacons.parquet", index=False)

@@ -60,8 +60,8 @@ def test_variants_of_a_method_are_kept_apart(run):
 
 
 def test_frame_errors_wrap_yaw_and_use_true_height():
-    frames = pd.DataFrame({"frame_id": [0], "camera": ["c"], "camera_height_m": [30.0], "roll_rad": [0.0], "pitch_rad": [0.0],
-                               "yaw_rad": [np.radians(179.0)], "heave_m": [2.0], "surge_m": [1.0], "sway_m": [0.0],
+    frames = pd.DataFrame({"frame_id": [0], "camera": ["c"], "camera_height_m": [30.0], "roll_deg": [0.0], "pitch_deg": [0.0],
+                               "yaw_deg": [179.0], "heave_m": [2.0], "surge_m": [1.0], "sway_m": [0.0],
                                "cam_x_m": [0.0], "cam_y_m": [0.0], "cam_z_m": [30.0]})
     est = pd.DataFrame({"frame_id": [0], "method": ["m"], "ok": [True], "reason": [""], "roll_deg": [0.1], "pitch_deg": [0.0],
                             "yaw_deg": [-179.0], "surge_m": [1.5], "sway_m": [0.0], "height_m": [28.5]})

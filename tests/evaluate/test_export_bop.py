@@ -67,9 +67,9 @@ def test_poses_are_the_truth_in_millimetres(bop: Path, fake_run: Path) -> None:
     for scene in ds.scenes.values():
         for im_id, (inst,) in scene.gt.items():
             f = frames.loc[im_id]
-            R_wd = Rotation.from_euler("ZYX", [f.yaw_rad, f.pitch_rad, f.roll_rad]).as_matrix()
+            R_wd = Rotation.from_euler("ZYX", [f.yaw_deg, f.pitch_deg, f.roll_deg], degrees=True).as_matrix()
             t_wd = np.array([f.surge_m, f.sway_m, f.heave_m])
-            R_wc = np.array([[f[f"r{i}{j}"] for j in range(3)] for i in range(3)])
+            R_wc = np.array([[f[f"R_world_from_cam_{i}{j}"] for j in range(3)] for i in range(3)])
             c_w = np.array([f.cam_x_m, f.cam_y_m, f.cam_z_m])
             np.testing.assert_allclose(inst["R"], R_wc.T @ R_wd, atol=ROUNDOFF)
             np.testing.assert_allclose(inst["t_mm"].ravel(), 1000.0 * R_wc.T @ (t_wd - c_w), atol=1e-9)

@@ -26,9 +26,9 @@ from deckpose.run_folder import DATASET_FORMAT as FORMAT
 
 from .conftest import tiny_doc
 
-FRAME_COLS = ["frame_id", "image", "camera", "stamp_ns", "t_s", "camera_height_m", "roll_rad", "pitch_rad",
-              "yaw_rad", "heave_m", "surge_m", "sway_m", "thesis_roll_deg", "thesis_pitch_deg",
-              "thesis_yaw_deg", "lighting", "seed", "n_visible", *[f"r{i}{j}" for i in range(3) for j in range(3)],
+FRAME_COLS = ["frame_id", "image", "camera", "stamp_ns", "t_s", "camera_height_m", "roll_deg", "pitch_deg",
+              "yaw_deg", "heave_m", "surge_m", "sway_m", "thesis_roll_deg", "thesis_pitch_deg",
+              "thesis_yaw_deg", "lighting", "seed", "n_visible", *[f"R_world_from_cam_{i}{j}" for i in range(3) for j in range(3)],
               "cam_x_m", "cam_y_m", "cam_z_m"]
 BEACON_COLS = ["frame_id", "beacon_id", "u_px", "v_px", "visible", "in_image", "facing",
                "apparent_radius_px", "spot_sigma_px", "spot_flux_e", "spot_background_e",

@@ -138,10 +138,10 @@ def test_detect_then_estimate_on_the_rendered_fisheye_frames(fisheye_runs: dict[
         assert set(ids.tolist()) == set(truth.index.tolist())
         err = np.linalg.norm(det.points_px - truth.loc[ids, ["u_px", "v_px"]].to_numpy(), axis=1)
         assert err.max() < 0.15, err.max()
-        R_wc = np.array([[getattr(row, f"r{i}{j}") for j in range(3)] for i in range(3)])
+        R_wc = np.array([[getattr(row, f"R_world_from_cam_{i}{j}") for j in range(3)] for i in range(3)])
         est = run_estimator("pnp", det, cam, layout, EstimateOptions(R_world_from_cam=R_wc))
         assert est.ok, est.reason
-        want = np.array([row.roll_rad, row.pitch_rad, row.yaw_rad, row.surge_m - row.cam_x_m,
+        want = np.array([*np.radians([row.roll_deg, row.pitch_deg, row.yaw_deg]), row.surge_m - row.cam_x_m,
                          row.sway_m - row.cam_y_m, row.cam_z_m - row.heave_m])
         got = np.array([est.roll_rad, est.pitch_rad, est.yaw_rad, est.surge_m, est.sway_m, est.height_m])
         d = got - want
