@@ -150,7 +150,10 @@ def get(name: str) -> EstimatorFn:
     try:
         return _REGISTRY[name]
     except KeyError:
-        raise ConfigError(f"unknown estimator {name!r}; choose one of {', '.join(sorted(_REGISTRY))}") from None
+        several = (" (one method per call: run once for each; `deckpose pipeline --method a,b` and "
+                   "`estimator-tables` take a list)") if "," in name else ""
+        raise ConfigError(
+            f"unknown estimator {name!r}{several}; choose one of {', '.join(sorted(_REGISTRY))}") from None
 
 
 #: Suffixes of a method label and the option each sets: ``conic+refine``, ``pnp+mean``.

@@ -103,6 +103,17 @@ def test_unknown_beacon_id(setup, capsys):
     assert "row 4" in err and "unknown beacon_id 40" in err
 
 
+def test_a_list_of_methods_is_told_one_per_call(setup, capsys):
+    tmp, cam_path, df, _ = setup
+    det = tmp / "dets.csv"
+    df.to_csv(det, index=False)
+    out = tmp / "out.csv"
+    assert main(["estimate", str(det), "--camera", str(cam_path), "--method", "thesis,pnp", "-o", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert "one method per call" in err and "pipeline --method a,b" in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+
+
 def test_duplicate_beacon_id_in_a_frame(setup, capsys):
     tmp, cam_path, df, _ = setup
     df = pd.concat([df, df.iloc[[0]]])
