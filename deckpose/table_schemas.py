@@ -230,8 +230,9 @@ TRACK_COLUMNS: tuple[Column, ...] = (
     *(_C(f"cov_{_TRACK_PARAMS[i]}__{_TRACK_PARAMS[j]}", "float64", _cov_unit(_TRACK_PARAMS[i], _TRACK_PARAMS[j]),
          f"covariance of the filtered pose, {_TRACK_PARAMS[i]} x {_TRACK_PARAMS[j]} (radians and metres)",
          nullable=False) for i in range(6) for j in range(i, 6)),
-    _C("landing_go", "bool", "", "landing-window indicator: predicted |roll|, |pitch| and |heave rate| plus "
-       "the configured sigmas stay below the limits over the next window (run.json: landing)", nullable=False),
+    _C("landing_go", "bool", "", "landing-window indicator: predicted |roll|, |pitch| and |heave rate| stay "
+       "below the limits over the next window with the configured confidence (run.json: landing)",
+       nullable=False),
 )
 
 #: ``tracks/<detector>--<method>--<tracker>.predictions.parquet``: one row per frame x horizon.
@@ -244,9 +245,12 @@ TRACK_PREDICTION_COLUMNS: tuple[Column, ...] = (
     _C("pitch_deg", "float64", "deg", "predicted deck pitch (ZYX)", nullable=False),
     _C("heave_m", "float64", "m", "predicted deck heave, the oscillating part", nullable=False),
     _C("heave_rate_m_per_s", "float64", "m/s", "predicted deck heave rate (up)", nullable=False),
+    _C("height_m", "float64", "m", "predicted height of the camera above the deck centre (the UAV holding its "
+       "filtered vertical velocity)", nullable=False),
     _C("sigma_roll_deg", "float64", "deg", "standard deviation of the predicted roll", nullable=False),
     _C("sigma_pitch_deg", "float64", "deg", "standard deviation of the predicted pitch", nullable=False),
     _C("sigma_heave_m", "float64", "m", "standard deviation of the predicted heave", nullable=False),
     _C("sigma_heave_rate_m_per_s", "float64", "m/s", "standard deviation of the predicted heave rate",
        nullable=False),
+    _C("sigma_height_m", "float64", "m", "standard deviation of the predicted height", nullable=False),
 )

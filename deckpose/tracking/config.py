@@ -13,7 +13,7 @@ Schema (every key optional; defaults in the records)::
       heave_rate_m_per_s: 0.5
       window_s: 3.0
       step_s: 0.25
-      confidence_sigmas: 1.0
+      confidence: 0.95
     gate_probability: 0.9999  # chi-square gate on each estimate (6 dof); 1 = no gate
     reacquire_after: 10       # gated estimates in a row before the next is applied ungated
     horizons_s: [0.5, 1, 2, 5]

@@ -39,7 +39,7 @@ __all__ = ["DeckMotionModel", "Discretisation", "discretise", "measurement_matri
            "oscillator_discretisation", "output_matrix", "prior", "state_size", "state_slices"]
 
 #: Channels of :func:`output_matrix`: what prediction and the landing window use.
-DECK_OUTPUTS = ("roll_rad", "pitch_rad", "heave_m", "heave_rate_m_per_s")
+DECK_OUTPUTS = ("roll_rad", "pitch_rad", "heave_m", "heave_rate_m_per_s", "height_m")
 
 
 @dataclass(frozen=True)
@@ -274,14 +274,19 @@ def measurement_matrix(model: DeckMotionModel) -> NDArray[np.float64]:
 
 
 def output_matrix(model: DeckMotionModel) -> NDArray[np.float64]:
-    """``C`` (4, n): the deck outputs of :data:`DECK_OUTPUTS` (roll, pitch, heave, heave rate) from the state."""
-    C = np.zeros((4, state_size(model)))
+    """``C`` (5, n): the outputs of :data:`DECK_OUTPUTS` from the state.
+
+    Roll, pitch, heave (the oscillating part), heave rate, and the height of the camera
+    above the deck centre (the measurement's height row: uav_height - heave).
+    """
+    C = np.zeros((5, state_size(model)))
     sl = state_slices(model)
     for row, name in ((0, "roll"), (1, "pitch")):
         C[row, sl[name].start] = 1.0
         C[row, sl[name].start + 1:sl[name].stop:2] = 1.0
     C[2, sl["heave"].start:sl["heave"].stop:2] = 1.0
     C[3, sl["heave"].start + 1:sl["heave"].stop:2] = 1.0
+    C[4] = measurement_matrix(model)[5]
     C.flags.writeable = False
     return C
 

@@ -69,7 +69,7 @@ def measurements_from_estimates(estimates: pd.DataFrame, frame_ids: NDArray[np.i
         raise InputDataError(f"{source}: frame {int(estimates['frame_id'][dup].iloc[0])} has more than one row; "
                              "track one method's estimates at a time")
     e = estimates.set_index("frame_id").reindex(np.asarray(frame_ids, np.int64))
-    z = e[list(POSE_COLUMNS)].to_numpy(float)
+    z = e[list(POSE_COLUMNS)].to_numpy(float, copy=True)
     z[:, :3] = np.radians(z[:, :3])
     n = len(e)
     R = np.full((n, 6, 6), np.nan)

@@ -1,4 +1,4 @@
-"""Deck roll, pitch, heave and heave rate predicted ahead from the filter's state.
+"""Deck roll, pitch, heave, heave rate and the camera's height above the deck predicted ahead from the filter's state.
 
 The prediction ``h`` seconds ahead of a state ``N(x, P)`` is the model propagated
 over ``h`` with no measurement: mean ``C F(h) x``, covariance ``C (F(h) P F(h)^T + Q(h)) C^T``
@@ -38,10 +38,10 @@ def predict_outputs(x: NDArray[np.float64], P: NDArray[np.float64], model: DeckM
 
     Returns
     -------
-    mean : (N, H, 4) array of float
-        roll_rad, pitch_rad, heave_m, heave_rate_m_per_s
-        (:data:`~deckpose.tracking.deck_motion_model.DECK_OUTPUTS`).
-    cov : (N, H, 4, 4) array of float
+    mean : (N, H, 5) array of float
+        roll_rad, pitch_rad, heave_m, heave_rate_m_per_s, height_m (camera above the deck
+        centre) (:data:`~deckpose.tracking.deck_motion_model.DECK_OUTPUTS`).
+    cov : (N, H, 5, 5) array of float
         Their covariance.
     """
     n = state_size(model)
@@ -52,8 +52,8 @@ def predict_outputs(x: NDArray[np.float64], P: NDArray[np.float64], model: DeckM
     hs = np.asarray(horizons_s, float).reshape(-1)
     C = output_matrix(model)
     discs = [discretise(model, float(h)) for h in hs]
-    M = np.stack([C @ d.F for d in discs])                       # (H, 4, n)
-    CQC = np.stack([C @ d.Q @ C.T for d in discs])               # (H, 4, 4)
+    M = np.stack([C @ d.F for d in discs])                       # (H, 5, n)
+    CQC = np.stack([C @ d.Q @ C.T for d in discs])               # (H, 5, 5)
     mean = np.einsum("hon,Nn->Nho", M, x)
     cov = np.einsum("hon,Nnm,hpm->Nhop", M, P, M, optimize=True) + CQC[None]
     return mean, cov

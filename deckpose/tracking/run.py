@@ -37,7 +37,7 @@ from deckpose.run_folder import (
     read_manifest,
     run_paths,
 )
-from deckpose.table_schemas import TRACK_COLUMNS, TRACK_PREDICTION_COLUMNS, typed_frame
+from deckpose.table_schemas import TRACK_COLUMNS, TRACK_PREDICTION_COLUMNS, pandas_dtype
 from deckpose.tables import write_table
 from deckpose.tracking.config import TRACKERS, TrackConfig, track_config_to_mapping
 from deckpose.tracking.deck_motion_model import measurement_matrix, output_matrix
@@ -94,7 +94,7 @@ def sequence_ids(frames: pd.DataFrame, stamps_ns: NDArray[np.int64]) -> NDArray[
     first = pd.Series(np.asarray(stamps_ns, np.int64), index=frames.index).groupby(key).transform("min")
     order = pd.DataFrame({"key": key, "first": first}).drop_duplicates("key").sort_values(["first", "key"])
     rank = {k: i for i, k in enumerate(order["key"])}
-    return key.map(rank).to_numpy(np.int64)
+    return np.asarray(key.map(rank).to_numpy(), dtype=np.int64)
 
 
 def track_table(frames: pd.DataFrame, estimates: pd.DataFrame, config: TrackConfig, *,
@@ -157,7 +157,7 @@ def _track_rows(seq: int, ids: NDArray[np.int64], stamps: NDArray[np.int64], x: 
     pose = x @ H.T                                               # (N, 6) POSE_PARAMS
     pose[:, 2] = wrap_angle(pose[:, 2])
     pose_cov = np.einsum("in,Nnm,jm->Nij", H, P, H, optimize=True)
-    deck = x @ C.T                                               # roll, pitch, heave, heave rate
+    deck = x @ C.T                                               # roll, pitch, heave, heave rate, height
     deck_var = np.einsum("in,Nnm,im->Ni", C, P, C, optimize=True)
     cols: dict[str, object] = {
         "frame_id": ids, "sequence": np.full(len(ids), seq, np.int64), "stamp_ns": stamps,
@@ -188,8 +188,10 @@ def _prediction_rows(ids: NDArray[np.int64], stamps: NDArray[np.int64], horizons
         "stamp_ns": (stamps[:, None] + np.round(horizons * 1e9).astype(np.int64)[None, :]).reshape(-1),
         "roll_deg": np.degrees(mean[..., 0]).reshape(-1), "pitch_deg": np.degrees(mean[..., 1]).reshape(-1),
         "heave_m": mean[..., 2].reshape(-1), "heave_rate_m_per_s": mean[..., 3].reshape(-1),
+        "height_m": mean[..., 4].reshape(-1),
         "sigma_roll_deg": np.degrees(sig[..., 0]).reshape(-1), "sigma_pitch_deg": np.degrees(sig[..., 1]).reshape(-1),
         "sigma_heave_m": sig[..., 2].reshape(-1), "sigma_heave_rate_m_per_s": sig[..., 3].reshape(-1),
+        "sigma_height_m": sig[..., 4].reshape(-1),
     })[[c.name for c in TRACK_PREDICTION_COLUMNS]]
 
 
@@ -242,7 +244,7 @@ def track_run(run_dir: str | Path, config: TrackConfig, *, tracker: str = "wave-
     ensure_writable(run.tracks_dir)
     tracks, predictions = track_table(frames, estimates, config, epoch_ns=epoch,
                                       source=str(run.estimates(det, meth)), progress=progress)
-    tracks = typed_frame(tracks.to_dict("records"), TRACK_COLUMNS)
+    tracks = tracks.astype({c.name: pandas_dtype(c) for c in TRACK_COLUMNS})
     path = run.tracks(det, meth, tracker)
     pred_path = run.track_predictions(det, meth, tracker)
     write_table(tracks, path, "tracks")

@@ -103,7 +103,7 @@ def test_measurement_and_output_matrices_read_the_channels():
     x[sl["heave"]] = [0.4, 0.1, 0.2, -0.3]
     x[sl["yaw"]], x[sl["surge"]], x[sl["sway"]], x[sl["uav_height"]] = [0.5, 9], [1.0, 9], [-2.0, 9], [40.0, 9]
     np.testing.assert_allclose(measurement_matrix(m) @ x, [0.06, -0.005, 0.5, 1.0, -2.0, 40.0 - 0.6])
-    np.testing.assert_allclose(output_matrix(m) @ x, [0.06, -0.005, 0.6, -0.2])
+    np.testing.assert_allclose(output_matrix(m) @ x, [0.06, -0.005, 0.6, -0.2, 40.0 - 0.6])
 
 
 def test_prior_holds_the_oscillators_at_their_stationary_covariance():

@@ -14,6 +14,7 @@ from deckpose.tracking.deck_motion_model import DeckMotionModel, prior, state_si
 from deckpose.tracking.landing_window import (
     LandingLimits,
     landing_window_go,
+    margin_sigmas,
     truth_window_calm,
     window_horizons_s,
 )
@@ -38,7 +39,8 @@ def test_prediction_mean_is_the_free_response():
     hs = np.array([0.0, 0.5, 1.0, 2.0, 5.0])
     mean, _ = predict_outputs(x[None], np.zeros((1, len(x), len(x))), MODEL, hs)
     ref = np.array([expm(A * h) @ [0.8, -0.3] for h in hs])
-    np.testing.assert_allclose(mean[0, :, 2:], ref, atol=1e-12)   # heave, heave rate
+    np.testing.assert_allclose(mean[0, :, 2:4], ref, atol=1e-12)  # heave, heave rate
+    np.testing.assert_allclose(mean[0, :, 4], -ref[:, 0], atol=1e-12)  # height: uav_height 0 - heave
     np.testing.assert_allclose(mean[0, :, :2], 0.0, atol=1e-15)    # roll, pitch untouched
 
 
@@ -93,7 +95,8 @@ def test_landing_window_says_go_only_with_margin():
     model = DeckMotionModel(periods_s=(9.0,), damping_ratio=0.15, heave_sigma_m=0.1, roll_sigma_deg=0.5,
                             pitch_sigma_deg=0.3)
     n = state_size(model)
-    lim = LandingLimits(roll_deg=3.0, pitch_deg=2.0, heave_rate_m_per_s=0.5, window_s=3.0, confidence_sigmas=2.0)
+    lim = LandingLimits(roll_deg=3.0, pitch_deg=2.0, heave_rate_m_per_s=0.5, window_s=3.0, confidence=0.9)
+    assert 3.0 < margin_sigmas(lim) < 3.2       # Phi^-1(1 - 0.1 / 78) = 3.01
     P_small = np.eye(n) * 1e-10
     sl = state_slices(model)["heave"]
     calm, rough = np.zeros(n), np.zeros(n)
@@ -101,16 +104,16 @@ def test_landing_window_says_go_only_with_margin():
     go = landing_window_go(np.stack([calm, rough]), np.stack([P_small, P_small]), model, lim)
     assert go.tolist() == [True, False]
     # the same calm state in MODEL's sea (heave sigma 1.2 m): within 3 s the sea can raise
-    # the heave rate past 0.5 m/s by 2 predicted sigmas, so no go
+    # the heave rate past 0.5 m/s by 3 predicted sigmas, so no go
     assert not landing_window_go(np.zeros((1, state_size(MODEL))), np.zeros((1, state_size(MODEL),
                                                                                 state_size(MODEL))), MODEL, lim)[0]
     x0, P0 = prior(model)
-    lim_tight = LandingLimits(heave_rate_m_per_s=0.1, confidence_sigmas=2.0)
-    assert not landing_window_go(x0[None], P0[None], model, lim_tight)[0]   # 2 x 0.07 > 0.1
+    lim_tight = LandingLimits(heave_rate_m_per_s=0.1, confidence=0.9)
+    assert not landing_window_go(x0[None], P0[None], model, lim_tight)[0]   # 3 x 0.07 > 0.1
     assert window_horizons_s(lim).tolist() == [0.25 * k for k in range(13)]
 
 
-@pytest.mark.parametrize("kwargs", [{"window_s": 0.0}, {"step_s": 5.0}, {"confidence_sigmas": -1.0},
+@pytest.mark.parametrize("kwargs", [{"window_s": 0.0}, {"step_s": 5.0}, {"confidence": 1.0},
                                     {"roll_deg": math.nan}])
 def test_bad_limits_are_refused(kwargs):
     with pytest.raises(ConfigError):
