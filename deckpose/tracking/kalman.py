@@ -13,8 +13,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 from deckpose.errors import check_shape
+from deckpose.rotation import wrap_angle_rad
 
-__all__ = ["Update", "kalman_predict", "kalman_update", "wrap_angle"]
+__all__ = ["Update", "kalman_predict", "kalman_update"]
 
 
 @dataclass(frozen=True)
@@ -38,11 +39,6 @@ class Update:
     P: NDArray[np.float64]
     nis: float
     accepted: bool
-
-
-def wrap_angle(a: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Angles wrapped to [-pi, pi), radians."""
-    return (np.asarray(a, float) + np.pi) % (2 * np.pi) - np.pi
 
 
 def kalman_predict(x: NDArray[np.float64], P: NDArray[np.float64], F: NDArray[np.float64],
@@ -98,7 +94,7 @@ def kalman_update(x: NDArray[np.float64], P: NDArray[np.float64], z: NDArray[np.
     nu = z - H @ x
     if angle_rows:
         rows = list(angle_rows)
-        nu[rows] = wrap_angle(nu[rows])
+        nu[rows] = wrap_angle_rad(nu[rows])
     PHt = P @ H.T
     S = H @ PHt + R
     try:

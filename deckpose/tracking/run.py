@@ -29,6 +29,7 @@ from deckpose.capture_time import capture_epoch, log_stamps
 from deckpose.errors import ConfigError, InputDataError
 from deckpose.output_folder import ensure_writable
 from deckpose.records import POSE_PARAMS
+from deckpose.rotation import wrap_angle_rad
 from deckpose.run_folder import (
     RunPaths,
     check_frames_match,
@@ -41,7 +42,6 @@ from deckpose.table_schemas import TRACK_COLUMNS, TRACK_PREDICTION_COLUMNS, pand
 from deckpose.tables import write_table
 from deckpose.tracking.config import TRACKERS, TrackConfig, track_config_to_mapping
 from deckpose.tracking.deck_motion_model import measurement_matrix, output_matrix
-from deckpose.tracking.kalman import wrap_angle
 from deckpose.tracking.landing_window import landing_window_go
 from deckpose.tracking.measurements import POSE_COLUMNS, measurements_from_estimates
 from deckpose.tracking.prediction import predict_outputs
@@ -155,7 +155,7 @@ def _track_rows(seq: int, ids: NDArray[np.int64], stamps: NDArray[np.int64], x: 
                 P: NDArray[np.float64], nis: NDArray[np.float64], status: tuple[FilterStatus, ...],
                 H: NDArray[np.float64], C: NDArray[np.float64], go: NDArray[np.bool_]) -> pd.DataFrame:
     pose = x @ H.T                                               # (N, 6) POSE_PARAMS
-    pose[:, 2] = wrap_angle(pose[:, 2])
+    pose[:, 2] = wrap_angle_rad(pose[:, 2])
     pose_cov = np.einsum("in,Nnm,jm->Nij", H, P, H, optimize=True)
     deck = x @ C.T                                               # roll, pitch, heave, heave rate, height
     deck_var = np.einsum("in,Nnm,im->Ni", C, P, C, optimize=True)
