@@ -1,13 +1,13 @@
 """A sea-state-6 approach: per-frame estimates, the tracking filter and its prediction against the truth.
 
-Detections are SYNTHESISED, not rendered: each frame's visible beacons are projected exactly
-(``deckpose.projection.project_layout``, the 8 MP square-pixel camera) and given independent
-Gaussian noise of ``--sigma-px`` per axis (default 0.2 px: a centroid Cramér-Rao level for
-bright, unsaturated night spots; the detections carry that covariance). The ship moves as the
-irregular sea-state-6 frigate series of ``deckpose.motion`` (``configs/motion/ss6_frigate.yaml``'s
-sea); the UAV descends (hover at the top, a steady descent, hover at the bottom) with a slow
-lateral drift and an attitude wobble that the estimator is told (the IMU's attitude), as the
-render stage tells it each frame's camera attitude. Per-frame estimates are ``pnp``
+The frames are those ``deckpose render`` plans for an approach config (default
+``configs/approach_ss6.yaml``: sea state 6, 80 m down to 25 m over 90 s at 10 Hz, 8 MP, UAV
+drift and attitude wobble): the same deck and camera poses, on one time base. Detections are
+SYNTHESISED, not rendered: each frame's visible beacons are projected exactly
+(``deckpose.projection.project_layout``) and given independent Gaussian noise of ``--sigma-px``
+per axis (default 0.2 px: a centroid Cramér-Rao level for bright, unsaturated night spots; the
+detections carry that covariance), with their true ids. The estimator is told each frame's
+camera attitude (the IMU's), as the render stage tells it. Per-frame estimates are ``pnp``
 (``deckpose.estimate.estimate_batch``); the tracker is ``deckpose track``'s ``wave-bank`` filter
 (``deckpose.tracking.track_table``) with its default config, tuned on nothing here.
 
@@ -35,15 +35,10 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 import numpy as np
 import pandas as pd
 from deckpose.estimate import EstimateOptions, estimate_batch
-from scipy.spatial.transform import Rotation
+from deckpose.render.config import load_config
+from deckpose.render.plan import plan_frames
 
-from deckpose.camera import preset
-from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH_NS
 from deckpose.estimates_schema import COVARIANCE_COLUMNS
-from deckpose.layout import DeckLayout
-from deckpose.motion.config import parse_sea_run
-from deckpose.motion.irregular import irregular_series
-from deckpose.pose import CameraPose
 from deckpose.projection import project_layout
 from deckpose.records import Detections
 from deckpose.tracking.config import TrackConfig
@@ -62,55 +57,39 @@ from deckpose.tracking.sequence_filter import ANGLE_ROWS, FilterTrack, filter_se
 HORIZONS_S = (0.5, 1.0, 2.0, 5.0)
 
 
-def uav_profile(t_s: np.ndarray, top_m: float, bottom_m: float, hover_top_s: float, hover_bottom_s: float,
-                rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Height, lateral drift (x, y) and attitude wobble (roll, pitch, yaw; rad) of the UAV over time."""
-    t_end = float(t_s[-1])
-    t_desc = max(t_end - hover_top_s - hover_bottom_s, 1e-9)
-    frac = np.clip((t_s - hover_top_s) / t_desc, 0.0, 1.0)
-    smooth = frac * frac * (3 - 2 * frac)                        # smooth start and stop of the descent
-    height = top_m + (bottom_m - top_m) * smooth
-    ph = rng.uniform(0, 2 * np.pi, 8)
-    x = 0.8 * np.sin(2 * np.pi * t_s / 37.0 + ph[0]) + 0.3 * np.sin(2 * np.pi * t_s / 9.0 + ph[1])
-    y = 0.8 * np.sin(2 * np.pi * t_s / 43.0 + ph[2]) + 0.3 * np.sin(2 * np.pi * t_s / 7.0 + ph[3])
-    att = np.stack([np.radians(2.0) * np.sin(2 * np.pi * t_s / 3.1 + ph[4]),
-                    np.radians(2.0) * np.sin(2 * np.pi * t_s / 2.7 + ph[5]),
-                    np.radians(1.0) * np.sin(2 * np.pi * t_s / 11.0 + ph[6])], axis=1)
-    return height, x, y, att
-
-
 def synthesise(args: argparse.Namespace) -> tuple[pd.DataFrame, pd.DataFrame, list[Detections], np.ndarray]:
-    """Truth frames, per-frame pnp estimates, the detections and each frame's camera attitude."""
-    dt = 1.0 / args.rate_hz
-    run = parse_sea_run({"sea": {"sea_state": 6}, "seed": args.seed, "duration_s": args.duration_s + 1.0,
-                         "dt_s": dt})
-    sea = irregular_series(run.ship, run.sea, duration_s=run.duration_s, dt_s=run.dt_s,
-                           rng=np.random.default_rng(args.seed))
-    n = round(args.duration_s * args.rate_hz) + 1
-    t = sea.t_s[:n]
-    rng = np.random.default_rng(args.seed + 1)
-    height, cx, cy, att = uav_profile(t, args.top_m, args.bottom_m, args.hover_top_s, args.hover_bottom_s, rng)
-    cam = preset(args.camera)
-    layout = DeckLayout()
+    """Truth frames, per-frame pnp estimates, the detections and each frame's camera attitude.
+
+    The frames are the render plan of ``args.config`` (an ``approach:`` config): the deck and
+    camera poses ``deckpose render`` would draw, at mid-exposure.
+    """
+    cfg = load_config(args.config)
+    if cfg.approach is None or len(cfg.cameras) != 1:
+        raise SystemExit(f"{args.config}: give a render config with an approach: section and one camera")
+    plan = plan_frames(cfg)
+    (name, cam), = cfg.cameras_by_name().items()
+    rng = np.random.default_rng(args.seed)
     dets, R_wc, rows = [], [], []
-    for i in range(n):
-        cp = CameraPose.nadir(float(height[i]), x_m=float(cx[i]), y_m=float(cy[i]),
-                              R_nadir_from_cam=Rotation.from_euler("xyz", att[i]).as_matrix())
-        proj = project_layout(layout, sea.pose(i), cp, cam)
+    for f in plan:
+        cp = f.camera_pose
+        proj = project_layout(cfg.layout, f.ship, cp, cam)
         ids = np.flatnonzero(proj.visible)
         pts = proj.points_px[ids] + rng.normal(0.0, args.sigma_px, (len(ids), 2))
         cov = np.broadcast_to(np.eye(2) * args.sigma_px ** 2, (len(ids), 2, 2))
-        dets.append(Detections(pts, ids, cov, frame_id=i))
+        dets.append(Detections(pts, ids, cov, frame_id=f.frame_id))
         R_wc.append(cp.R_world_from_cam)
-        rows.append({"frame_id": i, "camera": args.camera, "camera_height_m": args.top_m, "lighting": "night",
-                     "stamp_ns": DEFAULT_CAPTURE_EPOCH_NS + round(float(t[i]) * 1e9), "t_s": float(t[i]),
-                     "roll_rad": sea.roll_rad[i], "pitch_rad": sea.pitch_rad[i], "yaw_rad": sea.yaw_rad[i],
-                     "heave_m": sea.heave_m[i], "true_surge_m": sea.surge_m[i] - cx[i],
-                     "true_sway_m": sea.sway_m[i] - cy[i], "true_height_m": height[i] - sea.heave_m[i],
-                     "uav_height_m": height[i], "n_visible": len(ids)})
+        x, y, z = cp.position_world_m
+        rows.append({"frame_id": f.frame_id, "camera": name, "camera_height_m": f.height_m,
+                     "lighting": f.lighting.value, "stamp_ns": f.stamp_ns, "t_s": f.t_s - plan[0].t_s,
+                     "roll_rad": f.ship.roll_rad, "pitch_rad": f.ship.pitch_rad, "yaw_rad": f.ship.yaw_rad,
+                     "heave_m": f.ship.heave_m, "true_surge_m": f.ship.surge_m - x, "true_sway_m": f.ship.sway_m - y,
+                     "true_height_m": z - f.ship.heave_m, "uav_height_m": z, "n_visible": len(ids)})
     frames = pd.DataFrame(rows)
     R = np.array(R_wc)
-    res = estimate_batch("pnp", dets, cam, layout, EstimateOptions(sigma_px=args.sigma_px), R_world_from_cam=R)
+    res = estimate_batch("pnp", dets, cam, cfg.layout, EstimateOptions(sigma_px=args.sigma_px),
+                         R_world_from_cam=R)
+    args.rate_hz, args.camera, args.layout = cfg.approach.rate_hz, name, cfg.layout
+    args.duration_s = cfg.approach.duration_s
     return frames, estimates_table(res), dets, R
 
 
@@ -131,7 +110,8 @@ def estimates_table(results: list) -> pd.DataFrame:
 def time_one_frame(args: argparse.Namespace, dets: list[Detections], R: np.ndarray, estimates: pd.DataFrame,
                    config: TrackConfig) -> tuple[float, float]:
     """Median thread CPU time of one frame's estimate alone and of one filter step (predict + update), ms."""
-    cam, layout, opts = preset(args.camera), DeckLayout(), EstimateOptions(sigma_px=args.sigma_px)
+    cam = load_config(args.config).cameras_by_name()[args.camera]
+    layout, opts = args.layout, EstimateOptions(sigma_px=args.sigma_px)
     idx = np.linspace(0, len(dets) - 1, min(200, len(dets))).astype(int)
     est_ms = []
     for i in idx:
@@ -305,16 +285,11 @@ def plot(table: pd.DataFrame, path: Path) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--duration-s", type=float, default=90.0)
-    ap.add_argument("--rate-hz", type=float, default=10.0)
-    ap.add_argument("--top-m", type=float, default=80.0, help="UAV height at the start (above the nominal deck)")
-    ap.add_argument("--bottom-m", type=float, default=16.0, help="UAV height at the end (ring in view above ~13 m)")
-    ap.add_argument("--hover-top-s", type=float, default=10.0)
-    ap.add_argument("--hover-bottom-s", type=float, default=15.0)
+    ap.add_argument("--config", type=Path, default=Path("configs/approach_ss6.yaml"),
+                    help="render config with an approach: section (its frames' poses are used)")
     ap.add_argument("--sigma-px", type=float, default=0.2, help="detection noise per axis, px")
-    ap.add_argument("--camera", default="8mp-square")
     ap.add_argument("--warmup-s", type=float, default=5.0, help="filter warm-up left out of the scores")
-    ap.add_argument("--seed", type=int, default=6)
+    ap.add_argument("--seed", type=int, default=6, help="seed of the detection noise")
     ap.add_argument("--sweep-sigma-px", type=float, nargs="*", default=[0.5, 1.0],
                     help="also report the filtered/per-frame ratio at these detection noises (px)")
     ap.add_argument("--out", type=Path, default=None, help="write README.md, frames.csv, error_vs_time.png here")
@@ -334,7 +309,11 @@ def main() -> None:
         sweep.append((sig, r2))
     cpu_s = time.process_time() - c0
     load = os.getloadavg()
-    lines = [(f"# Sea-state-6 approach: tracking and prediction ({args.duration_s:g} s at {args.rate_hz:g} Hz, "
+    a = load_config(args.config).approach
+    assert a is not None
+    approach_text = (f"heights {list(a.heights_m)} m at {list(a.times_s)} s, {a.rate_hz:g} Hz, drift {a.drift_m:g} m, "
+                     f"wobble {a.wobble_deg:g} deg")
+    lines = [(f"# Approach: tracking and prediction ({args.config}: {args.duration_s:g} s at {args.rate_hz:g} Hz, "
              f"{args.camera})"), "",
              "Made by (from the repository root):", "",
              f"    OMP_NUM_THREADS=1 .venv/bin/python benchmarks/approach.py {' '.join(sys.argv[1:])}", "",
@@ -342,10 +321,9 @@ def main() -> None:
              f"1/5/15-min load at the end {load[0]:.1f}/{load[1]:.1f}/{load[2]:.1f}; "
              f"{cpu_s:.0f} s CPU in all; commit {_commit()}."), "",
              ("Detections are synthesised (exact projection + Gaussian noise of "
-             f"{args.sigma_px:g} px per axis), not rendered; see the benchmark's docstring. UAV: hover "
-             f"{args.hover_top_s:g} s at {args.top_m:g} m, descend to {args.bottom_m:g} m, hover "
-             f"{args.hover_bottom_s:g} s; drift up to ~1.1 m, attitude wobble 2 deg (told to the estimator). "
-             f"Scores leave out the first {args.warmup_s:g} s (filter warm-up)."), "",
+             f"{args.sigma_px:g} px per axis), not rendered, on the render plan's poses of {args.config} "
+             f"(approach: {approach_text}); see the benchmark's docstring. The estimator is told each frame's "
+             f"camera attitude. Scores leave out the first {args.warmup_s:g} s (filter warm-up)."), "",
              (f"Per-frame estimates ok: {res['ok_fraction']:.1%} of {res['n_frames']} frames (true heights "
              f"{frames['true_height_m'].min():.1f}-{frames['true_height_m'].max():.1f} m); ok with roll, pitch or "
              f"height beyond 5 of its own sigmas: {res['ok_beyond_5_sigma']}."), "",

@@ -78,7 +78,7 @@ class DeckMotionModel:
     yaw_accel_deg_per_s2: float = 0.2
     surge_accel_m_per_s2: float = 0.2
     sway_accel_m_per_s2: float = 0.2
-    height_accel_m_per_s2: float = 0.2
+    height_accel_m_per_s2: float = 1.0
     position_sigma_m: float = 100.0
     yaw_sigma_deg: float = 180.0
     rate_sigma_m_per_s: float = 10.0
