@@ -9,6 +9,8 @@ A run folder is a rendered dataset (``deckpose render``) that later stages add t
         lights.parquet                                                      (render)
     RUN/detections/<detector>.parquet [+ <detector>.frames.parquet]       (deckpose detect)
     RUN/estimates/<detector>--<method>.parquet                             (deckpose estimate --run)
+    RUN/tracks/<detector>--<method>--<tracker>.parquet [+ .predictions.parquet, .run.json]
+                                                                           (deckpose track)
     RUN/evaluation/errors.parquet, resolution_tables.{md,csv}              (deckpose evaluate)
     RUN/log.mcap                                                           (deckpose evaluate)
     RUN/report/report.md, report/figures/*.png                             (deckpose report)
@@ -138,6 +140,25 @@ class RunPaths:
 
     def estimates(self, detector: str, method: str) -> Path:
         return self.estimates_dir / f"{detector}{SEPARATOR}{method}.parquet"
+
+    @property
+    def tracks_dir(self) -> Path:
+        return self.root / "tracks"
+
+    def _track_stem(self, detector: str, method: str, tracker: str) -> str:
+        return f"{detector}{SEPARATOR}{method}{SEPARATOR}{tracker}"
+
+    def tracks(self, detector: str, method: str, tracker: str) -> Path:
+        """The filtered states of one estimates table (``tracks/cog--pnp--wave-bank.parquet``)."""
+        return self.tracks_dir / f"{self._track_stem(detector, method, tracker)}.parquet"
+
+    def track_predictions(self, detector: str, method: str, tracker: str) -> Path:
+        """The predictions ahead of each filtered state (``tracks/cog--pnp--wave-bank.predictions.parquet``)."""
+        return self.tracks_dir / f"{self._track_stem(detector, method, tracker)}.predictions.parquet"
+
+    def track_run_record(self, detector: str, method: str, tracker: str) -> Path:
+        """The resolved tracker config, inputs and counts of a track run (``.run.json``)."""
+        return self.tracks_dir / f"{self._track_stem(detector, method, tracker)}.run.json"
 
     @property
     def evaluation_dir(self) -> Path:

@@ -18,8 +18,8 @@ from typing import Literal
 import pandas as pd
 
 __all__ = ["BEACON_COLUMNS", "DETECTION_COLUMNS", "DETECT_FRAME_COLUMNS", "FRAME_COLUMNS", "HOT_PIXEL_COLUMNS",
-           "LEGACY_COLUMNS", "ROTATION_COLUMN_NAMES", "Column", "Dtype", "column", "pandas_dtype", "rotation_column",
-           "upgrade_legacy_columns"]
+           "LEGACY_COLUMNS", "ROTATION_COLUMN_NAMES", "TRACK_COLUMNS", "TRACK_PREDICTION_COLUMNS", "Column", "Dtype",
+           "column", "pandas_dtype", "rotation_column", "upgrade_legacy_columns"]
 
 #: A column's type: its Arrow/Parquet type (``int64``, ``double``, ``bool``, ``string``).
 Dtype = Literal["int64", "float64", "bool", "string"]
@@ -237,3 +237,63 @@ def upgrade_legacy_columns(df: pd.DataFrame, kind: str) -> pd.DataFrame:
         if factor != 1.0:
             out[new] = out[new].astype(float) * factor
     return out
+
+
+_TRACK_POSE = (("roll_deg", "deg", "roll"), ("pitch_deg", "deg", "pitch"), ("yaw_deg", "deg", "yaw"),
+               ("surge_m", "m", "surge (deck centre minus camera, world x)"),
+               ("sway_m", "m", "sway (deck centre minus camera, world y)"),
+               ("height_m", "m", "height (camera above the deck centre, world z)"))
+_TRACK_PARAMS = ("roll_rad", "pitch_rad", "yaw_rad", "surge_m", "sway_m", "height_m")  # POSE_PARAMS' order
+
+
+def _cov_unit(a: str, b: str) -> str:
+    ua, ub = a.rsplit("_", 1)[1], b.rsplit("_", 1)[1]
+    return f"{ua}^2" if ua == ub else f"{ua} {ub}"
+
+
+#: ``tracks/<detector>--<method>--<tracker>.parquet``: one row per frame, the filtered state.
+TRACK_COLUMNS: tuple[Column, ...] = (
+    _C("frame_id", "int64", "", "frame id", nullable=False),
+    _C("sequence", "int64", "", "the time sequence the frame belongs to (camera x height x lighting of the "
+       "render plan); the filter starts afresh on each", nullable=False),
+    _C("stamp_ns", "int64", "ns", "capture time (the log's time base)", nullable=False),
+    _C("status", "string", "", "what the filter did with the frame's estimate: updated, gated (rejected as an "
+       "outlier by the Mahalanobis gate) or skipped (not ok or no covariance: prediction only)", nullable=False),
+    _C("nis", "float64", "", "normalised innovation squared of the frame's estimate (chi-square, 6 dof, where "
+       "the model holds); null where skipped"),
+    *(_C(name, "float64", unit, f"filtered {what}", nullable=False) for name, unit, what in _TRACK_POSE),
+    _C("heave_m", "float64", "m", "filtered deck heave, the oscillating part (the slow part is in the camera's "
+       "own height)", nullable=False),
+    _C("heave_rate_m_per_s", "float64", "m/s", "filtered deck heave rate (up)", nullable=False),
+    *(_C(f"sigma_{name}", "float64", unit, f"standard deviation of the filtered {what.split(' ')[0]}",
+         nullable=False) for name, unit, what in _TRACK_POSE),
+    _C("sigma_heave_m", "float64", "m", "standard deviation of the filtered heave", nullable=False),
+    _C("sigma_heave_rate_m_per_s", "float64", "m/s", "standard deviation of the filtered heave rate",
+       nullable=False),
+    *(_C(f"cov_{_TRACK_PARAMS[i]}__{_TRACK_PARAMS[j]}", "float64", _cov_unit(_TRACK_PARAMS[i], _TRACK_PARAMS[j]),
+         f"covariance of the filtered pose, {_TRACK_PARAMS[i]} x {_TRACK_PARAMS[j]} (radians and metres)",
+         nullable=False) for i in range(6) for j in range(i, 6)),
+    _C("landing_go", "bool", "", "landing-window indicator: predicted |roll|, |pitch| and |heave rate| stay "
+       "below the limits over the next window with the configured confidence (run.json: landing)",
+       nullable=False),
+)
+
+#: ``tracks/<detector>--<method>--<tracker>.predictions.parquet``: one row per frame x horizon.
+TRACK_PREDICTION_COLUMNS: tuple[Column, ...] = (
+    _C("frame_id", "int64", "", "the frame the prediction was made at", nullable=False),
+    _C("horizon_s", "float64", "s", "how far ahead", nullable=False),
+    _C("stamp_ns", "int64", "ns", "capture time predicted for (the frame's stamp plus the horizon)",
+       nullable=False),
+    _C("roll_deg", "float64", "deg", "predicted deck roll (ZYX)", nullable=False),
+    _C("pitch_deg", "float64", "deg", "predicted deck pitch (ZYX)", nullable=False),
+    _C("heave_m", "float64", "m", "predicted deck heave, the oscillating part", nullable=False),
+    _C("heave_rate_m_per_s", "float64", "m/s", "predicted deck heave rate (up)", nullable=False),
+    _C("height_m", "float64", "m", "predicted height of the camera above the deck centre (the UAV holding its "
+       "filtered vertical velocity)", nullable=False),
+    _C("sigma_roll_deg", "float64", "deg", "standard deviation of the predicted roll", nullable=False),
+    _C("sigma_pitch_deg", "float64", "deg", "standard deviation of the predicted pitch", nullable=False),
+    _C("sigma_heave_m", "float64", "m", "standard deviation of the predicted heave", nullable=False),
+    _C("sigma_heave_rate_m_per_s", "float64", "m/s", "standard deviation of the predicted heave rate",
+       nullable=False),
+    _C("sigma_height_m", "float64", "m", "standard deviation of the predicted height", nullable=False),
+)

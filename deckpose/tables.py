@@ -29,6 +29,8 @@ from deckpose.table_schemas import (
     FRAME_COLUMNS,
     HOT_PIXEL_COLUMNS,
     LIGHT_COLUMNS,
+    TRACK_COLUMNS,
+    TRACK_PREDICTION_COLUMNS,
     Column,
 )
 
@@ -48,10 +50,10 @@ UNIT_SUFFIXES: dict[str, str] = {
 SCHEMAS: dict[str, tuple[Column, ...]] = {
     "frames": FRAME_COLUMNS, "beacons": BEACON_COLUMNS, "detections": DETECTION_COLUMNS,
     "detect frames": DETECT_FRAME_COLUMNS, "estimates": ESTIMATE_COLUMNS, "lights": LIGHT_COLUMNS,
-    "hot pixels": HOT_PIXEL_COLUMNS,
+    "hot pixels": HOT_PIXEL_COLUMNS, "tracks": TRACK_COLUMNS, "track predictions": TRACK_PREDICTION_COLUMNS,
 }
 #: Kinds written with exactly their schema's columns, in order, with its types.
-FIXED_KINDS = frozenset({"estimates"})
+FIXED_KINDS = frozenset({"estimates", "tracks", "track predictions"})
 
 
 def column_units(columns: list[str]) -> dict[str, str]:

@@ -24,6 +24,7 @@ import os
 from dataclasses import asdict, dataclass, fields, replace
 from typing import Any
 
+from deckpose.render.approach import ApproachSpec, approach_spec
 from deckpose.render.camera_spec import CameraSpec, camera_spec
 from deckpose.render.texture_size import deck_texture_px
 
@@ -551,6 +552,8 @@ class RenderConfig:
     capture_epoch: str = DEFAULT_CAPTURE_EPOCH
     #: How frames are stored: ``png`` (any tool reads it) or ``zstd`` (:mod:`deckpose.image_store`).
     image_format: ImageFormat = ImageFormat.PNG
+    #: A UAV approach (:mod:`deckpose.render.approach`) instead of the heights grid; None: the grid.
+    approach: ApproachSpec | None = None
 
     def deck_half_size_m(self) -> float:
         """Half the side of the square deck plate, metres."""
@@ -608,6 +611,7 @@ _SECTIONS: dict[str, Any] = {
     "ship_lights": _ship_lights_spec,
     "shutter": _shutter_spec,
     "optics": _optics_spec,
+    "approach": approach_spec,
 }
 
 
@@ -615,6 +619,8 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
     """Validate a parsed YAML mapping into a :class:`RenderConfig`."""
     if not isinstance(doc, dict):
         raise ConfigError(f"{source}: expected a YAML mapping at the top level")
+    if "approach" in doc:
+        doc = _approach_heights(doc, source)
     for key in ("cameras", "heights_m"):
         if key not in doc:
             # a mistyped key names the typo, not only the key it left missing
@@ -633,7 +639,8 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
         auto_texture = True
     cfg = from_mapping(RenderConfig, doc, f"{source}:", convert=_SECTIONS)
     if auto_texture:
-        px = deck_texture_px([c.model() for c in cfg.cameras], min(cfg.heights_m), cfg.deck_half_size_m())
+        lowest = min(cfg.approach.heights_m) if cfg.approach is not None else min(cfg.heights_m)
+        px = deck_texture_px([c.model() for c in cfg.cameras], lowest, cfg.deck_half_size_m())
         cfg = replace(cfg, scene=replace(cfg.scene, texture_px=px))
     check_range(cfg.seed, f"{source}: seed", low=0)
     epoch_ns(cfg.capture_epoch, f"{source}: capture_epoch")  # a time with a zone, this century
@@ -647,6 +654,25 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
             raise ConfigError(f"optics.focus_distance_m: must exceed the focal length ({f_m * 1e3:.2f} mm "
                               f"= fx x pixel_pitch_um), got {cfg.optics.focus_distance_m:g}")
     return cfg
+
+
+def _approach_heights(doc: dict[str, Any], source: str) -> dict[str, Any]:
+    """A config with an ``approach:``: its one nominal height (the first waypoint's) as ``heights_m``."""
+    if "heights_m" in doc:
+        raise ConfigError(f"{source}: give heights_m or approach, not both (an approach's heights are its "
+                          "waypoints, approach.heights_m)")
+    motion = doc.get("motion")
+    src = motion.get("source", MotionSource.FIXED.value) if isinstance(motion, dict) else MotionSource.FIXED.value
+    if src == MotionSource.FIXED.value:
+        raise ConfigError(f"{source}: an approach needs a motion series (motion.source: sea_state, file or thesis), "
+                          "not fixed attitudes")
+    if isinstance(motion, dict) and (motion.get("every", 1) != 1 or motion.get("max_samples") is not None):
+        raise ConfigError(f"{source}: motion.every and motion.max_samples do not apply to an approach (its frames "
+                          "are approach.rate_hz apart); remove them")
+    appr = doc["approach"]
+    first = appr.get("heights_m") if isinstance(appr, dict) else None
+    nominal = first[0] if isinstance(first, list) and first else 1.0  # (approach_spec says what is wrong)
+    return {**doc, "heights_m": [nominal]}
 
 
 #: The embedded default job (the same as ``configs/smoke.yaml``): two small resolutions x two
@@ -693,7 +719,11 @@ def config_to_dict(cfg: RenderConfig) -> dict[str, Any]:
     d = {f.name: getattr(cfg, f.name) for f in fields(cfg)}
     out: dict[str, Any] = {}
     for key, val in d.items():
-        if key == "layout":
+        if key == "approach":
+            if val is not None:  # (None, the grid: the key stays out, as before approaches)
+                out[key] = {k: _plain(v) for k, v in asdict(val).items()}
+                out.pop("heights_m", None)  # the approach sets it
+        elif key == "layout":
             out[key] = layout_to_dict(val)
         elif key == "cameras":
             out[key] = [{k: _plain(v) for k, v in asdict(c).items() if v is not None} for c in val]

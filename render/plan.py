@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from deckpose.render.approach import ApproachSpec, approach_camera_pose, approach_times_s
 from deckpose.render.config import Lighting, MotionSource, MotionSpec, RenderConfig
 from deckpose.render.rolling_shutter import ShipTrack
 
@@ -51,6 +52,9 @@ class FrameSpec:
     track : ShipTrack or None
         The deck's motion around ``t_s`` for the rolling shutter and the UAV's motion
         (``shutter`` section; None when it is off).
+    camera : CameraPose or None
+        The camera's pose where an approach moves it (:mod:`deckpose.render.approach`);
+        None: straight down from ``height_m`` above the world origin.
     """
 
     frame_id: int
@@ -63,10 +67,11 @@ class FrameSpec:
     seed: int
     capture_offset_ns: int = 0
     track: ShipTrack | None = None
+    camera: CameraPose | None = None
 
     @property
     def camera_pose(self) -> CameraPose:
-        return CameraPose.nadir(self.height_m)
+        return CameraPose.nadir(self.height_m) if self.camera is None else self.camera
 
     @property
     def stamp_ns(self) -> int:
@@ -145,15 +150,17 @@ def sample_indices(spec: MotionSpec, n: int) -> list[int]:
     return idx
 
 
-def _check_camera_above_deck(cfg: RenderConfig, height_m: float, ship: ShipPose, fid: int) -> None:
+def _check_camera_above_deck(cfg: RenderConfig, height_m: float, ship: ShipPose, fid: int,
+                             camera: CameraPose | None = None) -> None:
     """Camera must be above the deck plane and clear of the deck plate."""
     n_world = ship.R_world_from_deck[:, 2]
-    cam = np.array([0.0, 0.0, height_m])
+    cam = np.array([0.0, 0.0, height_m]) if camera is None else camera.position_world_m
     dist = float((cam - ship.t_world_from_deck) @ n_world)
     if dist <= 0.5:
         raise ConfigError(
-            f"frame {fid}: the camera at height {height_m} m is inside or below the deck (distance "
-            f"to the deck plane {dist:.2f} m with heave {ship.heave_m:.2f} m); raise heights_m"
+            f"frame {fid}: the camera at height {float(cam[2]):g} m is inside or below the deck (distance "
+            f"to the deck plane {dist:.2f} m with heave {ship.heave_m:.2f} m); raise "
+            + ("the approach's heights_m" if camera is not None else "heights_m")
         )
 
 
@@ -167,6 +174,8 @@ def plan_frames(cfg: RenderConfig, series: MotionSeries | None = None) -> list[F
         Motion to use instead of loading ``cfg.motion`` (tests).
     """
     series = load_motion(cfg.motion) if series is None else series
+    if cfg.approach is not None:
+        return _plan_approach(cfg, cfg.approach, series)
     idx = sample_indices(cfg.motion, len(series))
     blur = cfg.motion.exposure_s > 0 and cfg.motion.source is not MotionSource.FIXED
     cams = cfg.cameras_by_name()
@@ -192,6 +201,46 @@ def plan_frames(cfg: RenderConfig, series: MotionSeries | None = None) -> list[F
     if not frames:
         raise ConfigError("the config yields no frames")
     return _on_capture_time(frames, len(idx), epoch_ns(cfg.capture_epoch))
+
+
+def _plan_approach(cfg: RenderConfig, spec: ApproachSpec, series: MotionSeries) -> list[FrameSpec]:
+    """Frames of an approach: cameras x lighting x the approach's frame times (one time sequence each).
+
+    Frame ``k`` is at motion time ``t0 + k / rate_hz`` (``t0``: the series' sample
+    ``motion.start``), its deck pose the series interpolated there, its camera pose
+    :func:`~deckpose.render.approach.approach_camera_pose`; ``height_m`` is the approach's
+    first height (the sequence's nominal height in the frames table).
+    """
+    if cfg.motion.start >= len(series):
+        raise ConfigError(f"motion: start={cfg.motion.start} leaves no samples of a {len(series)}-sample series")
+    t0 = float(series.t_s[cfg.motion.start])
+    times = approach_times_s(spec)
+    if t0 + times[-1] > float(series.t_s[-1]) + 1e-9:
+        raise ConfigError(f"approach: {spec.duration_s:g} s from motion time {t0:g} s runs past the motion series' "
+                          f"end ({float(series.t_s[-1]):g} s); lengthen the series (motion.params.duration_s) or "
+                          "shorten the approach")
+    blur = cfg.motion.exposure_s > 0
+    cams = cfg.cameras_by_name()
+    h0 = float(spec.heights_m[0])
+    frames: list[FrameSpec] = []
+    fid = 0
+    for cam in cams:
+        for light in cfg.lighting:
+            for tau in times:
+                t = t0 + float(tau)
+                ship = _interp_pose(series, t)
+                camera = approach_camera_pose(spec, float(tau))
+                blur_poses: tuple[ShipPose, ...] = ()
+                if blur:
+                    k = cfg.motion.blur_steps
+                    ts = t + cfg.motion.exposure_s * ((np.arange(k) + 0.5) / k - 0.5)
+                    blur_poses = tuple(_interp_pose(series, float(x)) for x in ts)
+                _check_camera_above_deck(cfg, h0, ship, fid, camera)
+                seed = int(np.random.SeedSequence([cfg.seed, fid]).generate_state(1)[0])
+                track = _ship_track(cfg, series, t, ship, cams[cam].height_px) if cfg.shutter.enabled else None
+                frames.append(FrameSpec(fid, cam, h0, ship, blur_poses, t, light, seed, track=track, camera=camera))
+                fid += 1
+    return _on_capture_time(frames, len(times), epoch_ns(cfg.capture_epoch))
 
 
 def _ship_track(cfg: RenderConfig, series: MotionSeries, t_s: float, ship: ShipPose, height_px: int) -> ShipTrack:

@@ -162,3 +162,15 @@ def test_readme_full_scale_thesis_tables_run_as_written(tmp_path):
     ours = pd.read_csv(tmp_path / "reports" / "thesis_tables.csv")
     committed = pd.read_csv(REPO / "reports" / "thesis_tables.csv")
     pd.testing.assert_frame_equal(ours, committed, rtol=1e-9)
+
+
+def test_readme_track_examples_run_as_written(scratch):
+    from tests.tracking.synthetic_run import write_run
+
+    cmds = [c for c in COMMANDS if c.startswith("deckpose track ")]
+    assert len(cmds) == 2
+    write_run(scratch / "runs" / "ss6", duration_s=10.0)   # a run with cog--pnp estimates
+    for cmd in cmds:
+        _run(cmd, scratch)
+    tracks = pd.read_parquet(scratch / "runs" / "ss6" / "tracks" / "cog--pnp--wave-bank.parquet")
+    assert len(tracks) == 101 and (tracks["status"] == "updated").all()

@@ -1,0 +1,41 @@
+"""``deckpose track``: the happy path against the Python API, and bad input as one line, exit 2."""
+
+from __future__ import annotations
+
+import pandas as pd
+
+from deckpose.cli import main
+from deckpose.run_folder import run_paths
+from deckpose.tables import read_table
+from deckpose.tracking.config import TrackConfig
+from deckpose.tracking.run import track_table
+from tests.tracking.synthetic_run import write_run
+
+
+def test_track_writes_what_the_api_computes(tmp_path, capsys):
+    frames, est = write_run(tmp_path / "run", duration_s=5.0, not_ok=(7,))
+    assert main(["track", str(tmp_path / "run"), "--no-progress", "--horizons", "1,3"]) == 0
+    out = capsys.readouterr().out
+    assert "51 frames in 1 sequence(s): 50 updated, 0 gated out, 1 skipped" in out
+    paths = run_paths(tmp_path / "run")
+    got = read_table(paths.tracks("cog", "pnp", "wave-bank"), "tracks")
+    want, want_pred = track_table(frames, est, TrackConfig(horizons_s=(1.0, 3.0)))
+    pd.testing.assert_frame_equal(got, want, check_dtype=False)
+    pred = read_table(paths.track_predictions("cog", "pnp", "wave-bank"), "track predictions")
+    pd.testing.assert_frame_equal(pred, want_pred, check_dtype=False)
+    assert paths.track_run_record("cog", "pnp", "wave-bank").exists()
+
+
+def test_bad_input_is_one_line_and_status_2(tmp_path, capsys):
+    assert main(["track", str(tmp_path / "nothing")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "deckpose render CONFIG.yaml" in err
+    write_run(tmp_path / "run", duration_s=2.0)
+    (tmp_path / "t.yaml").write_text("gate_probability: 1.5\n")
+    assert main(["track", str(tmp_path / "run"), "--config", str(tmp_path / "t.yaml")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "gate_probability: must be" in err
+    assert main(["track", str(tmp_path / "run"), "--horizons", "1,x"]) == 2
+    assert "--horizons" in capsys.readouterr().err
+    assert main(["track", str(tmp_path / "run"), "--estimates", "conic"]) == 2
+    assert "the run has: --detector cog --estimates pnp" in capsys.readouterr().err
