@@ -11,6 +11,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 from deckpose.estimate.least_squares_batch import (
+    FitBatch,
     FrameObservations,
     evaluate_fit_batch,
     levenberg_marquardt_batch,
@@ -107,7 +108,7 @@ def pnp_candidates_batch(obs: FrameObservations) -> BatchCandidates:
     n_valid = valid.sum(axis=1)
     ar = np.arange(F)
     rows0 = np.flatnonzero(n_valid >= 1)
-    fit0 = scatter_fit(F, rows0, levenberg_marquardt_batch(starts[rows0, order[rows0, 0]], obs.take(rows0)))
+    fit0 = _refine_rows(F, rows0, starts[rows0, order[rows0, 0]], obs)
     fits = [fit0]
     kept = [n_valid >= 1]
     for pos in (1, 2):
@@ -116,11 +117,20 @@ def pnp_candidates_batch(obs: FrameObservations) -> BatchCandidates:
         with np.errstate(invalid="ignore"):
             compete = (n_valid > pos) & ~_close(p_raw, fit0.params, 1e-2) & (
                 chi_raw[ar, slot] < fit0.chi2 + ALT_MARGIN_CHI2)
+        if not compete.any():
+            continue  # no frame has a competing start here: no slot (the single-frame method lists none)
         rows = np.flatnonzero(compete)
-        f = scatter_fit(F, rows, levenberg_marquardt_batch(p_raw[rows], obs.take(rows)))
+        f = _refine_rows(F, rows, p_raw[rows], obs)
         new = compete.copy()
         for g, k in zip(fits, kept):
             new &= ~(k & _close(f.params, g.params, 1e-6))
         fits.append(f)
         kept.append(new)
     return BatchCandidates(tuple(fits), np.stack(kept, axis=1), failed | (n_valid == 0), extras)
+
+
+def _refine_rows(n_frames: int, rows: NDArray[np.int64], starts: FloatArray, obs: FrameObservations) -> FitBatch:
+    """Levenberg–Marquardt from ``starts`` for frames ``rows``, scattered into ``n_frames`` frames."""
+    if rows.size == n_frames:  # every frame: no gather, no scatter
+        return levenberg_marquardt_batch(starts, obs)
+    return scatter_fit(n_frames, rows, levenberg_marquardt_batch(starts, obs.take(rows)))
