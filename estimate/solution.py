@@ -262,12 +262,28 @@ def _too_few(obs: Observations, min_points: int) -> str:
 MAX_ANGLE_SIGMA_RAD = 0.5
 
 
-def _constrained(params: np.ndarray, sigmas: np.ndarray) -> bool:
-    """Whether the covariance pins the pose down at all: sigma height below the height, and
-    every angle sigma below :data:`MAX_ANGLE_SIGMA_RAD` (near-coincident or collinear points
-    give a finite but meaningless covariance)."""
-    return bool(np.all(np.isfinite(sigmas)) and sigmas[5] < abs(params[5])
-                and np.all(sigmas[:3] < MAX_ANGLE_SIGMA_RAD))
+def pose_constrained(params: np.ndarray, sigmas: np.ndarray) -> np.ndarray:
+    """Whether each covariance pins its pose down at all.
+
+    Every sigma finite, sigma height below the height, and every angle sigma below
+    :data:`MAX_ANGLE_SIGMA_RAD` (near-coincident or collinear points give a finite but
+    meaningless covariance). The one home of this test, for the single-frame and the
+    batched estimates.
+
+    Parameters
+    ----------
+    params : (F, 6) array of float
+        Pose parameters (:data:`~deckpose.records.POSE_PARAMS`).
+    sigmas : (F, 6) array of float
+        Their standard deviations (rad, m).
+
+    Returns
+    -------
+    (F,) array of bool
+    """
+    with np.errstate(invalid="ignore"):
+        return (np.isfinite(sigmas).all(axis=1) & (sigmas[:, 5] < np.abs(params[:, 5]))
+                & (sigmas[:, :3] < MAX_ANGLE_SIGMA_RAD).all(axis=1))
 
 
 def make_estimate(
@@ -307,7 +323,7 @@ def make_estimate(
         problems.append("non-finite pose or reprojection error")
     elif cov is None:
         problems.append("covariance undefined: the beacons do not constrain all six parameters")
-    elif not _constrained(p, np.sqrt(np.diag(cov))):
+    elif not pose_constrained(p[None], np.sqrt(np.diag(cov))[None])[0]:
         problems.append(
             f"the beacons hardly constrain the pose: sigma height {np.sqrt(cov[5, 5]):.3g} m for a height of "
             f"{p[5]:.3g} m, sigma roll/pitch/yaw up to {np.degrees(np.sqrt(np.max(np.diag(cov)[:3]))):.3g} deg "
