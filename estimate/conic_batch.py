@@ -136,7 +136,7 @@ def conic_candidates_batch(obs: FrameObservations, layout: DeckLayout,
     cands = BatchCandidates(
         tuple(fits), valid, ~has_first | unsure,
         (Extra("centre_beacon_used", np.full(F, centre_used)),))
-    if options.refine:
+    if options.refine or not fits:
         return cands
     # Unconverged candidates can look ambiguous while they share one minimum: settle those
     # frames at the optima (both solutions iterated to convergence) before the choice.
