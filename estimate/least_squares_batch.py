@@ -391,7 +391,7 @@ def levenberg_marquardt_batch(params0: FloatArray, obs: FrameObservations, *,
     """
     F = params0.shape[0]
     p = np.array(params0, dtype=float)
-    r, Jw, front, _ = _whitened(p, obs)
+    r, Jw, front, res = _whitened(p, obs)
     start_ok = front & _rows_ok(r)
     cost = np.where(start_ok, (r * r).sum(axis=(1, 2)), np.inf)
     lam = np.full(F, DAMPING_START)
@@ -412,19 +412,20 @@ def levenberg_marquardt_batch(params0: FloatArray, obs: FrameObservations, *,
             H[:, _DIAGONAL[0], _DIAGONAL[1]] += lam_a[:, None] * dH
             neg_step, solved = solve_batch(H, g)
             p_new = (p if everyone else p[active]) - neg_step
-            r_new, J_new, front_new, _ = _whitened(p_new, sub)
+            r_new, J_new, front_new, res_new = _whitened(p_new, sub)
             cost_new = np.where(front_new, (r_new * r_new).sum(axis=(1, 2)), np.inf)
             small = (np.abs(neg_step) * np.sqrt(np.abs(dH))).max(axis=1) < STEP_TOL_SIGMA
             better = cost_new <= cost_a
             ok = solved & (np.isfinite(cost_new) | np.isfinite(neg_step.sum(axis=1)))  # not blown up
             accept = ok & better
             if everyone and accept.all():
-                p, r, Jw, cost = p_new, r_new, J_new, cost_new
+                p, r, Jw, res, cost = p_new, r_new, J_new, res_new, cost_new
                 lam = np.maximum(lam * DAMPING_DOWN, DAMPING_FLOOR)
                 stop = small
             else:
                 acc = active[accept]
                 p[acc], r[acc], Jw[acc], cost[acc] = p_new[accept], r_new[accept], J_new[accept], cost_new[accept]
+                res[acc] = res_new[accept]
                 lam[acc] = np.maximum(lam[acc] * DAMPING_DOWN, DAMPING_FLOOR)
                 reject = ok & ~better
                 lam[active[reject & ~small]] *= DAMPING_UP
@@ -434,7 +435,11 @@ def levenberg_marquardt_batch(params0: FloatArray, obs: FrameObservations, *,
             if stop.any():
                 active = active[~stop]
                 everyone = False
-    fit = evaluate_fit_batch(p, obs, it, converged)
+    # The fit at the final parameters from the residuals and Jacobian already there (every
+    # frame's were computed at its ``p``, where all points lie in front unless the start failed)
+    H, g = _normal_equations(r, Jw)
+    res_px = (obs.px_from_norm @ res[:, :, :, None])[:, :, :, 0]
+    fit = FitBatch(p, np.where(start_ok, np.sum(r * r, axis=(1, 2)), np.inf), H, r, res_px, g, it, converged)
     if not start_ok.all():
         bad = ~start_ok
         chi2 = fit.chi2.copy()
