@@ -414,7 +414,7 @@ def levenberg_marquardt_batch(params0: FloatArray, obs: FrameObservations, *,
             p_new = (p if everyone else p[active]) - neg_step
             r_new, J_new, front_new, res_new = _whitened(p_new, sub)
             cost_new = np.where(front_new, (r_new * r_new).sum(axis=(1, 2)), np.inf)
-            small = (np.abs(neg_step) * np.sqrt(np.abs(dH))).max(axis=1) < STEP_TOL_SIGMA
+            small = (np.abs(neg_step) * np.sqrt(dH)).max(axis=1) < STEP_TOL_SIGMA  # dH: sums of squares
             better = cost_new <= cost_a
             ok = solved & (np.isfinite(cost_new) | np.isfinite(neg_step.sum(axis=1)))  # not blown up
             accept = ok & better
@@ -430,8 +430,12 @@ def levenberg_marquardt_batch(params0: FloatArray, obs: FrameObservations, *,
                 reject = ok & ~better
                 lam[active[reject & ~small]] *= DAMPING_UP
                 stop = ~ok | (ok & small) | (reject & ~small & (lam[active] > DAMPING_CEILING))
-            converged[active[ok & small]] = True
-            stop |= it[active] >= max_iterations
+            if everyone:
+                converged |= ok & small
+                stop |= it >= max_iterations
+            else:
+                converged[active[ok & small]] = True
+                stop |= it[active] >= max_iterations
             if stop.any():
                 active = active[~stop]
                 everyone = False
