@@ -21,7 +21,7 @@ from deckpose.estimate.least_squares_batch import (
     rotation_vectors,
     solve_batch,
 )
-from deckpose.estimate.solution import covariance_scale, pose_constrained
+from deckpose.estimate.solution import ambiguity_resolved, covariance_scale, pose_constrained
 from numpy.typing import NDArray
 
 from deckpose.records import POSE_PARAMS, PoseEstimate
@@ -157,7 +157,7 @@ def pick_batch(cands: BatchCandidates, *, ambiguity_chi2: float) -> PickBatch:
             maha[rows] = np.sqrt(np.sum(delta[rows] * x, axis=1))
             unresolved[rows[~solved]] = True
         with np.errstate(invalid="ignore"):
-            resolved = (dchi2 >= ambiguity_chi2) | (maha <= 3.0)
+            resolved = ambiguity_resolved(dchi2, maha, ambiguity_chi2)
         unresolved |= has_alt & ~resolved
     return PickBatch(kb, n_good, best_p, cov, cov_ok, alt_p, dchi2, maha, unresolved)
 
