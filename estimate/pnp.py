@@ -61,7 +61,7 @@ def poses_close(a: np.ndarray, b: np.ndarray, tol: float) -> np.ndarray:
     """
     d = np.abs(a - b)
     d[:, :3] = np.abs(wrap_angle_rad(d[:, :3]))  # (comparisons with NaN raise no warning)
-    return (d[:, :3] < tol).all(axis=1) & (d[:, 3:] < tol * (1 + np.abs(a[:, 5:6]))).all(axis=1)
+    return np.all(d[:, :3] < tol, axis=1) & np.all(d[:, 3:] < tol * (1 + np.abs(a[:, 5:6])), axis=1)
 
 
 def _same(a: np.ndarray, b: np.ndarray) -> bool:
