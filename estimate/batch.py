@@ -9,9 +9,11 @@ maximum-likelihood refinement when ``options.refine`` is set, and
 :func:`estimate_batch` estimates many frames at once: ``conic``, ``pnp`` and
 ``thesis`` (and the refinement) run as stacked array operations over all frames
 that share a beacon set, which costs a small fraction of one call per frame.
-Frames the batched path cannot settle (an outlier to remove, an unresolved
-ambiguity, any failure) are re-estimated by the single-frame path, so every
-result is the one :func:`run_estimator` gives, to rounding.
+``thesis`` has one implementation (a lone frame is a batch of one of
+:func:`~deckpose.estimate.thesis.estimate_thesis_frames`). For ``conic`` and
+``pnp``, frames the batched path cannot settle (an outlier to remove, an
+unresolved ambiguity, any failure) are still re-estimated by the single-frame
+path, so every result is the one :func:`run_estimator` gives, to rounding.
 """
 
 from __future__ import annotations
@@ -158,6 +160,7 @@ def estimate_batch(
     out: list[PoseEstimate] = []
     for lo in range(0, F, CHUNK_FRAMES):
         chunk, R_chunk = dets[lo:lo + CHUNK_FRAMES], np.ascontiguousarray(R_wc[lo:lo + CHUNK_FRAMES])
+        got: list[PoseEstimate | None]
         if name in ("conic", "pnp"):
             got = _least_squares_batch(name, chunk, camera, layout, options, R_chunk)
         elif name == "thesis":

@@ -117,27 +117,33 @@ def conic_candidates_batch(obs: FrameObservations, layout: DeckLayout,
     has_first = np.asarray(start_ok.any(axis=1))
     has_second = start_ok.all(axis=1) & (chi0[ar, second] < chi0[ar, first] + ALT_MARGIN_CHI2)
     fits = []
+    slots = []
     for k, present in ((first, has_first), (second, has_second)):
+        if not present.any():
+            continue  # no frame has this solution: no slot (the single-frame method lists none)
         rows = np.flatnonzero(present)
-        sub = obs.take(rows)
+        every = rows.size == F  # no gather, no scatter
+        sub = obs if every else obs.take(rows)
         starts = p0[rows, k[rows]]
         if options.refine:
             f = levenberg_marquardt_batch(starts, sub)
         else:
             f = polish_batch(evaluate_fit_batch(starts, sub), sub, int(options.conic_polish_steps))
-        fits.append(scatter_fit(F, rows, f))
+        fits.append(f if every else scatter_fit(F, rows, f))
+        slots.append(present)
     centre_used = float(layout.centre_id in obs.ids) if layout.centre_id is not None else 0.0
+    valid = np.stack(slots, axis=1) if slots else np.zeros((F, 0), dtype=bool)
     cands = BatchCandidates(
-        tuple(fits), np.stack([has_first, has_second], axis=1), ~has_first | unsure,
+        tuple(fits), valid, ~has_first | unsure,
         (Extra("centre_beacon_used", np.full(F, centre_used)),))
-    if options.refine:
+    if options.refine or not fits:
         return cands
     # Unconverged candidates can look ambiguous while they share one minimum: settle those
     # frames at the optima (both solutions iterated to convergence) before the choice.
     unsettled = np.flatnonzero(pick_batch(cands, ambiguity_chi2=options.ambiguity_chi2).unresolved)
     if not unsettled.size:
         return cands
-    for k, present in enumerate((has_first, has_second)):
+    for k, present in enumerate(slots):
         rows = unsettled[present[unsettled]]
         if rows.size:
             lm = levenberg_marquardt_batch(fits[k].params[rows], obs.take(rows))

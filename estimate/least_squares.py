@@ -14,14 +14,20 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from deckpose.estimate.least_squares_batch import (
+    DAMPING_CEILING,
+    DAMPING_DOWN,
+    DAMPING_FLOOR,
+    DAMPING_START,
+    DAMPING_UP,
+    MAX_ITERATIONS,
+    STEP_TOL_SIGMA,
+)
 from deckpose.estimate.observations import Observations
 from deckpose.estimate.pose_model import project_normalised
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
-
-#: Stop when every parameter step is below this fraction of its standard deviation.
-STEP_TOL_SIGMA = 1e-3
 
 
 @dataclass(frozen=True)
@@ -128,7 +134,7 @@ def levenberg_marquardt(
     obs: Observations,
     R_world_from_cam: FloatArray,
     *,
-    max_iterations: int = 30,
+    max_iterations: int = MAX_ITERATIONS,
 ) -> Fit:
     """Minimise the whitened reprojection error from ``params0``.
 
@@ -153,7 +159,7 @@ def levenberg_marquardt(
         return Fit(p, float("inf"), np.full((6, 6), np.nan), r, np.full_like(r, np.nan),
                    np.full(6, np.nan), 0, False)
     cost = float(np.sum(r * r))
-    lam = 1e-4
+    lam = DAMPING_START
     it = 0
     converged = False
     while it < max_iterations:
@@ -176,7 +182,7 @@ def levenberg_marquardt(
         small = float(np.max(np.abs(step) * np.sqrt(np.abs(dH)))) < STEP_TOL_SIGMA
         if cost_new <= cost:
             p, r, Jw, cost = p_new, r_new, J_new, cost_new
-            lam = max(lam * 0.1, 1e-12)
+            lam = max(lam * DAMPING_DOWN, DAMPING_FLOOR)
             if small:
                 converged = True
                 break
@@ -184,7 +190,7 @@ def levenberg_marquardt(
             if small:
                 converged = True
                 break
-            lam *= 10.0
-            if lam > 1e8:
+            lam *= DAMPING_UP
+            if lam > DAMPING_CEILING:
                 break
     return evaluate_fit(p, obs, R_world_from_cam, it, converged)

@@ -26,9 +26,17 @@ from deckpose.rotation import zyx_from_R
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
-#: Stop when every parameter step is below this fraction of its standard deviation
-#: (the value of :data:`estimate.least_squares.STEP_TOL_SIGMA`).
+#: Levenberg–Marquardt (here and in :func:`estimate.least_squares.levenberg_marquardt`):
+#: stop when every parameter step is below this fraction of its standard deviation.
 STEP_TOL_SIGMA = 1e-3
+#: Levenberg–Marquardt damping at the start (a fraction of the information's diagonal).
+DAMPING_START = 1e-4
+#: Factor of the damping after an accepted step, and its floor.
+DAMPING_DOWN, DAMPING_FLOOR = 0.1, 1e-12
+#: Factor of the damping after a rejected step, and the ceiling above which a frame stops.
+DAMPING_UP, DAMPING_CEILING = 10.0, 1e8
+#: Levenberg–Marquardt iterations at most (default).
+MAX_ITERATIONS = 30
 
 
 @dataclass(frozen=True)
@@ -370,22 +378,23 @@ _DIAGONAL = (np.arange(6), np.arange(6))
 
 
 def levenberg_marquardt_batch(params0: FloatArray, obs: FrameObservations, *,
-                              max_iterations: int = 30) -> FitBatch:
+                              max_iterations: int = MAX_ITERATIONS) -> FitBatch:
     """Minimise each frame's whitened reprojection error from ``params0`` (F, 6).
 
-    Levenberg–Marquardt, frame by frame: damping ``1e-4`` scaled by 10 down on
+    Levenberg–Marquardt, frame by frame: damping :data:`DAMPING_START` scaled down on
     success and up on failure, stop when every step is below :data:`STEP_TOL_SIGMA`
-    standard deviations, when the damping exceeds 1e8, or after ``max_iterations``.
+    standard deviations, when the damping exceeds :data:`DAMPING_CEILING`, or after
+    ``max_iterations``.
     A frame whose start puts a point behind the camera (or gives non-finite
     residuals) gets ``chi2 = inf`` and NaN information. Frames still iterating are
     computed together; the others drop out of the stack.
     """
     F = params0.shape[0]
     p = np.array(params0, dtype=float)
-    r, Jw, front, _ = _whitened(p, obs)
+    r, Jw, front, res = _whitened(p, obs)
     start_ok = front & _rows_ok(r)
     cost = np.where(start_ok, (r * r).sum(axis=(1, 2)), np.inf)
-    lam = np.full(F, 1e-4)
+    lam = np.full(F, DAMPING_START)
     it = np.zeros(F, dtype=np.int64)
     converged = np.zeros(F, dtype=bool)
     active = np.flatnonzero(start_ok)
@@ -403,29 +412,38 @@ def levenberg_marquardt_batch(params0: FloatArray, obs: FrameObservations, *,
             H[:, _DIAGONAL[0], _DIAGONAL[1]] += lam_a[:, None] * dH
             neg_step, solved = solve_batch(H, g)
             p_new = (p if everyone else p[active]) - neg_step
-            r_new, J_new, front_new, _ = _whitened(p_new, sub)
+            r_new, J_new, front_new, res_new = _whitened(p_new, sub)
             cost_new = np.where(front_new, (r_new * r_new).sum(axis=(1, 2)), np.inf)
-            small = (np.abs(neg_step) * np.sqrt(np.abs(dH))).max(axis=1) < STEP_TOL_SIGMA
+            small = (np.abs(neg_step) * np.sqrt(dH)).max(axis=1) < STEP_TOL_SIGMA  # dH: sums of squares
             better = cost_new <= cost_a
             ok = solved & (np.isfinite(cost_new) | np.isfinite(neg_step.sum(axis=1)))  # not blown up
             accept = ok & better
             if everyone and accept.all():
-                p, r, Jw, cost = p_new, r_new, J_new, cost_new
-                lam = np.maximum(lam * 0.1, 1e-12)
+                p, r, Jw, res, cost = p_new, r_new, J_new, res_new, cost_new
+                lam = np.maximum(lam * DAMPING_DOWN, DAMPING_FLOOR)
                 stop = small
             else:
                 acc = active[accept]
                 p[acc], r[acc], Jw[acc], cost[acc] = p_new[accept], r_new[accept], J_new[accept], cost_new[accept]
-                lam[acc] = np.maximum(lam[acc] * 0.1, 1e-12)
+                res[acc] = res_new[accept]
+                lam[acc] = np.maximum(lam[acc] * DAMPING_DOWN, DAMPING_FLOOR)
                 reject = ok & ~better
-                lam[active[reject & ~small]] *= 10.0
-                stop = ~ok | (ok & small) | (reject & ~small & (lam[active] > 1e8))
-            converged[active[ok & small]] = True
-            stop |= it[active] >= max_iterations
+                lam[active[reject & ~small]] *= DAMPING_UP
+                stop = ~ok | (ok & small) | (reject & ~small & (lam[active] > DAMPING_CEILING))
+            if everyone:
+                converged |= ok & small
+                stop |= it >= max_iterations
+            else:
+                converged[active[ok & small]] = True
+                stop |= it[active] >= max_iterations
             if stop.any():
                 active = active[~stop]
                 everyone = False
-    fit = evaluate_fit_batch(p, obs, it, converged)
+    # The fit at the final parameters from the residuals and Jacobian already there (every
+    # frame's were computed at its ``p``, where all points lie in front unless the start failed)
+    H, g = _normal_equations(r, Jw)
+    res_px = (obs.px_from_norm @ res[:, :, :, None])[:, :, :, 0]
+    fit = FitBatch(p, np.where(start_ok, np.sum(r * r, axis=(1, 2)), np.inf), H, r, res_px, g, it, converged)
     if not start_ok.all():
         bad = ~start_ok
         chi2 = fit.chi2.copy()

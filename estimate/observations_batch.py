@@ -146,12 +146,14 @@ def group_observations(
         same = _per_frame_all(np.all(cov == c0_full[frame_of], axis=(1, 2)), frame_of, F)
         iso[has] = first_iso & same[has]
         sigma_iso[iso] = np.sqrt(c0_full[iso, 0, 0])
-    with np.errstate(invalid="ignore"):
-        keep = (ids_all >= 0) & (ids_all < layout.n_beacons) & np.isfinite(pts_all).all(axis=1)
-        a, b, c = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
-        cov_ok = np.isfinite(cov).all(axis=(1, 2)) & (a > 0) & (a * c - b * b > 0) & (
-            np.abs(cov[:, 1, 0] - b) <= 1e-9 * (np.abs(b) + a + c))
-    keep &= iso[frame_of] | cov_ok
+    keep = (ids_all >= 0) & (ids_all < layout.n_beacons) & np.isfinite(pts_all).all(axis=1)
+    iso_point = iso[frame_of]
+    if not iso_point.all():  # a frame with its own covariances: each must be a valid one
+        with np.errstate(invalid="ignore"):
+            a, b, c = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
+            cov_ok = np.isfinite(cov).all(axis=(1, 2)) & (a > 0) & (a * c - b * b > 0) & (
+                np.abs(cov[:, 1, 0] - b) <= 1e-9 * (np.abs(b) + a + c))
+        keep &= iso_point | cov_ok
     index = np.flatnonzero(keep)
     fidx = frame_of[index]
     K = camera.K
@@ -165,9 +167,12 @@ def group_observations(
     else:
         D = np.broadcast_to(K22, (n, 2, 2))
     general = ~iso[fidx] | camera.has_distortion
-    L = np.empty((n, 2, 2))
-    fast = ~general
-    L[fast] = K22[None] / sigma_iso[fidx[fast], None, None]
+    if not general.any():  # one whitening matrix per frame
+        L = K22[None] / sigma_iso[fidx, None, None]
+    else:
+        L = np.empty((n, 2, 2))
+        fast = ~general
+        L[fast] = K22[None] / sigma_iso[fidx[fast], None, None]
     if np.any(general):
         gi = np.flatnonzero(general)
         # 2x2 inverses where they exist: a point far outside the image (-8e170 px) makes a

@@ -38,17 +38,38 @@ def params_from_rodrigues(rvec: np.ndarray, tvec: np.ndarray, R_world_from_cam: 
     return params_from_relative(R, np.asarray(tvec, dtype=float).ravel(), R_world_from_cam)
 
 
+#: Two pose solutions are one when every angle, and every translation relative to the height,
+#: differs by less than this (radians; fraction of ``1 + |height|``).
+SAME_TOL = 1e-6
+#: Two starts share a basin of attraction for practical purposes (0.01 rad, 1 % of the height).
+BASIN_TOL = 1e-2
+
+
+def poses_close(a: np.ndarray, b: np.ndarray, tol: float) -> np.ndarray:
+    """Whether each pair of pose parameters agrees within ``tol`` (:data:`SAME_TOL`, :data:`BASIN_TOL`).
+
+    Parameters
+    ----------
+    a, b : (F, 6) array of float
+        Pose parameters; the translation tolerance scales with ``1 + |a's height|``.
+    tol : float
+
+    Returns
+    -------
+    (F,) array of bool
+        False where a value is NaN.
+    """
+    d = np.abs(a - b)
+    d[:, :3] = np.abs(wrap_angle_rad(d[:, :3]))  # (comparisons with NaN raise no warning)
+    return np.all(d[:, :3] < tol, axis=1) & np.all(d[:, 3:] < tol * (1 + np.abs(a[:, 5:6])), axis=1)
+
+
 def _same(a: np.ndarray, b: np.ndarray) -> bool:
-    d = np.asarray(a - b)
-    d[:3] = wrap_angle_rad(d[:3])
-    return bool(np.all(np.abs(d[:3]) < 1e-6) and np.all(np.abs(d[3:]) < 1e-6 * (1 + abs(a[5]))))
+    return bool(poses_close(a[None], b[None], SAME_TOL)[0])
 
 
 def _near(a: np.ndarray, b: np.ndarray) -> bool:
-    """Same basin of attraction for practical purposes (0.01 rad, 1 % of the height)."""
-    d = np.asarray(a - b)
-    d[:3] = wrap_angle_rad(d[:3])
-    return bool(np.all(np.abs(d[:3]) < 1e-2) and np.all(np.abs(d[3:]) < 1e-2 * (1 + abs(a[5]))))
+    return bool(poses_close(a[None], b[None], BASIN_TOL)[0])
 
 
 def pnp_candidates(obs: Observations, R_world_from_cam: np.ndarray) -> tuple[list[Fit], dict[str, float]] | str:
@@ -71,7 +92,7 @@ def pnp_candidates(obs: Observations, R_world_from_cam: np.ndarray) -> tuple[lis
     ok, rv, tv = cv2.solvePnP(obj, img, K_NORMALISED, None, flags=cv2.SOLVEPNP_SQPNP)
     if ok:
         p = params_from_rodrigues(rv, tv, R_world_from_cam)
-        if not any(_same(p, s) for s in starts):
+        if not (starts and poses_close(np.broadcast_to(p, (len(starts), 6)), np.array(starts), SAME_TOL).any()):
             starts.insert(0, p)
     starts = [s for s in starts if np.all(np.isfinite(s))]
     if not starts:

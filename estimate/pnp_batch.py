@@ -11,17 +11,23 @@ from __future__ import annotations
 import cv2
 import numpy as np
 from deckpose.estimate.least_squares_batch import (
+    FitBatch,
     FrameObservations,
     evaluate_fit_batch,
     levenberg_marquardt_batch,
     params_from_relative_batch,
 )
-from deckpose.estimate.pnp import ALT_MARGIN_CHI2, K_NORMALISED, MIN_BEACONS
+from deckpose.estimate.pnp import (
+    ALT_MARGIN_CHI2,
+    BASIN_TOL,
+    K_NORMALISED,
+    MIN_BEACONS,
+    SAME_TOL,
+    poses_close,
+)
 from deckpose.estimate.solution_batch import BatchCandidates, Extra, scatter_fit
 from numpy.typing import NDArray
 from scipy.spatial.transform import Rotation
-
-from deckpose.rotation import wrap_angle_rad
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
@@ -30,15 +36,6 @@ BoolArray = NDArray[np.bool_]
 def rotation_matrices(rvec: FloatArray) -> FloatArray:
     """Rotation matrices (F, 3, 3) of Rodrigues vectors (F, 3), as ``cv2.Rodrigues`` gives them."""
     return Rotation.from_rotvec(rvec).as_matrix()
-
-
-def _close(a: FloatArray, b: FloatArray, tol: float) -> BoolArray:
-    """Per frame: :func:`estimate.pnp._same` (tol 1e-6) or ``_near`` (tol 1e-2) of params (F, 6)."""
-    d = a - b
-    d[:, :3] = wrap_angle_rad(d[:, :3])
-    with np.errstate(invalid="ignore"):
-        return np.all(np.abs(d[:, :3]) < tol, axis=1) & np.all(
-            np.abs(d[:, 3:]) < tol * (1 + np.abs(a[:, 5:6])), axis=1)
 
 
 def _opencv_starts(obs: FrameObservations) -> tuple[FloatArray, BoolArray, FloatArray, BoolArray]:
@@ -94,7 +91,7 @@ def pnp_candidates_batch(obs: FrameObservations) -> BatchCandidates:
     # SQPnP joins (in front) unless it repeats an IPPE solution; then non-finite starts drop out.
     dup = np.zeros(F, dtype=bool)
     for j in (1, 2):
-        dup |= present[:, j] & _close(starts[:, 0], starts[:, j], 1e-6)
+        dup |= present[:, j] & poses_close(starts[:, 0], starts[:, j], SAME_TOL)
     valid = present.copy()
     valid[:, 0] &= ~dup
     valid &= np.all(np.isfinite(starts), axis=2)
@@ -107,20 +104,29 @@ def pnp_candidates_batch(obs: FrameObservations) -> BatchCandidates:
     n_valid = valid.sum(axis=1)
     ar = np.arange(F)
     rows0 = np.flatnonzero(n_valid >= 1)
-    fit0 = scatter_fit(F, rows0, levenberg_marquardt_batch(starts[rows0, order[rows0, 0]], obs.take(rows0)))
+    fit0 = _refine_rows(F, rows0, starts[rows0, order[rows0, 0]], obs)
     fits = [fit0]
     kept = [n_valid >= 1]
     for pos in (1, 2):
         slot = order[:, pos]
         p_raw = starts[ar, slot]
         with np.errstate(invalid="ignore"):
-            compete = (n_valid > pos) & ~_close(p_raw, fit0.params, 1e-2) & (
+            compete = (n_valid > pos) & ~poses_close(p_raw, fit0.params, BASIN_TOL) & (
                 chi_raw[ar, slot] < fit0.chi2 + ALT_MARGIN_CHI2)
+        if not compete.any():
+            continue  # no frame has a competing start here: no slot (the single-frame method lists none)
         rows = np.flatnonzero(compete)
-        f = scatter_fit(F, rows, levenberg_marquardt_batch(p_raw[rows], obs.take(rows)))
+        f = _refine_rows(F, rows, p_raw[rows], obs)
         new = compete.copy()
         for g, k in zip(fits, kept):
-            new &= ~(k & _close(f.params, g.params, 1e-6))
+            new &= ~(k & poses_close(f.params, g.params, SAME_TOL))
         fits.append(f)
         kept.append(new)
     return BatchCandidates(tuple(fits), np.stack(kept, axis=1), failed | (n_valid == 0), extras)
+
+
+def _refine_rows(n_frames: int, rows: NDArray[np.int64], starts: FloatArray, obs: FrameObservations) -> FitBatch:
+    """Levenberg–Marquardt from ``starts`` for frames ``rows``, scattered into ``n_frames`` frames."""
+    if rows.size == n_frames:  # every frame: no gather, no scatter
+        return levenberg_marquardt_batch(starts, obs)
+    return scatter_fit(n_frames, rows, levenberg_marquardt_batch(starts, obs.take(rows)))

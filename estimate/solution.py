@@ -15,7 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any, overload
 
 import cv2
 import numpy as np
@@ -23,6 +23,7 @@ from deckpose.estimate.least_squares import Fit
 from deckpose.estimate.least_squares_batch import FrameObservations, levenberg_marquardt_batch
 from deckpose.estimate.observations import Observations
 from deckpose.estimate.pose_model import relative_from_params
+from numpy.typing import NDArray
 
 from deckpose.estimates_schema import MAX_OUTLIER_IDS
 from deckpose.records import POSE_PARAMS, PoseEstimate
@@ -104,6 +105,40 @@ def _param_delta(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return d
 
 
+#: The planar ambiguity's two solutions are one pose when their Mahalanobis distance (in the
+#: best fit's covariance) is at most this.
+AMBIGUITY_SIGMAS = 3.0
+
+
+@overload
+def ambiguity_resolved(delta_chi2: float, mahalanobis: float, ambiguity_chi2: float) -> bool: ...
+
+
+@overload
+def ambiguity_resolved(delta_chi2: NDArray[np.float64], mahalanobis: NDArray[np.float64],
+                       ambiguity_chi2: float) -> NDArray[np.bool_]: ...
+
+
+def ambiguity_resolved(delta_chi2: Any, mahalanobis: Any, ambiguity_chi2: float) -> Any:
+    """Whether the best solution is told from the runner-up: the one home of this test.
+
+    Resolved when the runner-up's chi-square exceeds the best one's by at least
+    ``ambiguity_chi2``, or the two poses lie within :data:`AMBIGUITY_SIGMAS` of each other.
+
+    Parameters
+    ----------
+    delta_chi2, mahalanobis : float or (F,) array of float
+        Runner-up minus best chi-square; the distance between the two poses.
+    ambiguity_chi2 : float
+
+    Returns
+    -------
+    bool or (F,) array of bool
+        False where a value is NaN.
+    """
+    return (delta_chi2 >= ambiguity_chi2) | (mahalanobis <= AMBIGUITY_SIGMAS)
+
+
 def pick_candidate(
     fits: list[Fit], *, ambiguity_chi2: float, assume_level_deck: bool, extras: dict[str, float]
 ) -> Candidate | str:
@@ -132,7 +167,7 @@ def pick_candidate(
     ex.update(ambiguity_delta_chi2=dchi2, ambiguity_mahalanobis=maha,
               alt_roll_rad=float(alt.params[0]), alt_pitch_rad=float(alt.params[1]),
               alt_yaw_rad=float(alt.params[2]), alt_height_m=float(alt.params[5]))
-    if dchi2 >= ambiguity_chi2 or maha <= 3.0:
+    if ambiguity_resolved(dchi2, maha, ambiguity_chi2):
         return Candidate(best, ex)
     if assume_level_deck:
         levelness = [math.cos(f.params[0]) * math.cos(f.params[1]) for f in (best, alt)]
@@ -262,12 +297,28 @@ def _too_few(obs: Observations, min_points: int) -> str:
 MAX_ANGLE_SIGMA_RAD = 0.5
 
 
-def _constrained(params: np.ndarray, sigmas: np.ndarray) -> bool:
-    """Whether the covariance pins the pose down at all: sigma height below the height, and
-    every angle sigma below :data:`MAX_ANGLE_SIGMA_RAD` (near-coincident or collinear points
-    give a finite but meaningless covariance)."""
-    return bool(np.all(np.isfinite(sigmas)) and sigmas[5] < abs(params[5])
-                and np.all(sigmas[:3] < MAX_ANGLE_SIGMA_RAD))
+def pose_constrained(params: np.ndarray, sigmas: np.ndarray) -> np.ndarray:
+    """Whether each covariance pins its pose down at all.
+
+    Every sigma finite, sigma height below the height, and every angle sigma below
+    :data:`MAX_ANGLE_SIGMA_RAD` (near-coincident or collinear points give a finite but
+    meaningless covariance). The one home of this test, for the single-frame and the
+    batched estimates.
+
+    Parameters
+    ----------
+    params : (F, 6) array of float
+        Pose parameters (:data:`~deckpose.records.POSE_PARAMS`).
+    sigmas : (F, 6) array of float
+        Their standard deviations (rad, m).
+
+    Returns
+    -------
+    (F,) array of bool
+    """
+    with np.errstate(invalid="ignore"):
+        return (np.isfinite(sigmas).all(axis=1) & (sigmas[:, 5] < np.abs(params[:, 5]))
+                & (sigmas[:, :3] < MAX_ANGLE_SIGMA_RAD).all(axis=1))
 
 
 def make_estimate(
@@ -307,7 +358,7 @@ def make_estimate(
         problems.append("non-finite pose or reprojection error")
     elif cov is None:
         problems.append("covariance undefined: the beacons do not constrain all six parameters")
-    elif not _constrained(p, np.sqrt(np.diag(cov))):
+    elif not pose_constrained(p[None], np.sqrt(np.diag(cov))[None])[0]:
         problems.append(
             f"the beacons hardly constrain the pose: sigma height {np.sqrt(cov[5, 5]):.3g} m for a height of "
             f"{p[5]:.3g} m, sigma roll/pitch/yaw up to {np.degrees(np.sqrt(np.max(np.diag(cov)[:3]))):.3g} deg "

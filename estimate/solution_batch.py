@@ -21,7 +21,7 @@ from deckpose.estimate.least_squares_batch import (
     rotation_vectors,
     solve_batch,
 )
-from deckpose.estimate.solution import MAX_ANGLE_SIGMA_RAD, covariance_scale
+from deckpose.estimate.solution import ambiguity_resolved, covariance_scale, pose_constrained
 from numpy.typing import NDArray
 
 from deckpose.records import POSE_PARAMS, PoseEstimate
@@ -157,7 +157,7 @@ def pick_batch(cands: BatchCandidates, *, ambiguity_chi2: float) -> PickBatch:
             maha[rows] = np.sqrt(np.sum(delta[rows] * x, axis=1))
             unresolved[rows[~solved]] = True
         with np.errstate(invalid="ignore"):
-            resolved = (dchi2 >= ambiguity_chi2) | (maha <= 3.0)
+            resolved = ambiguity_resolved(dchi2, maha, ambiguity_chi2)
         unresolved |= has_alt & ~resolved
     return PickBatch(kb, n_good, best_p, cov, cov_ok, alt_p, dchi2, maha, unresolved)
 
@@ -203,9 +203,7 @@ def finish_batch(
     R_cd, t_cd = relative_from_params_batch(np.nan_to_num(best_p), obs.R_world_from_cam)
     rvec = rotation_vectors(R_cd)
     sig = np.sqrt(np.diagonal(cov, axis1=1, axis2=2))
-    with np.errstate(invalid="ignore"):
-        # the single-frame path flags poses the covariance does not pin down (solution._constrained)
-        fallback |= ~((sig[:, 5] < np.abs(best_p[:, 5])) & np.all(sig[:, :3] < MAX_ANGLE_SIGMA_RAD, axis=1))
+    fallback |= ~pose_constrained(best_p, sig)  # the single-frame path flags them not ok
     M = obs.xy.shape[1]
     n_points = float(M)
     ids = tuple(int(i) for i in obs.ids)

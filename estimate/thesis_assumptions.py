@@ -101,7 +101,7 @@ def flag_off_centre(
         pose = ShipPose(ref.roll_rad, ref.pitch_rad, ref.yaw_rad, surge_m=ref.surge_m,
                         sway_m=ref.sway_m)
         exact = project_layout(layout, pose, CameraPose.nadir(ref.height_m), cam0).points_px
-        _pts, mask = thesis_inputs(det, camera, layout)
+        mask = thesis_inputs([det], camera, layout)[1][0]
         ring = np.flatnonzero(mask)
         base = np.full((layout.n_ring, 2), np.nan)
         base[ring, 0] = exact[ring, 0] - camera.cx

@@ -331,3 +331,17 @@ def test_points_far_outside_the_image_do_not_end_a_batch():
             frames.append(Detections(pts, np.arange(13)))
         got = estimate_batch("pnp", frames, cam, LAYOUT, EstimateOptions())
         assert all(np.isfinite([e.roll_rad, e.height_m]).all() for e in got if e.ok)
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_batch_without_any_start_gives_the_single_frame_records(method):
+    # every frame of the batch (here: of one) fails before a solution exists: collinear
+    # points (no ellipse, no PnP pose) or all points on one spot; conic raised once its
+    # candidate slots were skipped where no frame had a start
+    d = _random_frames(np.random.default_rng(4), 1, preset("8mp"), 0.5)[0]
+    collinear = _with(d, np.column_stack([np.linspace(500.0, 1500.0, len(d)), np.linspace(400.0, 900.0, len(d))]))
+    one_spot = _with(d, np.broadcast_to(d.points_px[:1], d.points_px.shape).copy())
+    opts = EstimateOptions(sigma_px=0.5)
+    for frames in ([collinear], [one_spot], [collinear, one_spot]):
+        got = _compare(method, frames, preset("8mp"), opts)
+        assert not any(e.ok for e in got)

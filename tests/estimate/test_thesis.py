@@ -172,3 +172,23 @@ def test_random_input_never_raises_and_never_reports_nan_as_ok(points, mask):
         assert np.all(np.isfinite(arr[res.ok]))
         assert np.all(np.isnan(arr[~res.ok]))
     assert np.all((res.failure == 0) == res.ok)
+
+
+def test_thesis_inputs_centre_each_frame_and_keep_a_repeated_ids_last_detection():
+    # the arrangement the method reads, written out: X' = u - cx, Y' = cy - v per ring id,
+    # NaN and unmasked where missing; centre and unassigned detections ignored
+    from deckpose.estimate.thesis import thesis_inputs
+
+    cam, layout = preset("8mp"), DeckLayout()
+    a = Detections(np.array([[100.0, 200.0], [300.0, 400.0], [500.0, 600.0], [7.0, 8.0], [9.0, 10.0]]),
+                   [0, 3, 3, layout.centre_id, -1])
+    b = Detections(np.array([[1000.0, 20.0]]), [11])
+    empty = Detections(np.zeros((0, 2)), np.zeros(0, dtype=np.int64))
+    points, mask = thesis_inputs([a, empty, b], cam, layout)
+    assert points.shape == (3, layout.n_ring, 2) and mask.shape == (3, layout.n_ring)
+    expected = np.full((3, layout.n_ring, 2), np.nan)
+    expected[0, 0] = [100.0 - cam.cx, cam.cy - 200.0]
+    expected[0, 3] = [500.0 - cam.cx, cam.cy - 600.0]  # id 3 listed twice: the last detection
+    expected[2, 11] = [1000.0 - cam.cx, cam.cy - 20.0]
+    np.testing.assert_array_equal(points, expected)  # exact: one subtraction each
+    np.testing.assert_array_equal(mask, ~np.isnan(expected[:, :, 0]))
