@@ -28,8 +28,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("run", type=Path, help="run folder with estimates (deckpose estimate --run RUN)")
     from deckpose.tracking.config import TRACKERS
 
-    p.add_argument("--method", default=TRACKERS[0], choices=TRACKERS,
-                   help="the tracker: wave-bank, the wave-frequency oscillator-bank Kalman filter")
+    p.add_argument("--method", default=TRACKERS[0],
+                   help="the tracker: wave-bank, the wave-frequency oscillator-bank Kalman filter "
+                        "(the estimator whose estimates are tracked is --estimates)")
     p.add_argument("--detector", default=None, help="whose estimates (default: the run's only estimates table)")
     p.add_argument("--estimates", default=None, metavar="METHOD",
                    help="which estimator's estimates, with its variant (pnp, conic+refine; default: the run's only one)")
@@ -54,11 +55,17 @@ def _horizons(text: str) -> tuple[float, ...]:
 def run(args: argparse.Namespace) -> int:
     import dataclasses
 
+    from deckpose.errors import ConfigError
+    from deckpose.estimate.registry import names as estimator_names
     from deckpose.output_folder import claim_output
     from deckpose.run_folder import read_frames, run_paths
-    from deckpose.tracking.config import load_track_config
+    from deckpose.tracking.config import TRACKERS, load_track_config
     from deckpose.tracking.run import track_run
 
+    if args.method not in TRACKERS:
+        hint = (f"; --method picks the tracker, the estimator is --estimates {args.method}"
+                if args.method.split("+")[0] in estimator_names() else "")
+        raise ConfigError(f"unknown tracker {args.method!r} (choose from {', '.join(TRACKERS)}){hint}")
     config = load_track_config(args.config)
     if args.horizons is not None:
         config = dataclasses.replace(config, horizons_s=_horizons(args.horizons))

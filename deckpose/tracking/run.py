@@ -205,8 +205,10 @@ def _pick_estimates(run: RunPaths, detector: str | None, method: str | None) -> 
         return cand[0]
     listed = ", ".join(f"--detector {d} --estimates {m}" for d, m in pairs)
     if not cand:
-        raise InputDataError(f"no estimates of detector {detector or 'any'} and method {method or 'any'} in "
-                             f"{run.root}; the run has: {listed}")
+        several = " (one estimates table per call)" if "," in f"{detector or ''}{method or ''}" else ""
+        asked = " and ".join(f"{what} {name}" for what, name in (("detector", detector), ("method", method)) if name)
+        raise InputDataError(f"no estimates of {asked or 'any detector and method'} in {run.root}{several}; "
+                             f"the run has: {listed}")
     raise InputDataError(f"{run.root} has several estimates tables; choose one with {listed}")
 
 
@@ -236,7 +238,14 @@ def track_run(run_dir: str | Path, config: TrackConfig, *, tracker: str = "wave-
         raise ConfigError(f"unknown tracker {tracker!r}; choose one of {list(TRACKERS)}")
     run = run_paths(run_dir)
     frames = read_frames(run)
-    epoch, _ = capture_epoch(read_manifest(run))
+    manifest = read_manifest(run)
+    motion = (manifest.get("config") or {}).get("motion") or {}
+    if motion.get("source") == "fixed":
+        raise InputDataError(
+            f"{run.root} holds fixed attitudes, not a time series (motion source 'fixed'): a filter needs "
+            "frames in time; render an approach (a config's approach: section) or a motion series "
+            "(motion.source sea_state, file or thesis)")
+    epoch, _ = capture_epoch(manifest)
     det, meth = _pick_estimates(run, detector, method)
     estimates = read_estimates(run, det, meth)
     check_frames_match(frames, estimates, f"{run.estimates(det, meth)}",

@@ -39,3 +39,29 @@ def test_bad_input_is_one_line_and_status_2(tmp_path, capsys):
     assert "--horizons" in capsys.readouterr().err
     assert main(["track", str(tmp_path / "run"), "--estimates", "conic"]) == 2
     assert "the run has: --detector cog --estimates pnp" in capsys.readouterr().err
+
+
+def test_an_estimator_given_as_the_tracker_is_pointed_to_estimates(tmp_path, capsys):
+    write_run(tmp_path / "run", duration_s=2.0)
+    assert main(["track", str(tmp_path / "run"), "--method", "pnp"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert "unknown tracker 'pnp'" in err and "the estimator is --estimates pnp" in err
+    assert main(["track", str(tmp_path / "run"), "--estimates", "pnp,conic"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "one estimates table per call" in err and "detector any" not in err
+
+
+def test_a_run_of_fixed_attitudes_is_refused(tmp_path, capsys):
+    # fixed attitudes are no time series: filtering them "succeeded" with most frames gated out
+    import json
+
+    write_run(tmp_path / "run", duration_s=2.0)
+    manifest = tmp_path / "run" / "manifest.json"
+    doc = json.loads(manifest.read_text())
+    doc["config"] = {"motion": {"source": "fixed", "attitudes_deg": [[0, 0, 0]]}}
+    manifest.write_text(json.dumps(doc))
+    assert main(["track", str(tmp_path / "run")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "not a time series" in err and "approach" in err
+    assert not (tmp_path / "run" / "tracks").exists()
