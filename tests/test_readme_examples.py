@@ -169,8 +169,8 @@ def test_readme_track_examples_run_as_written(scratch):
 
     cmds = [c for c in COMMANDS if c.startswith("deckpose track ")]
     assert len(cmds) == 2
-    write_run(scratch / "runs" / "ss6", duration_s=10.0)   # a run with cog--pnp estimates
+    write_run(scratch / "runs" / "approach", duration_s=10.0)   # a run with cog--pnp estimates
     for cmd in cmds:
         _run(cmd, scratch)
-    tracks = pd.read_parquet(scratch / "runs" / "ss6" / "tracks" / "cog--pnp--wave-bank.parquet")
+    tracks = pd.read_parquet(scratch / "runs" / "approach" / "tracks" / "cog--pnp--wave-bank.parquet")
     assert len(tracks) == 101 and (tracks["status"] == "updated").all()
