@@ -56,7 +56,7 @@ def compute_errors(run: rl.RunPaths) -> pd.DataFrame:
     pairs = run.estimate_pairs()
     if not pairs:
         dets = run.detectors()
-        hint = (f"deckpose estimate --run {run.root} --detector {dets[0]} --method thesis" if dets
+        hint = (f"deckpose estimate --run {run.root} --detector {dets[0]} --method pnp" if dets
                 else f"deckpose detect {run.root} --detector cog, then deckpose estimate --run {run.root} --detector cog")
         raise InputDataError(f"{run.root} has no estimates (folder {run.root / 'estimates'}); make them with: {hint}")
     parts = []

@@ -316,7 +316,8 @@ def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool,
             hot = hot_pixel_table(cfg.sensor, cfg.seed, name, cam.height_px, cam.width_px)
             write_table(typed_frame([], HOT_PIXEL_COLUMNS) if not hot["u_px"].size else pd.DataFrame(hot),
                         run.hot_pixels_file(name), "hot pixels")
-    run.images_dir.mkdir(exist_ok=True)
+    if detection is None or detection.keep_images:  # a run that keeps no frame has no images folder
+        run.images_dir.mkdir(exist_ok=True)
     run.previews_dir.mkdir(exist_ok=True)
     (out / ".parts").mkdir(exist_ok=True)
     _write_json(manifest, _manifest(cfg, plan, complete=False, detection=detection))

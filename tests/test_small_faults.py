@@ -70,3 +70,26 @@ def test_a_detect_output_folder_given_as_a_table_names_the_table_in_it(tmp_path)
     pd.DataFrame({"a": [1]}).to_parquet(out / "detections.parquet")
     with pytest.raises(InputDataError, match=r"is a folder, not a detections file; read .*x\.parquet/detections\.parquet$"):
         read_table(out, "detections")
+
+
+def test_a_numpy_value_in_a_message_reads_as_its_value():
+    # "non-numeric v_px (np.float64(nan))" leaked numpy's repr into a user's message
+    import numpy as np
+
+    from deckpose.errors import short_repr
+
+    assert short_repr(np.float64(np.nan)) == "nan" and short_repr(np.int64(7)) == "7"
+    assert short_repr("x" * 100, limit=10) == "'xxxxxx..."
+
+
+def test_a_run_that_keeps_no_frame_has_no_images_folder(tmp_path):
+    from deckpose.render.config import DEFAULT_CONFIG, config_from_dict
+    from deckpose.render.dataset import render_dataset
+    from deckpose.render.render_detection import RenderDetection
+
+    doc = {**DEFAULT_CONFIG, "cameras": [{"preset": "4mp-square", "size": [320, 240]}], "heights_m": [30.0],
+           "lighting": ["night"], "motion": {"source": "fixed", "attitudes_deg": [[0, 0, 0]]}}
+    out = tmp_path / "ds"
+    render_dataset(config_from_dict(doc), out, workers=0, progress=False,
+                   detection=RenderDetection(detectors=("cog",), keep_images=False))
+    assert not (out / "images").exists() and (out / "detections" / "cog.parquet").exists()
