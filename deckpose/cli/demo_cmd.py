@@ -93,8 +93,8 @@ def run(args: argparse.Namespace) -> int:
     md = run_thesis_tables(config, out, lambda done, _total: bar.update(done - bar.n))
     bar.close()
     print(f"\ndone in {time.perf_counter() - t0:.0f} s.")
-    print(f"  report:          {paths['report']}")
-    print(f"  resolution tables: {paths['tables']}")
-    print(f"  MCAP log:        {paths['mcap']}  (open in Foxglove with {run_dir / 'foxglove_layout.json'})")
-    print(f"  thesis tables:   {md}")
+    for label, path in (("report", paths["report"]), ("resolution tables", paths["tables"]),
+                        ("MCAP log", f"{paths['mcap']}  (open in Foxglove with {run_dir / 'foxglove_layout.json'})"),
+                        ("thesis tables", md)):
+        print(f"  {label + ':':19s}{path}")
     return 0
