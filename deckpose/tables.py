@@ -29,6 +29,8 @@ from deckpose.table_schemas import (
     FRAME_COLUMNS,
     HOT_PIXEL_COLUMNS,
     LIGHT_COLUMNS,
+    PAINTED_RING_COLUMNS,
+    RING_DETECTION_COLUMNS,
     Column,
 )
 
@@ -48,7 +50,7 @@ UNIT_SUFFIXES: dict[str, str] = {
 SCHEMAS: dict[str, tuple[Column, ...]] = {
     "frames": FRAME_COLUMNS, "beacons": BEACON_COLUMNS, "detections": DETECTION_COLUMNS,
     "detect frames": DETECT_FRAME_COLUMNS, "estimates": ESTIMATE_COLUMNS, "lights": LIGHT_COLUMNS,
-    "hot pixels": HOT_PIXEL_COLUMNS,
+    "hot pixels": HOT_PIXEL_COLUMNS, "painted ring": PAINTED_RING_COLUMNS, "ring detections": RING_DETECTION_COLUMNS,
 }
 #: Kinds written with exactly their schema's columns, in order, with its types.
 FIXED_KINDS = frozenset({"estimates"})

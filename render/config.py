@@ -32,6 +32,7 @@ from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH, epoch_ns
 from deckpose.errors import ConfigError
 from deckpose.image_store import ImageFormat
 from deckpose.layout import DeckLayout, layout_from_dict, layout_to_dict
+from deckpose.painted_ring import PaintedRing, painted_ring_from_dict
 from deckpose.typed_config import check_range, coerce, from_mapping, load_yaml
 
 
@@ -533,6 +534,8 @@ class RenderConfig:
     ship_lights: ShipLightsSpec = ShipLightsSpec()
     shutter: ShutterSpec = ShutterSpec()
     optics: OpticsSpec = OpticsSpec()
+    #: A painted ring on the deck (:mod:`deckpose.painted_ring`); None: none (the default).
+    painted_ring: PaintedRing | None = None
     seed: int = 0
     backend: Backend = Backend.EGL
     name: str = "dataset"
@@ -597,6 +600,7 @@ _SECTIONS: dict[str, Any] = {
     "ship_lights": _ship_lights_spec,
     "shutter": _shutter_spec,
     "optics": _optics_spec,
+    "painted_ring": lambda value, where: None if value is None else painted_ring_from_dict(value, where),
 }
 
 
@@ -627,12 +631,28 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
     if half <= cfg.layout.radius_m + cfg.layout.beacon_radius_m:
         raise ConfigError(f"scene.deck_half_size_m={half} must exceed the ring radius "
                           f"{cfg.layout.radius_m} so the beacons sit on the deck")
+    if cfg.painted_ring is not None:
+        _check_painted_ring(cfg, cfg.painted_ring, source)
     if cfg.optics.focus_distance_m is not None:
         f_m = max(c.model().fx for c in cfg.cameras) * cfg.optics.pixel_pitch_um * 1e-6
         if cfg.optics.focus_distance_m <= f_m:
             raise ConfigError(f"optics.focus_distance_m: must exceed the focal length ({f_m * 1e3:.2f} mm "
                               f"= fx x pixel_pitch_um), got {cfg.optics.focus_distance_m:g}")
     return cfg
+
+
+def _check_painted_ring(cfg: RenderConfig, ring: PaintedRing, source: str) -> None:
+    """The painted ring must lie on the deck, clear of the beacons, in flat shading."""
+    if ring.extent_m >= cfg.deck_half_size_m():
+        raise ConfigError(f"{source}: painted_ring reaches {ring.extent_m:g} m from the centre, beyond the deck "
+                          f"(half size {cfg.deck_half_size_m():g} m): make it smaller or scene.deck_half_size_m larger")
+    clear = cfg.layout.radius_m - 3 * cfg.layout.beacon_radius_m  # the beacons' dark fittings
+    if ring.extent_m >= clear:
+        raise ConfigError(f"{source}: painted_ring reaches {ring.extent_m:g} m from the centre, onto the beacons' "
+                          f"fittings (from {clear:g} m): make the ring (or its bar) smaller or layout.radius_m larger")
+    if cfg.scene.shading is not Shading.FLAT:
+        raise ConfigError(f"{source}: painted_ring needs scene.shading: flat (pbr lights the deck with a sun "
+                          "the analytic paint does not see)")
 
 
 #: The embedded default job (the same as ``configs/smoke.yaml``): two small resolutions x two
@@ -679,6 +699,8 @@ def config_to_dict(cfg: RenderConfig) -> dict[str, Any]:
     d = {f.name: getattr(cfg, f.name) for f in fields(cfg)}
     out: dict[str, Any] = {}
     for key, val in d.items():
+        if key == "painted_ring" and val is None:
+            continue  # no key: a config without a ring resolves as it did before issue 22
         if key == "layout":
             out[key] = layout_to_dict(val)
         elif key == "cameras":
