@@ -71,7 +71,12 @@ from deckpose.run_folder import (
     manifest_cameras,
     preview_relpath,
 )
-from deckpose.table_schemas import HOT_PIXEL_COLUMNS, LIGHT_COLUMNS, PAINTED_RING_COLUMNS, typed_frame
+from deckpose.table_schemas import (
+    HOT_PIXEL_COLUMNS,
+    LIGHT_COLUMNS,
+    PAINTED_RING_COLUMNS,
+    typed_frame,
+)
 from deckpose.tables import write_table
 
 if TYPE_CHECKING:
@@ -126,7 +131,13 @@ def encode_frame(cfg: RenderConfig, spec: FrameSpec, detection: RenderDetection 
     ``detection``, the frame is also detected here, from memory (the part's
     ``"detections"``), and its image is encoded only if ``detection.keep_images``.
     """
-    from deckpose.render.frame import beacon_rows, frame_row, light_rows, painted_ring_rows, render_frame
+    from deckpose.render.frame import (
+        beacon_rows,
+        frame_row,
+        light_rows,
+        painted_ring_rows,
+        render_frame,
+    )
     from deckpose.render.scene import DeckRenderer
 
     key = (cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)

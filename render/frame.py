@@ -33,7 +33,13 @@ from deckpose.render.lens import distort, raster_camera
 from deckpose.render.light import unit_factors
 from deckpose.render.occlusion import OCCLUSION_STREAM, OcclusionRecord, occlude
 from deckpose.render.optics import LensedFrame, OpticsRecord, optics_row, through_lens
-from deckpose.render.painted_ring import RingTruth, floodlight_gain, paint_splats, ring_rows, ring_truth
+from deckpose.render.painted_ring import (
+    RingTruth,
+    floodlight_gain,
+    paint_splats,
+    ring_rows,
+    ring_truth,
+)
 from deckpose.render.plan import FrameSpec
 from deckpose.render.rolling_shutter import ShutterFrame, rolling_shutter_beacons
 from deckpose.render.scene import DeckRenderer, radiance_scale
