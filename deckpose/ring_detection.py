@@ -61,7 +61,7 @@ class RingDetection:
         ``contrast_dn``, ``noise_dn`` and ``blur_px`` (a Gaussian-blurred step).
     residual_scale : (2,) array of float
         Variance factor of each edge's point residuals for their correlation along the
-        edge (1 + 2 sum of the first autocorrelations; 1: independent).
+        edge (batch means over blocks of 8, 32 and 128 points; 1: independent).
     frame_id : int
     """
 

@@ -33,6 +33,7 @@ Only paint brighter than the deck is looked for.
 
 from __future__ import annotations
 
+import itertools
 import math
 import time
 from dataclasses import dataclass
@@ -111,7 +112,7 @@ def _coarse_ring(grey: NDArray[np.float32], ring: PaintedRing) -> tuple[float, f
         except ValueError:
             continue
         thresholds.update(t)
-        thresholds.update(0.5 * (a + b) for a, b in zip(t[:-1], t[1:]))
+        thresholds.update(0.5 * (a + b) for a, b in itertools.pairwise(t))
     expected = ring.line_width_m / ring.radius_m / math.sqrt(12.0)  # std of rho across a uniform band
     best: tuple[float, tuple[float, float, float, float, float]] | None = None
     for t in sorted(thresholds, reverse=True):
@@ -290,14 +291,26 @@ def fit_edge_conic(points_px: FloatArray, *, iterations: int = 6) -> tuple[Float
     return (C if inside < 0 else -C), keep
 
 
-def _autocorrelation_factor(r: FloatArray, lags: int = 3) -> float:
-    """``1 + 2 sum_k rho_k`` over the first lags of residuals ordered along the edge (>= 1)."""
+def _correlation_factor(r: FloatArray, blocks: tuple[int, ...] = (8, 32, 128)) -> float:
+    """How much more the mean of residuals ordered along the edge varies than if they were independent.
+
+    Deck texture and shading move neighbouring edge points together, over tens of pixels.
+    For consecutive blocks of ``b`` points, ``b var(block means) / var(points)`` is 1 for
+    independent points and the variance factor of a mean otherwise (batch means); the
+    largest over the block sizes with at least 8 blocks is returned (at least 1).
+    """
     r = r - r.mean()
-    v = float(np.dot(r, r))
-    if len(r) < 4 * lags or v <= 0:
-        return 1.0
-    rho = [float(np.dot(r[:-k], r[k:])) / v for k in range(1, lags + 1)]
-    return max(1.0, 1.0 + 2.0 * sum(rho))
+    v = float(np.mean(r * r))
+    best = 1.0
+    if v <= 0:
+        return best
+    for b in blocks:
+        m = len(r) // b
+        if m < 8:
+            break
+        means = r[:m * b].reshape(m, b).mean(axis=1)
+        best = max(best, b * float(np.mean(means ** 2)) / v)
+    return best
 
 
 def _bow_ends(grey: NDArray[np.float32], mid: FloatArray, normals: FloatArray, half_px: FloatArray,
@@ -421,7 +434,7 @@ def detect_ring_edges(image: NDArray[Any], camera: CameraModel, ring: PaintedRin
     for k in range(2):
         d = sampson_distance(fits[k][0], camera.undistort(points[k]))
         rms[k] = float(np.sqrt(np.mean(d ** 2)))
-        scale[k] = _autocorrelation_factor(d)
+        scale[k] = _correlation_factor(d)
     spacing = perimeter / n * np.array([1 - ratio, 1 + ratio])
     # the image's own figures: step, noise (neighbouring-pixel differences just off the ring), blur
     step = float(np.median(prof.step_dn[valid]))
