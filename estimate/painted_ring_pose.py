@@ -102,6 +102,20 @@ def _grad_norm(camera: CameraModel, params: FloatArray, R_wc: FloatArray, points
     return np.hypot(du, dv)
 
 
+def _residuals(p: FloatArray, R_wc: FloatArray, rays: list[FloatArray], end_rays: FloatArray, ring: PaintedRing,
+               scales: list[FloatArray], sigma: FloatArray, sig_phi: float) -> FloatArray:
+    """Whitened residuals: each edge point's pixel distance from its edge circle, then the bow angle."""
+    res = []
+    for k, r_edge in enumerate(ring.edge_radii_m):
+        xy = _deck_xy(p, R_wc, rays[k])
+        res.append((np.hypot(xy[:, 0], xy[:, 1]) - r_edge) / scales[k] / sigma[k])
+    e = _deck_xy(p, R_wc, end_rays)
+    ang = np.arctan2(e[:, 1], e[:, 0])
+    phi = math.atan2(float(np.sin(ang).sum()), float(np.cos(ang).sum()))  # mean angle of the two ends
+    res.append(np.array([phi / sig_phi]))
+    return np.nan_to_num(np.concatenate(res), nan=1e6)
+
+
 def _candidates(det: RingDetection, camera: CameraModel, ring: PaintedRing, R_wc: FloatArray) -> list[FloatArray]:
     """Closed-form pose parameters of both candidate deck planes (outer conic and bow)."""
     Cn = camera.K.T @ det.conics_px[1] @ camera.K
@@ -160,18 +174,8 @@ def estimate_painted_ring(det: RingDetection, camera: CameraModel, ring: Painted
             g_phi = _grad_norm(camera, x, R_wc, det.bow_ends_px, "phi")
             sig_phi = float(det.bow_sigma_px * np.mean(g_phi) / math.sqrt(2.0))
 
-            def fun(p: FloatArray) -> FloatArray:
-                res = []
-                for k, r_edge in enumerate(ring.edge_radii_m):
-                    xy = _deck_xy(p, R_wc, rays[k])
-                    res.append((np.hypot(xy[:, 0], xy[:, 1]) - r_edge) / scales[k] / sigma[k])
-                e = _deck_xy(p, R_wc, end_rays)
-                phi = math.atan2(float(np.sin(np.arctan2(e[:, 1], e[:, 0])).sum()),
-                                 float(np.cos(np.arctan2(e[:, 1], e[:, 0])).sum()))
-                res.append(np.array([phi / sig_phi]))
-                return np.nan_to_num(np.concatenate(res), nan=1e6)
-
-            sol = least_squares(fun, x, method="lm", x_scale="jac")
+            sol = least_squares(_residuals, x, method="lm", x_scale="jac",
+                                args=(R_wc, rays, end_rays, ring, scales, sigma, sig_phi))
             x = sol.x
         J = sol.jac
         return x, J, float(2 * sol.cost), scales, sig_phi
