@@ -17,7 +17,8 @@ from typing import Literal
 import pandas as pd
 
 __all__ = ["BEACON_COLUMNS", "DETECTION_COLUMNS", "DETECT_FRAME_COLUMNS", "FRAME_COLUMNS", "HOT_PIXEL_COLUMNS",
-           "PAINTED_RING_COLUMNS", "RING_DETECTION_COLUMNS", "Column", "Dtype", "column", "pandas_dtype"]
+           "PAINTED_RING_BOUND_COLUMNS", "PAINTED_RING_COLUMNS",
+           "RING_DETECTION_COLUMNS", "Column", "Dtype", "column", "pandas_dtype"]
 
 #: A column's type: its Arrow/Parquet type (``int64``, ``double``, ``bool``, ``string``).
 Dtype = Literal["int64", "float64", "bool", "string"]
@@ -209,7 +210,19 @@ RING_DETECTION_COLUMNS: tuple[Column, ...] = (
     _C("blur_px", "float64", "px", "Gaussian-equivalent sigma of the edges' profile"),
     _C("edge_crb_px", "float64", "px", "Cramér-Rao bound of one edge point (one sample per pixel of edge) "
        "from the contrast, noise and blur"),
-    _C("seconds", "float64", "s", "wall time of the ring detection"),
+    _C("seconds", "float64", "s", "CPU time of the ring detection (this thread)"),
+)
+
+#: ``estimates/ring-edges--painted-ring.bound.parquet``: one row per frame, the painted ring's bound.
+PAINTED_RING_BOUND_COLUMNS: tuple[Column, ...] = (
+    _C("frame_id", "int64", "", "frame id", nullable=False),
+    *(_C(f"bound_{p}_{u}", "float64", u, f"{p}: bound's standard deviation from the image-derived edge "
+         "Cramér-Rao bound (contrast, noise, blur; white noise), same Jacobian as the estimate (null: no estimate)")
+      for p, u in (("roll", "deg"), ("pitch", "deg"), ("yaw", "deg"), ("surge", "m"), ("sway", "m"),
+                   ("height", "m"))),
+    _C("chi2_per_point", "float64", "", "chi-square of the optimum over its residuals (whitened by the measured "
+       "edge noise)"),
+    _C("seconds", "float64", "s", "CPU time of the estimation (this thread)"),
 )
 
 #: ``cameras/<name>_hot_pixels.parquet``: one row per hot pixel of a camera (the same in every frame).
