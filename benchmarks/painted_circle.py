@@ -63,9 +63,10 @@ def _run_one(camera: str, work: Path, heights: list[float], attitudes: int, seed
     from deckpose.estimate.registry import parse_method
     from deckpose.estimate.run import estimate_run
     from deckpose.evaluate.errors import frame_errors
-    from deckpose.painted_ring_run import painted_ring_run, read_bounds
     from deckpose.render.config import config_from_dict
     from deckpose.render.dataset import render_dataset
+
+    from deckpose.painted_ring_run import painted_ring_run, read_bounds
     from deckpose.run_folder import RunPaths, read_frames
     from deckpose.tables import read_table
 
@@ -208,17 +209,17 @@ def _markdown(df: pd.DataFrame, command: str, load_before: str, load_after: str,
         "",
         f"    {command}",
         "",
-        f"Machine: {platform.machine()}, {os.cpu_count()} CPUs shared with other jobs; 1-minute load "
-        f"{load_before} before and {load_after} after; {seconds / 60:.0f} min in all.",
+        (f"Machine: {platform.machine()}, {os.cpu_count()} CPUs shared with other jobs; 1-minute load "
+         f"{load_before} before and {load_after} after; {seconds / 60:.0f} min in all."),
         "",
-        "Each resolution is one dataset with the painted ring (mid radius 8 m, line 0.5 m, white, bow gap "
+        ("Each resolution is one dataset with the painted ring (mid radius 8 m, line 0.5 m, white, bow gap "
         "20 deg, centre disc) and the 12 beacons (radius 10 m, centre beacon) on the same deck, so both "
         "targets are scored on the same frames: heights x day/dusk/night (floodlit deck at night, level "
         "0.2) x seeded attitudes (roll, pitch U(-4, 4) deg, yaw U(-40, 40) deg, offsets up to 1 m). "
         "Cameras: 75 x 60 deg field, 1156 x 867 (1 MP) and 3264 x 2448 (8 MP), 8-bit RGB. Beacons: "
         "`cog` detector, `conic` estimator; painted ring: `deckpose painted-ring`. Errors are RMS over "
         "the frames a method called ok (tilt: RMS of roll and pitch); `failed` counts the others; "
-        "time is the median CPU time per frame of detection plus estimation (rendering excluded).",
+        "time is the median CPU time per frame of detection plus estimation (rendering excluded)."),
         "",
         "## Which target gives the better pose",
         "",
@@ -236,9 +237,9 @@ def _markdown(df: pd.DataFrame, command: str, load_before: str, load_after: str,
         "",
         "## Painted ring in daylight: error against its sigma and its bound",
         "",
-        "RMS over frames of (error / the estimate's own sigma, from the measured edge-point noise) and of "
+        ("RMS over frames of (error / the estimate's own sigma, from the measured edge-point noise) and of "
         "(error / the image-derived bound: the same Jacobian with each edge point at the Cramér-Rao bound "
-        "of a Gaussian-blurred step under white noise of the measured contrast, pixel noise and blur).",
+        "of a Gaussian-blurred step under white noise of the measured contrast, pixel noise and blur)."),
         "",
         table(b),
         "",

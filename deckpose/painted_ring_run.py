@@ -82,11 +82,12 @@ def painted_ring_run(run_dir: str | os.PathLike[str], *, progress: bool = False)
     InputDataError
         When the folder is not a dataset, or was rendered without a painted ring.
     """
+    from tqdm import tqdm
+
     from deckpose.detect.ring_edges import detect_ring_edges, ring_detection_row
     from deckpose.detect.sources import read_image
     from deckpose.estimate.painted_ring_pose import METHOD, estimate_painted_ring
     from deckpose.estimate.results_table import estimates_frame
-    from tqdm import tqdm
 
     run = RunPaths(Path(run_dir))
     ring = painted_ring_of_run(run)

@@ -55,6 +55,8 @@ FloatArray = NDArray[np.float64]
 
 #: Most profiles per edge (a 64 MP frame's ring from 20 m is ~8000 px around).
 MAX_PROFILES = 12000
+#: Longest side of the image the coarse ring is looked for in, pixels (larger frames are shrunk).
+COARSE_SIDE_PX = 1200
 #: Robust sigmas beyond which an edge point is dropped from its ellipse.
 REJECT_SIGMAS = 4.0
 
@@ -98,11 +100,11 @@ def _grey(image: NDArray[Any]) -> NDArray[np.float32]:
 
 def _coarse_ring(grey: NDArray[np.float32], ring: PaintedRing) -> tuple[float, float, float, float, float] | None:
     """The mid line of the largest ring-like bright component: ``(cu, cv, a, b, angle_rad)``, or None."""
-    from skimage.filters import threshold_multiotsu
+    from skimage.filters import threshold_multiotsu, threshold_otsu
 
     g = cv2.GaussianBlur(grey, (0, 0), 1.5)
-    sub = g[::4, ::4].ravel()
-    sub = np.minimum(sub, np.percentile(sub, 99.0))  # the beacons' and lights' few bright pixels aside
+    sub = g[::2, ::2].ravel()
+    sub = np.minimum(sub, np.percentile(sub, 99.95))  # the beacons' and lights' few brightest pixels aside
     if np.ptp(sub) <= 0:
         return None
     thresholds: set[float] = set()
@@ -113,7 +115,12 @@ def _coarse_ring(grey: NDArray[np.float32], ring: PaintedRing) -> tuple[float, f
             continue
         thresholds.update(t)
         thresholds.update(0.5 * (a + b) for a, b in itertools.pairwise(t))
+    for t in sorted(thresholds):  # a small ring (far away) is a small class: split each bright class again
+        bright = sub[sub > t]
+        if bright.size > 100 and np.ptp(bright) > 0:
+            thresholds.add(float(threshold_otsu(bright)))
     expected = ring.line_width_m / ring.radius_m / math.sqrt(12.0)  # std of rho across a uniform band
+    max_fill = max(0.3, 1.5 * math.pi * ring.line_width_m / ring.radius_m)
     best: tuple[float, tuple[float, float, float, float, float]] | None = None
     for t in sorted(thresholds, reverse=True):
         mask = (g > t).astype(np.uint8)
@@ -121,10 +128,10 @@ def _coarse_ring(grey: NDArray[np.float32], ring: PaintedRing) -> tuple[float, f
         pixels: dict[int, NDArray[np.float32]] = {}
         for k in range(1, n):
             x0, y0, w, h, area = (int(s) for s in stats[k])
-            if area < 100 or min(w, h) < 16:
-                continue
+            if area < 100 or min(w, h) < 16 or area > max_fill * w * h:
+                continue  # too small, or too full for a band (an annulus fills (pi / 2) (width / radius) of its box)
             ys, xs = np.nonzero(labels[y0:y0 + h, x0:x0 + w] == k)
-            stride = max(1, xs.size // 20000)
+            stride = max(1, xs.size // 4000)  # a coarse ellipse needs no more
             pixels[k] = np.column_stack([xs[::stride] + x0, ys[::stride] + y0]).astype(np.float32)
         largest = sorted(pixels, key=lambda k: -int(stats[k, 4]))[:3]
         # each component, and the largest two and three together (a ring cut by the bow gap and an occluder)
@@ -132,7 +139,7 @@ def _coarse_ring(grey: NDArray[np.float32], ring: PaintedRing) -> tuple[float, f
         for group in groups:
             pts = np.concatenate([pixels[k] for k in group])
             got = _ring_like(pts, expected)
-            if got is None:  # lines thinner than the ring's touching it: open them away and look again
+            if got is None and group[0] in largest:  # lines thinner than the ring's touching it: open them away
                 got = _ring_like(_without_thin_lines(pts), expected)
             if got is None:
                 continue
@@ -187,6 +194,8 @@ def _ring_like(pts: NDArray[np.float32], expected: float) -> tuple[float, float,
         yr = (-dx * math.sin(th) + dy * math.cos(th)) / (0.5 * d2)
         rho = np.hypot(xr, yr)
         keep = np.abs(rho - 1.0) < max(width, band)
+        if keep.mean() < 0.5:  # not a band about any ellipse: stop early
+            return None
     if keep.mean() < 0.75:
         return None
     occupied = np.unique(((np.arctan2(yr[keep], xr[keep]) + math.pi) / (2 * math.pi) * 36).astype(int) % 36).size
@@ -447,10 +456,16 @@ def detect_ring_edges(image: NDArray[Any], camera: CameraModel, ring: PaintedRin
     def failed(reason: str) -> RingDetection:
         return RingDetection(False, reason, frame_id=frame_id)
 
-    coarse = _coarse_ring(grey, ring)
+    # the coarse ring on an image of at most COARSE_SIDE_PX a side (area-averaged), scaled back
+    shrink = max(1, math.ceil(max(grey.shape) / COARSE_SIDE_PX))
+    small = grey if shrink == 1 else cv2.resize(grey, (grey.shape[1] // shrink, grey.shape[0] // shrink),
+                                                interpolation=cv2.INTER_AREA)
+    coarse = _coarse_ring(small, ring)
     if coarse is None:
         return failed("no ring-shaped bright component in the image")
     cu, cv, a, b, th = coarse
+    cu, cv = (cu + 0.5) * shrink - 0.5, (cv + 0.5) * shrink - 0.5
+    a, b = a * shrink, b * shrink
     ratio = 0.5 * ring.line_width_m / ring.radius_m
     centre = np.array([cu, cv])
     perimeter = math.pi * (3 * (a + b) - math.sqrt((3 * a + b) * (a + 3 * b)))  # Ramanujan
