@@ -94,9 +94,10 @@ def painted_ring_run(run_dir: str | os.PathLike[str], *, progress: bool = False)
     frames = read_frames(run)
     cameras = read_cameras(run)
     det_rows, ests, bounds = [], [], []
-    for f in tqdm(frames.itertuples(), total=len(frames), unit="frame", desc="painted ring",
-                  disable=None if progress else True):
-        fid = int(f.frame_id)
+    ids = frames["frame_id"].to_numpy(np.int64)
+    for f, fid_ in tqdm(zip(frames.itertuples(), ids, strict=True), total=len(frames), unit="frame",
+                        desc="painted ring", disable=None if progress else True):
+        fid = int(fid_)
         img = read_image(run.root / str(f.image))
         camera = cameras[str(f.camera)]
         R_wc = np.array([[float(getattr(f, f"r{i}{j}")) for j in range(3)] for i in range(3)])

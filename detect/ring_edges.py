@@ -463,8 +463,8 @@ def detect_ring_edges(image: NDArray[Any], camera: CameraModel, ring: PaintedRin
 
     # the coarse ring on an image of at most COARSE_SIDE_PX a side (area-averaged), scaled back
     shrink = max(1, math.ceil(max(grey.shape) / COARSE_SIDE_PX))
-    small = grey if shrink == 1 else cv2.resize(grey, (grey.shape[1] // shrink, grey.shape[0] // shrink),
-                                                interpolation=cv2.INTER_AREA)
+    small = grey if shrink == 1 else np.asarray(cv2.resize(grey, (grey.shape[1] // shrink, grey.shape[0] // shrink),
+                                                           interpolation=cv2.INTER_AREA), np.float32)
     coarse = _coarse_ring(small, ring)
     if coarse is None:
         return failed("no ring-shaped bright component in the image")
@@ -495,7 +495,7 @@ def detect_ring_edges(image: NDArray[Any], camera: CameraModel, ring: PaintedRin
         if ei is None or eo is None:
             return failed("an edge's fitted conic is not an ellipse")
         centre_und = np.array([0.5 * (ei.centre_u_px + eo.centre_u_px), 0.5 * (ei.centre_v_px + eo.centre_v_px)])
-        und_mid = _ellipse_points(*centre_und, 0.5 * (ei.semi_major_px + eo.semi_major_px),
+        und_mid = _ellipse_points(float(centre_und[0]), float(centre_und[1]), 0.5 * (ei.semi_major_px + eo.semi_major_px),
                                   0.5 * (ei.semi_minor_px + eo.semi_minor_px), eo.angle_rad, n)
         mid = _distort(camera, und_mid)
         centre = _distort(camera, centre_und[None])[0]

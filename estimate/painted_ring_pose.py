@@ -129,7 +129,7 @@ def _candidates(det: RingDetection, camera: CameraModel, ring: PaintedRing, R_wc
         if not np.linalg.norm(v) > 0:
             continue
         x = v / np.linalg.norm(v)
-        R = np.column_stack([x, np.cross(n, x), n])
+        R = np.asarray(np.column_stack([x, np.cross(n, x), n]), dtype=np.float64)
         out.append(params_from_relative(R, c, R_wc))
     return out
 
@@ -169,16 +169,15 @@ def estimate_painted_ring(det: RingDetection, camera: CameraModel, ring: Painted
         x = x0
         scales: list[FloatArray] = []
         sig_phi = math.nan
+        J, cost = np.zeros((0, 6)), math.inf
         for _ in range(2):  # the pixel scales at the start, then at the first optimum
             scales = [_grad_norm(camera, x, R_wc, p, "rho") for p in det.edges_px]
             g_phi = _grad_norm(camera, x, R_wc, det.bow_ends_px, "phi")
             sig_phi = float(det.bow_sigma_px * np.mean(g_phi) / math.sqrt(2.0))
-
             sol = least_squares(_residuals, x, method="lm", x_scale="jac",
                                 args=(R_wc, rays, end_rays, ring, scales, sigma, sig_phi))
-            x = sol.x
-        J = sol.jac
-        return x, J, float(2 * sol.cost), scales, sig_phi
+            x, J, cost = np.asarray(sol.x, np.float64), np.asarray(sol.jac, np.float64), float(sol.cost)
+        return x, J, 2.0 * cost, scales, sig_phi
 
     cands = _candidates(det, camera, ring, R_wc)
     if not cands:
@@ -187,7 +186,7 @@ def estimate_painted_ring(det: RingDetection, camera: CameraModel, ring: Painted
     x, J, chi2, _, _ = sols[0]
     n_res = len(det.inner_px) + len(det.outer_px) + 1
     try:
-        cov = np.linalg.inv(J.T @ J)
+        cov = np.asarray(np.linalg.inv(J.T @ J), dtype=np.float64)
     except np.linalg.LinAlgError:
         return failed("singular normal matrix: the edges do not fix the pose")
     sig = np.sqrt(np.diag(cov))
@@ -204,7 +203,7 @@ def estimate_painted_ring(det: RingDetection, camera: CameraModel, ring: Painted
         w = np.concatenate([np.full(len(det.inner_px), sigma[0] / crb[0]), np.full(len(det.outer_px), sigma[1] / crb[1]),
                             [1.0]])
         Jb = J * w[:, None]
-        bound = np.linalg.inv(Jb.T @ Jb)
+        bound = np.asarray(np.linalg.inv(Jb.T @ Jb), dtype=np.float64)
     est = PoseEstimate(METHOD, True, roll_rad=float(x[0]), pitch_rad=float(x[1]), yaw_rad=float(x[2]),
                        surge_m=float(x[3]), sway_m=float(x[4]), height_m=float(x[5]), covariance=cov,
                        frame_id=det.frame_id)

@@ -91,7 +91,7 @@ def _deck_inverse(T: FloatArray) -> FloatArray:
     Hinv = np.linalg.inv(Hn)
     # the deck centre's ray (x, y, 1) = t / t_z must map to W > 0
     c = T[:3, 3] / T[2, 3]
-    return Hinv if (Hinv[2] @ c) > 0 else -Hinv
+    return np.asarray(Hinv if (Hinv[2] @ c) > 0 else -Hinv, dtype=np.float64)
 
 
 def _bbox(ring: PaintedRing, T: FloatArray, camera: CameraModel) -> tuple[int, int, int, int] | None:
