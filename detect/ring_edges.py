@@ -62,6 +62,12 @@ COARSE_SIDE_PX = 1200
 #: (tests/estimate/test_painted_ring_pose.py's frames) where the noise alone gives 0.02 px;
 #: this is added in quadrature to the noise's sigma.
 BOW_INTERPOLATION_PX = 0.04
+#: Coarse rings tried, largest first, until one gives the ring's edges.
+MAX_CANDIDATES = 4
+#: Largest relative difference of the edges' size ratio (sqrt of the ellipses' axis products, inner
+#: over outer) from the ring's radius ratio: perspective moves it by ~1e-4 (0.93924 measured
+#: against 0.93939); the helipad circle's 0.3 m line on 6 m gives 0.951, 1.3 % off the 8 m ring's.
+RATIO_TOLERANCE = 0.005
 #: Robust sigmas beyond which an edge point is dropped from its ellipse.
 REJECT_SIGMAS = 4.0
 
@@ -103,15 +109,15 @@ def _grey(image: NDArray[Any]) -> NDArray[np.float32]:
     return img.astype(np.float32)
 
 
-def _coarse_ring(grey: NDArray[np.float32], ring: PaintedRing) -> tuple[float, float, float, float, float] | None:
-    """The mid line of the largest ring-like bright component: ``(cu, cv, a, b, angle_rad)``, or None."""
+def _coarse_rings(grey: NDArray[np.float32], ring: PaintedRing) -> list[tuple[float, float, float, float, float]]:
+    """Mid lines ``(cu, cv, a, b, angle_rad)`` of the ring-like bright components, largest first."""
     from skimage.filters import threshold_multiotsu, threshold_otsu
 
     g = cv2.GaussianBlur(grey, (0, 0), 1.5)
     sub = g[::2, ::2].ravel()
     sub = np.minimum(sub, np.percentile(sub, 99.95))  # the beacons' and lights' few brightest pixels aside
     if np.ptp(sub) <= 0:
-        return None
+        return []
     thresholds: set[float] = set()
     for classes in (3, 4):
         try:
@@ -126,7 +132,7 @@ def _coarse_ring(grey: NDArray[np.float32], ring: PaintedRing) -> tuple[float, f
             thresholds.add(float(threshold_otsu(bright)))
     expected = ring.line_width_m / ring.radius_m / math.sqrt(12.0)  # std of rho across a uniform band
     max_fill = max(0.3, 1.5 * math.pi * ring.line_width_m / ring.radius_m)
-    best: tuple[float, tuple[float, float, float, float, float]] | None = None
+    found: list[tuple[float, float, float, float, float]] = []
     for t in sorted(thresholds, reverse=True):
         mask = (g > t).astype(np.uint8)
         n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
@@ -148,10 +154,10 @@ def _coarse_ring(grey: NDArray[np.float32], ring: PaintedRing) -> tuple[float, f
                 got = _ring_like(_without_thin_lines(pts), expected)
             if got is None:
                 continue
-            area_px = math.pi * got[2] * got[3]
-            if best is None or area_px > best[0]:
-                best = (area_px, got)
-    return None if best is None else best[1]
+            if not any(abs(got[0] - f[0]) < 0.05 * f[2] and abs(got[1] - f[1]) < 0.05 * f[2]
+                       and abs(got[2] / f[2] - 1) < 0.05 for f in found):  # the same ring at another threshold
+                found.append(got)
+    return sorted(found, key=lambda f: -f[2] * f[3])
 
 
 def _without_thin_lines(pts: NDArray[np.float32]) -> NDArray[np.float32]:
@@ -435,6 +441,56 @@ def _bow_ends(grey: NDArray[np.float32], mid: FloatArray, normals: FloatArray, h
     return np.array(ends), math.hypot(sigma, BOW_INTERPOLATION_PX)
 
 
+def _refine_ring(grey: NDArray[np.float32], camera: CameraModel, ring: PaintedRing, opt: RingEdgeOptions,
+                 coarse: tuple[float, float, float, float, float]) -> tuple[Any, ...] | str:
+    """Two passes of edge profiles and conic fits from a coarse mid line, or why it is not the ring.
+
+    Returns ``(fits, profiles, mid, centre, n, perimeter)``. Besides coverage and the fits, the two
+    edges' size ratio must be the ring's (inner over outer radius, within :data:`RATIO_TOLERANCE`):
+    another circle on the deck (the helipad's) has another.
+    """
+    cu, cv, a, b, th = coarse
+    ratio = 0.5 * ring.line_width_m / ring.radius_m
+    centre = np.array([cu, cv])
+    perimeter = math.pi * (3 * (a + b) - math.sqrt((3 * a + b) * (a + 3 * b)))  # Ramanujan
+    n = int(np.clip(round(perimeter), 64, MAX_PROFILES))
+    mid = _ellipse_points(cu, cv, a, b, th, n)
+    fits: list[tuple[FloatArray, NDArray[np.bool_]]] = []
+    prof: _Profiles | None = None
+    for _ in range(2):  # coarse mid line, then the mid line of the fitted edges
+        normals = _outward_normals(mid, centre)
+        half_px = ratio * np.linalg.norm(mid - centre, axis=1)
+        prof = _profiles(grey, mid, normals, half_px, opt)
+        if prof.valid.mean() < opt.min_coverage:
+            return (f"only {prof.valid.mean():.0%} of the ring gives both edges (needs "
+                    f"{opt.min_coverage:.0%}): cut by the frame edge, hidden or too faint")
+        fits = []
+        for pts in (prof.inner_px, prof.outer_px):
+            got = fit_edge_conic(camera.undistort(pts[prof.valid]))
+            if got is None:
+                return "an edge's points admit no ellipse"
+            fits.append(got)
+        ei, eo = ellipse_params(fits[0][0]), ellipse_params(fits[1][0])
+        if ei is None or eo is None:
+            return "an edge's fitted conic is not an ellipse"
+        centre_und = np.array([0.5 * (ei.centre_u_px + eo.centre_u_px), 0.5 * (ei.centre_v_px + eo.centre_v_px)])
+        und_mid = _ellipse_points(float(centre_und[0]), float(centre_und[1]),
+                                  0.5 * (ei.semi_major_px + eo.semi_major_px),
+                                  0.5 * (ei.semi_minor_px + eo.semi_minor_px), eo.angle_rad, n)
+        mid = _distort(camera, und_mid)
+        centre = _distort(camera, centre_und[None])[0]
+        if not np.all(np.isfinite(mid)):
+            return "the ring's mid line leaves the camera's field"
+        size_ratio = math.sqrt(ei.semi_major_px * ei.semi_minor_px / (eo.semi_major_px * eo.semi_minor_px))
+        want = ring.inner_radius_m / ring.outer_radius_m
+        if abs(size_ratio / want - 1) > RATIO_TOLERANCE:
+            return (f"the edges' size ratio {size_ratio:.4f} is not the ring's {want:.4f}: another circle "
+                    "(the helipad's, the deck's edge?)")
+    if prof is None:  # (the loop always runs)
+        return "no edge profiles"
+    return fits, prof, mid, centre, n, perimeter
+
+
 def detect_ring_edges(image: NDArray[Any], camera: CameraModel, ring: PaintedRing,
                       options: RingEdgeOptions | None = None, *, frame_id: int = 0) -> RingDetection:
     """Find the painted ring's inner and outer edges to sub-pixel accuracy (module docstring).
@@ -465,44 +521,21 @@ def detect_ring_edges(image: NDArray[Any], camera: CameraModel, ring: PaintedRin
     shrink = max(1, math.ceil(max(grey.shape) / COARSE_SIDE_PX))
     small = grey if shrink == 1 else np.asarray(cv2.resize(grey, (grey.shape[1] // shrink, grey.shape[0] // shrink),
                                                            interpolation=cv2.INTER_AREA), np.float32)
-    coarse = _coarse_ring(small, ring)
-    if coarse is None:
+    candidates = _coarse_rings(small, ring)
+    if not candidates:
         return failed("no ring-shaped bright component in the image")
-    cu, cv, a, b, th = coarse
-    cu, cv = (cu + 0.5) * shrink - 0.5, (cv + 0.5) * shrink - 0.5
-    a, b = a * shrink, b * shrink
+    reason = ""
+    for cu, cv, a, b, th in candidates[:MAX_CANDIDATES]:  # the largest first: the deck's edge or helipad may pass too
+        got_ring = _refine_ring(grey, camera, ring, opt, ((cu + 0.5) * shrink - 0.5, (cv + 0.5) * shrink - 0.5,
+                                                           a * shrink, b * shrink, th))
+        if isinstance(got_ring, str):
+            reason = reason or got_ring
+            continue
+        break
+    else:
+        return failed(reason)
+    fits, prof, mid, centre, n, perimeter = got_ring
     ratio = 0.5 * ring.line_width_m / ring.radius_m
-    centre = np.array([cu, cv])
-    perimeter = math.pi * (3 * (a + b) - math.sqrt((3 * a + b) * (a + 3 * b)))  # Ramanujan
-    n = int(np.clip(round(perimeter), 64, MAX_PROFILES))
-    mid = _ellipse_points(cu, cv, a, b, th, n)
-    fits: list[tuple[FloatArray, NDArray[np.bool_]]] = []
-    prof: _Profiles | None = None
-    for _ in range(2):  # coarse mid line, then the mid line of the fitted edges
-        normals = _outward_normals(mid, centre)
-        half_px = ratio * np.linalg.norm(mid - centre, axis=1)
-        prof = _profiles(grey, mid, normals, half_px, opt)
-        if prof.valid.mean() < opt.min_coverage:
-            return failed(f"only {prof.valid.mean():.0%} of the ring gives both edges (needs "
-                          f"{opt.min_coverage:.0%}): cut by the frame edge, hidden or too faint")
-        fits = []
-        for pts in (prof.inner_px, prof.outer_px):
-            got = fit_edge_conic(camera.undistort(pts[prof.valid]))
-            if got is None:
-                return failed("an edge's points admit no ellipse")
-            fits.append(got)
-        ei, eo = ellipse_params(fits[0][0]), ellipse_params(fits[1][0])
-        if ei is None or eo is None:
-            return failed("an edge's fitted conic is not an ellipse")
-        centre_und = np.array([0.5 * (ei.centre_u_px + eo.centre_u_px), 0.5 * (ei.centre_v_px + eo.centre_v_px)])
-        und_mid = _ellipse_points(float(centre_und[0]), float(centre_und[1]), 0.5 * (ei.semi_major_px + eo.semi_major_px),
-                                  0.5 * (ei.semi_minor_px + eo.semi_minor_px), eo.angle_rad, n)
-        mid = _distort(camera, und_mid)
-        centre = _distort(camera, centre_und[None])[0]
-        if not np.all(np.isfinite(mid)):
-            return failed("the ring's mid line leaves the camera's field")
-    if prof is None:  # (the loop always runs)
-        return failed("no edge profiles")
     valid = prof.valid
     points = [prof.inner_px[valid][fits[0][1]], prof.outer_px[valid][fits[1][1]]]
     rms, scale = np.zeros(2), np.ones(2)
