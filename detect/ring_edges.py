@@ -35,7 +35,6 @@ from __future__ import annotations
 
 import itertools
 import math
-import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -49,7 +48,7 @@ from deckpose.errors import ConfigError
 from deckpose.painted_ring import BowMark, PaintedRing, ellipse_params
 from deckpose.ring_detection import RingDetection
 
-__all__ = ["RingEdgeOptions", "detect_ring_edges", "fit_edge_conic", "ring_detection_row"]
+__all__ = ["RingEdgeOptions", "detect_ring_edges", "fit_edge_conic", "ring_detection_row", "sampson_distance"]
 
 FloatArray = NDArray[np.float64]
 
@@ -611,11 +610,3 @@ def ring_detection_row(det: RingDetection, seconds: float = math.nan) -> dict[st
                 "edge_contrast_dn": det.contrast_dn, "noise_dn": det.noise_dn, "blur_px": det.blur_px,
                 "edge_crb_px": det.edge_crb_px, "seconds": seconds})
     return row
-
-
-def timed_detect(image: NDArray[Any], camera: CameraModel, ring: PaintedRing,
-                 options: RingEdgeOptions | None = None, *, frame_id: int = 0) -> tuple[RingDetection, float]:
-    """:func:`detect_ring_edges` and its wall time, seconds."""
-    t0 = time.perf_counter()
-    det = detect_ring_edges(image, camera, ring, options, frame_id=frame_id)
-    return det, time.perf_counter() - t0

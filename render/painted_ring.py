@@ -51,7 +51,7 @@ from deckpose.painted_ring import (
 )
 from deckpose.pose import CameraPose, ShipPose, T_cam_from_deck
 
-__all__ = ["RingTruth", "floodlight_gain", "paint_splats", "ring_rows", "ring_truth"]
+__all__ = ["RingTruth", "floodlight_gain", "paint_coverage", "paint_splats", "ring_rows", "ring_truth"]
 
 FloatArray = NDArray[np.float64]
 
