@@ -1,11 +1,9 @@
 """Sub-pixel edges of a painted ring: coarse ring, edge profiles along its normals, robust ellipses.
 
-1. **Coarse ring.** The channel-sum image, blurred (sigma 1.5 px), is thresholded at
-   each of its three-class Otsu thresholds; every bright connected component gets an
-   ellipse fitted to its pixels (:func:`cv2.fitEllipse`), and is a ring when its pixels'
-   normalised radius about that ellipse spreads no more than a band of the ring's
-   width-to-radius ratio would (a square deck edge, the "H" and blobs fail) and covers at
-   least three quarters of the angles. The largest ring wins.
+1. **Coarse ring.** Bright, band-shaped components (:mod:`deckpose.detect.ring_candidates`),
+   on the frame shrunk to at most :data:`COARSE_SIDE_PX` a side, are tried largest first until
+   one gives the ring's edges with the ring's size ratio (the deck's edge and the helipad
+   circle are passed over).
 2. **Edge profiles.** Along the outward normal of the ring's mid line, at one profile per
    pixel of its length, the raw image is sampled every 0.25 px (bilinear), smoothed along
    the profile (sigma ``smooth_px``), and differentiated. The inner edge is the largest
@@ -13,10 +11,10 @@
    gives the sub-pixel position. A profile counts when both edges are found in order and
    its step (paint minus deck) is at least ``min_contrast_fraction`` of the median step:
    occluders, shadows, the worn paint and the bow gap drop out here.
-3. **Ellipses.** Each edge's points are undistorted and fitted by a conic minimising the
-   Sampson (first-order geometric) distance, iteratively reweighted, rejecting points beyond
-   4 robust sigmas (the "H", the deck lines crossing the ring, texture). A second pass
-   samples the profiles again along the mid line of the two fitted ellipses.
+3. **Ellipses.** Each edge's points are undistorted and fitted by a robust conic
+   (:func:`deckpose.detect.edge_conic.fit_edge_conic`: Sampson distance, reweighted, points
+   beyond 4 robust sigmas dropped: the "H", deck lines crossing the ring, texture). A second
+   pass samples the profiles again along the mid line of the two fitted ellipses.
 4. **Bow mark.** The paint along the ring's mid line (gap: where it is missing) or along a
    curve through the bar (bar: where paint is present outside the ring) is a signature
    along the ring; the longest run below (gap) or above (bar) half the step is the mark,
@@ -33,13 +31,14 @@ Only paint brighter than the deck is looked for.
 
 from __future__ import annotations
 
-import itertools
 import math
 from dataclasses import dataclass
 from typing import Any
 
 import cv2
 import numpy as np
+from deckpose.detect.edge_conic import fit_edge_conic, sampson_distance
+from deckpose.detect.ring_candidates import ring_candidates
 from numpy.typing import NDArray
 from scipy.ndimage import gaussian_filter1d
 
@@ -48,7 +47,7 @@ from deckpose.errors import ConfigError
 from deckpose.painted_ring import BowMark, PaintedRing, ellipse_params
 from deckpose.ring_detection import RingDetection
 
-__all__ = ["RingEdgeOptions", "detect_ring_edges", "fit_edge_conic", "ring_detection_row", "sampson_distance"]
+__all__ = ["RingEdgeOptions", "detect_ring_edges", "ring_detection_row"]
 
 FloatArray = NDArray[np.float64]
 
@@ -67,8 +66,6 @@ MAX_CANDIDATES = 4
 #: over outer) from the ring's radius ratio: perspective moves it by ~1e-4 (0.93924 measured
 #: against 0.93939); the helipad circle's 0.3 m line on 6 m gives 0.951, 1.3 % off the 8 m ring's.
 RATIO_TOLERANCE = 0.005
-#: Robust sigmas beyond which an edge point is dropped from its ellipse.
-REJECT_SIGMAS = 4.0
 
 
 @dataclass(frozen=True)
@@ -106,112 +103,6 @@ def _grey(image: NDArray[Any]) -> NDArray[np.float32]:
     if img.ndim == 3:
         return img.astype(np.float32).sum(axis=2, dtype=np.float32)
     return img.astype(np.float32)
-
-
-def _coarse_rings(grey: NDArray[np.float32], ring: PaintedRing) -> list[tuple[float, float, float, float, float]]:
-    """Mid lines ``(cu, cv, a, b, angle_rad)`` of the ring-like bright components, largest first."""
-    from skimage.filters import threshold_multiotsu, threshold_otsu
-
-    g = cv2.GaussianBlur(grey, (0, 0), 1.5)
-    sub = g[::2, ::2].ravel()
-    sub = np.minimum(sub, np.percentile(sub, 99.95))  # the beacons' and lights' few brightest pixels aside
-    if np.ptp(sub) <= 0:
-        return []
-    thresholds: set[float] = set()
-    for classes in (3, 4):
-        try:
-            t = sorted(float(x) for x in threshold_multiotsu(sub, classes=classes))
-        except ValueError:
-            continue
-        thresholds.update(t)
-        thresholds.update(0.5 * (a + b) for a, b in itertools.pairwise(t))
-    for t in sorted(thresholds):  # a small ring (far away) is a small class: split each bright class again
-        bright = sub[sub > t]
-        if bright.size > 100 and np.ptp(bright) > 0:
-            thresholds.add(float(threshold_otsu(bright)))
-    expected = ring.line_width_m / ring.radius_m / math.sqrt(12.0)  # std of rho across a uniform band
-    max_fill = max(0.3, 1.5 * math.pi * ring.line_width_m / ring.radius_m)
-    found: list[tuple[float, float, float, float, float]] = []
-    for t in sorted(thresholds, reverse=True):
-        mask = (g > t).astype(np.uint8)
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-        pixels: dict[int, NDArray[np.float32]] = {}
-        for k in range(1, n):
-            x0, y0, w, h, area = (int(s) for s in stats[k])
-            if area < 100 or min(w, h) < 16 or area > max_fill * w * h:
-                continue  # too small, or too full for a band (an annulus fills (pi / 2) (width / radius) of its box)
-            ys, xs = np.nonzero(labels[y0:y0 + h, x0:x0 + w] == k)
-            stride = max(1, xs.size // 4000)  # a coarse ellipse needs no more
-            pixels[k] = np.column_stack([xs[::stride] + x0, ys[::stride] + y0]).astype(np.float32)
-        largest = sorted(pixels, key=lambda k: -int(stats[k, 4]))[:3]
-        # each component, and the largest two and three together (a ring cut by the bow gap and an occluder)
-        groups = [[k] for k in pixels] + [largest[:m] for m in (2, 3) if len(largest) >= m]
-        for group in groups:
-            pts = np.concatenate([pixels[k] for k in group])
-            got = _ring_like(pts, expected)
-            if got is None and group[0] in largest:  # lines thinner than the ring's touching it: open them away
-                got = _ring_like(_without_thin_lines(pts), expected)
-            if got is None:
-                continue
-            if not any(abs(got[0] - f[0]) < 0.05 * f[2] and abs(got[1] - f[1]) < 0.05 * f[2]
-                       and abs(got[2] / f[2] - 1) < 0.05 for f in found):  # the same ring at another threshold
-                found.append(got)
-    return sorted(found, key=lambda f: -f[2] * f[3])
-
-
-def _without_thin_lines(pts: NDArray[np.float32]) -> NDArray[np.float32]:
-    """Pixels of a component after a morphological opening at 60 % of its line thickness.
-
-    The thickness is the component's area over the circumference of its ellipse; deck lines
-    narrower than that (a centre line across the ring) vanish, the ring's band stays.
-    """
-    if len(pts) < 20:
-        return pts
-    (_, _), (d1, d2), _ = cv2.fitEllipse(pts)
-    thickness = len(pts) / (0.5 * math.pi * (d1 + d2))
-    k = round(0.6 * thickness)
-    if k < 3:
-        return pts
-    x0, y0 = pts.min(axis=0).astype(int) - k
-    w, h = (pts.max(axis=0).astype(int) - (x0, y0)) + k + 1
-    mask = np.zeros((h, w), np.uint8)
-    mask[pts[:, 1].astype(int) - y0, pts[:, 0].astype(int) - x0] = 1
-    mask = cv2.morphologyEx(mask, cv2.MORPH_OPEN, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (k, k)))
-    ys, xs = np.nonzero(mask)
-    return np.column_stack([xs + x0, ys + y0]).astype(np.float32)
-
-
-def _ring_like(pts: NDArray[np.float32], expected: float) -> tuple[float, float, float, float, float] | None:
-    """The mid ellipse ``(cu, cv, a, b, angle_rad)`` of a component's pixels if they form a ring band.
-
-    The ellipse is fitted to the pixels, then again to those within a shrinking band about
-    it (a deck line touching the ring falls outside it); the component is a ring when at
-    least 3/4 of its pixels stay in the band, their normalised radius spreads as a band of
-    the ring's width would (``expected``: its standard deviation), and they cover 27 of 36
-    angular sectors (the bow gap and occluders leave the rest).
-    """
-    keep = np.ones(len(pts), bool)
-    band = max(4.0 * expected, 0.06)
-    for width in (0.4, 0.2, 0.1, band, band):  # a shrinking band: a line across the ring drags the first fit
-        if keep.sum() < 20:
-            return None
-        (cu, cv), (d1, d2), ang = cv2.fitEllipse(pts[keep])
-        if not (d1 > 8 and d2 > 8):
-            return None
-        th = math.radians(ang)
-        dx, dy = pts[:, 0] - cu, pts[:, 1] - cv
-        xr = (dx * math.cos(th) + dy * math.sin(th)) / (0.5 * d1)
-        yr = (-dx * math.sin(th) + dy * math.cos(th)) / (0.5 * d2)
-        rho = np.hypot(xr, yr)
-        keep = np.abs(rho - 1.0) < max(width, band)
-        if keep.mean() < 0.5:  # not a band about any ellipse: stop early
-            return None
-    if keep.mean() < 0.75:
-        return None
-    occupied = np.unique(((np.arctan2(yr[keep], xr[keep]) + math.pi) / (2 * math.pi) * 36).astype(int) % 36).size
-    if float(np.std(rho[keep])) < 2.5 * expected + 0.01 and occupied >= 27:
-        return float(cu), float(cv), 0.5 * float(d1), 0.5 * float(d2), th
-    return None
 
 
 def _ellipse_points(cu: float, cv: float, a: float, b: float, th: float, n: int) -> FloatArray:
@@ -295,74 +186,6 @@ def _profiles(grey: NDArray[np.float32], mid: FloatArray, normals: FloatArray, h
     outer = mid + s_out[:, None] * normals
     mid_dn = raw_f[r, k_mid]
     return _Profiles(inner, outer, ok, step, 0.5 * (peak_in + peak_out), mid_dn)
-
-
-def _design(p: FloatArray) -> FloatArray:
-    x, y = p[:, 0], p[:, 1]
-    return np.column_stack([x * x, x * y, y * y, x, y, np.ones_like(x)])
-
-
-def _conic_matrix(theta: FloatArray) -> FloatArray:
-    a, b, c, d, e, f = theta
-    return np.array([[a, b / 2, d / 2], [b / 2, c, e / 2], [d / 2, e / 2, f]])
-
-
-def sampson_distance(C: FloatArray, points: FloatArray) -> FloatArray:
-    """First-order geometric distance of points (N, 2) from conic ``C``, the points' units (signed)."""
-    X = np.column_stack([points, np.ones(len(points))])
-    CX = X @ C
-    f = np.sum(CX * X, axis=1)
-    grad = 2.0 * np.hypot(CX[:, 0], CX[:, 1])
-    return f / np.where(grad > 0, grad, np.inf)
-
-
-def fit_edge_conic(points_px: FloatArray, *, iterations: int = 6) -> tuple[FloatArray, NDArray[np.bool_]] | None:
-    """Robust conic of edge points: Sampson distance, iteratively reweighted, outliers dropped.
-
-    Parameters
-    ----------
-    points_px : (N, 2) array of float, pixels
-    iterations : int, keyword-only
-
-    Returns
-    -------
-    (C, inliers) or None
-        ``C`` (3, 3), unit Frobenius norm, negative inside; ``inliers`` (N,) bool. None when
-        fewer than 8 points or no ellipse fits.
-    """
-    p = np.asarray(points_px, dtype=float)
-    if p.ndim != 2 or p.shape[1] != 2 or len(p) < 8:
-        return None
-    mean = p.mean(axis=0)
-    scale = float(np.sqrt(np.mean(np.sum((p - mean) ** 2, axis=1))))
-    if not scale > 0:
-        return None
-    q = (p - mean) / scale
-    D = _design(q)
-    keep = np.ones(len(q), bool)
-    w = np.ones(len(q))
-    theta = np.zeros(6)
-    for _ in range(iterations):
-        Dk = D[keep] * np.sqrt(w[keep])[:, None]
-        _, _, Vt = np.linalg.svd(Dk, full_matrices=False)
-        theta = Vt[-1]
-        C = _conic_matrix(theta)
-        d = sampson_distance(C, q)
-        X = np.column_stack([q, np.ones(len(q))]) @ C
-        grad2 = 4.0 * (X[:, 0] ** 2 + X[:, 1] ** 2)
-        w = 1.0 / np.maximum(grad2, 1e-300)
-        sigma = 1.4826 * float(np.median(np.abs(d[keep])))
-        keep = np.abs(d) <= max(REJECT_SIGMAS * sigma, 1e-6)
-        if keep.sum() < 8:
-            return None
-    T = np.array([[1 / scale, 0, -mean[0] / scale], [0, 1 / scale, -mean[1] / scale], [0, 0, 1]])
-    C = T.T @ _conic_matrix(theta) @ T
-    C /= np.linalg.norm(C)
-    if np.linalg.det(C[:2, :2]) <= 0:
-        return None
-    centre = -np.linalg.solve(C[:2, :2], C[:2, 2])
-    inside = np.array([*centre, 1.0]) @ C @ np.array([*centre, 1.0])
-    return (C if inside < 0 else -C), keep
 
 
 def _correlation_factor(r: FloatArray, blocks: tuple[int, ...] = (8, 32, 128)) -> float:
@@ -520,7 +343,7 @@ def detect_ring_edges(image: NDArray[Any], camera: CameraModel, ring: PaintedRin
     shrink = max(1, math.ceil(max(grey.shape) / COARSE_SIDE_PX))
     small = grey if shrink == 1 else np.asarray(cv2.resize(grey, (grey.shape[1] // shrink, grey.shape[0] // shrink),
                                                            interpolation=cv2.INTER_AREA), np.float32)
-    candidates = _coarse_rings(small, ring)
+    candidates = ring_candidates(small, ring)
     if not candidates:
         return failed("no ring-shaped bright component in the image")
     reason = ""

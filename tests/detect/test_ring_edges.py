@@ -13,7 +13,8 @@ import math
 
 import numpy as np
 import pytest
-from deckpose.detect.ring_edges import detect_ring_edges, fit_edge_conic, sampson_distance
+from deckpose.detect.edge_conic import fit_edge_conic, sampson_distance
+from deckpose.detect.ring_edges import detect_ring_edges
 
 from deckpose.camera import CameraModel
 from deckpose.painted_ring import PaintedRing
