@@ -6,7 +6,7 @@ dataset writer, detect, estimate, evaluate, report).
 A run folder is a rendered dataset (``deckpose render``) that later stages add to::
 
     RUN/manifest.json, cameras/, images/, frames.parquet, beacons.parquet,
-        lights.parquet                                                      (render)
+        lights.parquet, painted_ring.parquet                                (render)
     RUN/detections/<detector>.parquet [+ <detector>.frames.parquet]       (deckpose detect)
     RUN/estimates/<detector>--<method>.parquet                             (deckpose estimate --run)
     RUN/tracks/<detector>--<method>--<tracker>.parquet [+ .predictions.parquet, .run.json]
@@ -97,6 +97,11 @@ class RunPaths:
     def lights(self) -> Path:
         """Non-beacon lights per frame (render; absent from datasets of earlier versions)."""
         return self.root / "lights.parquet"
+
+    @property
+    def painted_ring(self) -> Path:
+        """The painted ring's truth per frame and edge (render; only with ``painted_ring``)."""
+        return self.root / "painted_ring.parquet"
 
     @property
     def cameras_dir(self) -> Path:

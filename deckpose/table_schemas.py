@@ -18,8 +18,9 @@ from typing import Literal
 import pandas as pd
 
 __all__ = ["BEACON_COLUMNS", "DETECTION_COLUMNS", "DETECT_FRAME_COLUMNS", "FRAME_COLUMNS", "HOT_PIXEL_COLUMNS",
-           "LEGACY_COLUMNS", "ROTATION_COLUMN_NAMES", "TRACK_COLUMNS", "TRACK_PREDICTION_COLUMNS", "Column", "Dtype",
-           "column", "pandas_dtype", "rotation_column", "upgrade_legacy_columns"]
+           "LEGACY_COLUMNS", "PAINTED_RING_BOUND_COLUMNS", "PAINTED_RING_COLUMNS", "RING_DETECTION_COLUMNS",
+           "ROTATION_COLUMN_NAMES", "TRACK_COLUMNS", "TRACK_PREDICTION_COLUMNS", "Column", "Dtype", "column",
+           "pandas_dtype", "rotation_column", "upgrade_legacy_columns"]
 
 #: A column's type: its Arrow/Parquet type (``int64``, ``double``, ``bool``, ``string``).
 Dtype = Literal["int64", "float64", "bool", "string"]
@@ -169,6 +170,71 @@ LIGHT_COLUMNS: tuple[Column, ...] = (
     _C("v_px", "float64", "px", "projected centre at mid-exposure, distorted image row"),
     _C("in_image", "bool", "", "in front of the camera and inside the image", nullable=False),
     _C("flux_e", "float64", "e-", "electrons in the light's core, summed over channels (0: not drawn)"),
+)
+
+_CONIC = tuple(_C(f"conic_px_{i}{j}", "float64", "", f"entry ({i}, {j}) of the edge's image conic in undistorted pixels, "
+                  "[u, v, 1] C [u, v, 1]^T = 0, unit Frobenius norm, negative inside", nullable=False)
+               for i in range(3) for j in range(3))
+
+#: ``painted_ring.parquet``: one row per frame x edge of the painted ring (configs with ``painted_ring``).
+PAINTED_RING_COLUMNS: tuple[Column, ...] = (
+    _C("frame_id", "int64", "", "frame id", nullable=False),
+    _C("edge", "string", "", "inner or outer edge circle of the painted line", nullable=False),
+    _C("ellipse_u_px", "float64", "px", "centre of the edge's image ellipse, undistorted column (null: not an "
+       "ellipse)"),
+    _C("ellipse_v_px", "float64", "px", "centre of the edge's image ellipse, undistorted row"),
+    _C("semi_major_px", "float64", "px", "semi-major axis of the edge's image ellipse (undistorted image)"),
+    _C("semi_minor_px", "float64", "px", "semi-minor axis of the edge's image ellipse (undistorted image)"),
+    _C("angle_deg", "float64", "deg", "major axis angle from image +u toward +v (undistorted image)"),
+    _C("centre_u_px", "float64", "px", "image of the deck centre, distorted column (not the ellipse's centre)",
+       nullable=False),
+    _C("centre_v_px", "float64", "px", "image of the deck centre, distorted row", nullable=False),
+    _C("bow_u_px", "float64", "px", "image of the ring's mid line at the bow, deck (radius_m, 0), distorted column",
+       nullable=False),
+    _C("bow_v_px", "float64", "px", "image of the ring's mid line at the bow, distorted row", nullable=False),
+    _C("in_image_fraction", "float64", "", "fraction of the edge circle inside the image (720 points)",
+       nullable=False),
+    _C("distorted", "bool", "", "the camera has distortion: the conic holds in the undistorted image only",
+       nullable=False),
+    *_CONIC,
+)
+
+#: ``detections/ring-edges.parquet``: one row per frame, the painted ring found in it.
+RING_DETECTION_COLUMNS: tuple[Column, ...] = (
+    _C("frame_id", "int64", "", "frame id", nullable=False),
+    _C("ok", "bool", "", "both edges fitted and the bow mark found", nullable=False),
+    _C("reason", "string", "", "why not (empty when ok)", nullable=False),
+    *(c for edge in ("inner", "outer") for c in (
+        _C(f"{edge}_u_px", "float64", "px", f"centre of the fitted {edge} edge ellipse, undistorted column"),
+        _C(f"{edge}_v_px", "float64", "px", f"centre of the fitted {edge} edge ellipse, undistorted row"),
+        _C(f"{edge}_semi_major_px", "float64", "px", f"semi-major axis of the fitted {edge} edge ellipse"),
+        _C(f"{edge}_semi_minor_px", "float64", "px", f"semi-minor axis of the fitted {edge} edge ellipse"),
+        _C(f"{edge}_angle_deg", "float64", "deg", f"major axis angle of the fitted {edge} edge ellipse"),
+        _C(f"{edge}_n_points", "int64", "", f"sub-pixel {edge} edge points kept (inliers of the ellipse fit)",
+           nullable=False),
+        _C(f"{edge}_rms_px", "float64", "px", f"RMS distance of the {edge} edge points from their fitted ellipse"),
+    )),
+    _C("bow_u_px", "float64", "px", "the bow mark's image on the ring's mid line (middle of its two ends), distorted column"),
+    _C("bow_v_px", "float64", "px", "the bow mark's image on the ring's mid line, distorted row"),
+    _C("bow_sigma_px", "float64", "px", "standard deviation of the bow mark's position along the ring"),
+    _C("edge_contrast_dn", "float64", "DN", "median step across the edges (paint minus deck, channel sum)"),
+    _C("noise_dn", "float64", "DN", "robust noise of the channel-sum image next to the edges"),
+    _C("blur_px", "float64", "px", "Gaussian-equivalent sigma of the edges' profile"),
+    _C("edge_crb_px", "float64", "px", "Cramér-Rao bound of one edge point (one sample per pixel of edge) "
+       "from the contrast, noise and blur"),
+    _C("seconds", "float64", "s", "CPU time of the ring detection (this thread)"),
+)
+
+#: ``estimates/ring-edges--painted-ring.bound.parquet``: one row per frame, the painted ring's bound.
+PAINTED_RING_BOUND_COLUMNS: tuple[Column, ...] = (
+    _C("frame_id", "int64", "", "frame id", nullable=False),
+    *(_C(f"bound_{p}_{u}", "float64", u, f"{p}: bound's standard deviation from the image-derived edge "
+         "Cramér-Rao bound (contrast, noise, blur; white noise), same Jacobian as the estimate (null: no estimate)")
+      for p, u in (("roll", "deg"), ("pitch", "deg"), ("yaw", "deg"), ("surge", "m"), ("sway", "m"),
+                   ("height", "m"))),
+    _C("chi2_per_point", "float64", "", "chi-square of the optimum over its residuals (whitened by the measured "
+       "edge noise)"),
+    _C("seconds", "float64", "s", "CPU time of the estimation (this thread)"),
 )
 
 #: ``cameras/<name>_hot_pixels.parquet``: one row per hot pixel of a camera (the same in every frame).

@@ -29,6 +29,9 @@ from deckpose.table_schemas import (
     FRAME_COLUMNS,
     HOT_PIXEL_COLUMNS,
     LIGHT_COLUMNS,
+    PAINTED_RING_BOUND_COLUMNS,
+    PAINTED_RING_COLUMNS,
+    RING_DETECTION_COLUMNS,
     TRACK_COLUMNS,
     TRACK_PREDICTION_COLUMNS,
     Column,
@@ -51,6 +54,8 @@ SCHEMAS: dict[str, tuple[Column, ...]] = {
     "frames": FRAME_COLUMNS, "beacons": BEACON_COLUMNS, "detections": DETECTION_COLUMNS,
     "detect frames": DETECT_FRAME_COLUMNS, "estimates": ESTIMATE_COLUMNS, "lights": LIGHT_COLUMNS,
     "hot pixels": HOT_PIXEL_COLUMNS, "tracks": TRACK_COLUMNS, "track predictions": TRACK_PREDICTION_COLUMNS,
+    "painted ring": PAINTED_RING_COLUMNS, "ring detections": RING_DETECTION_COLUMNS,
+    "painted ring bounds": PAINTED_RING_BOUND_COLUMNS,
 }
 #: Kinds written with exactly their schema's columns, in order, with its types.
 FIXED_KINDS = frozenset({"estimates", "tracks", "track predictions"})

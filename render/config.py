@@ -33,6 +33,7 @@ from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH, epoch_ns
 from deckpose.errors import ConfigError
 from deckpose.image_store import ImageFormat
 from deckpose.layout import DeckLayout, layout_from_dict, layout_to_dict
+from deckpose.painted_ring import PaintedRing, painted_ring_from_dict
 from deckpose.typed_config import check_range, coerce, did_you_mean, from_mapping, load_yaml
 
 
@@ -545,6 +546,8 @@ class RenderConfig:
     ship_lights: ShipLightsSpec = ShipLightsSpec()
     shutter: ShutterSpec = ShutterSpec()
     optics: OpticsSpec = OpticsSpec()
+    #: A painted ring on the deck (:mod:`deckpose.painted_ring`); None: none (the default).
+    painted_ring: PaintedRing | None = None
     seed: int = 0
     backend: Backend = Backend.EGL
     name: str = "dataset"
@@ -612,6 +615,7 @@ _SECTIONS: dict[str, Any] = {
     "shutter": _shutter_spec,
     "optics": _optics_spec,
     "approach": approach_spec,
+    "painted_ring": lambda value, where: None if value is None else painted_ring_from_dict(value, where),
 }
 
 
@@ -648,6 +652,8 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
     if half <= cfg.layout.radius_m + cfg.layout.beacon_radius_m:
         raise ConfigError(f"scene.deck_half_size_m={half} must exceed the ring radius "
                           f"{cfg.layout.radius_m} so the beacons sit on the deck")
+    if cfg.painted_ring is not None:
+        _check_painted_ring(cfg, cfg.painted_ring, source)
     if cfg.optics.focus_distance_m is not None:
         f_m = max(c.model().fx for c in cfg.cameras) * cfg.optics.pixel_pitch_um * 1e-6
         if cfg.optics.focus_distance_m <= f_m:
@@ -673,6 +679,20 @@ def _approach_heights(doc: dict[str, Any], source: str) -> dict[str, Any]:
     first = appr.get("heights_m") if isinstance(appr, dict) else None
     nominal = first[0] if isinstance(first, list) and first else 1.0  # (approach_spec says what is wrong)
     return {**doc, "heights_m": [nominal]}
+
+
+def _check_painted_ring(cfg: RenderConfig, ring: PaintedRing, source: str) -> None:
+    """The painted ring must lie on the deck, clear of the beacons, in flat shading."""
+    if ring.extent_m >= cfg.deck_half_size_m():
+        raise ConfigError(f"{source}: painted_ring reaches {ring.extent_m:g} m from the centre, beyond the deck "
+                          f"(half size {cfg.deck_half_size_m():g} m): make it smaller or scene.deck_half_size_m larger")
+    clear = cfg.layout.radius_m - 3 * cfg.layout.beacon_radius_m  # the beacons' dark fittings
+    if ring.extent_m >= clear:
+        raise ConfigError(f"{source}: painted_ring reaches {ring.extent_m:g} m from the centre, onto the beacons' "
+                          f"fittings (from {clear:g} m): make the ring (or its bar) smaller or layout.radius_m larger")
+    if cfg.scene.shading is not Shading.FLAT:
+        raise ConfigError(f"{source}: painted_ring needs scene.shading: flat (pbr lights the deck with a sun "
+                          "the analytic paint does not see)")
 
 
 #: The embedded default job (the same as ``configs/smoke.yaml``): two small resolutions x two
@@ -719,6 +739,8 @@ def config_to_dict(cfg: RenderConfig) -> dict[str, Any]:
     d = {f.name: getattr(cfg, f.name) for f in fields(cfg)}
     out: dict[str, Any] = {}
     for key, val in d.items():
+        if key == "painted_ring" and val is None:
+            continue  # no key: a config without a ring resolves as it did before issue 22
         if key == "approach":
             if val is not None:  # (None, the grid: the key stays out, as before approaches)
                 out[key] = {k: _plain(v) for k, v in asdict(val).items()}

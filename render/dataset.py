@@ -72,7 +72,12 @@ from deckpose.run_folder import (
     manifest_cameras,
     preview_relpath,
 )
-from deckpose.table_schemas import HOT_PIXEL_COLUMNS, LIGHT_COLUMNS, typed_frame
+from deckpose.table_schemas import (
+    HOT_PIXEL_COLUMNS,
+    LIGHT_COLUMNS,
+    PAINTED_RING_COLUMNS,
+    typed_frame,
+)
 from deckpose.tables import write_table
 
 if TYPE_CHECKING:
@@ -127,7 +132,13 @@ def encode_frame(cfg: RenderConfig, spec: FrameSpec, detection: RenderDetection 
     ``detection``, the frame is also detected here, from memory (the part's
     ``"detections"``), and its image is encoded only if ``detection.keep_images``.
     """
-    from deckpose.render.frame import beacon_rows, frame_row, light_rows, render_frame
+    from deckpose.render.frame import (
+        beacon_rows,
+        frame_row,
+        light_rows,
+        painted_ring_rows,
+        render_frame,
+    )
     from deckpose.render.scene import DeckRenderer
 
     key = (cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
@@ -144,6 +155,8 @@ def encode_frame(cfg: RenderConfig, spec: FrameSpec, detection: RenderDetection 
     preview_png = encode_image(make_preview(bgr, PREVIEW_PX), ImageFormat.PNG)
     rel = image_relpath(spec.frame_id, cfg.image_format.suffix) if keep else ""
     part: dict[str, Any] = {"frame": frame_row(rf, rel), "beacons": beacon_rows(rf), "lights": light_rows(rf)}
+    if cfg.painted_ring is not None:  # the key only with a ring (default parts unchanged)
+        part["painted_ring"] = painted_ring_rows(rf)
     if detection is not None and detection.detectors:
         part["detections"] = detect_rendered(rf.frame, spec.camera_name, rel, cfg.layout, detection)
     return EncodedFrame(spec.frame_id, image, preview_png, part)
@@ -493,6 +506,10 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
     write_table(fdf, RunPaths(out).frames, "frames")
     write_table(bdf, RunPaths(out).beacons, "beacons")
     write_table(ldf, RunPaths(out).lights, "lights")
+    if cfg.painted_ring is not None:
+        rings = [row for doc in parts for row in doc.get("painted_ring", [])]
+        rdf = typed_frame(rings, PAINTED_RING_COLUMNS).sort_values(["frame_id", "edge"], kind="stable")
+        write_table(rdf.reset_index(drop=True), RunPaths(out).painted_ring, "painted ring")
     _write_json(RunPaths(out).manifest, _manifest(cfg, plan, complete=True, detection=detection))
     if detection is not None:
         for path in write_rendered_detections(out, parts, detection):

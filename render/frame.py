@@ -17,12 +17,13 @@ vibration (:mod:`deckpose.render.rolling_shutter`) place each beacon at its own 
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from deckpose.render.auto_exposure import metered_exposure
-from deckpose.render.beacons import beacon_splats
+from deckpose.render.beacons import Splat, beacon_splats
 from deckpose.render.bloom import bloom, bloom_sigma_px
 from deckpose.render.camera_motion import VIBRATION_STREAM, camera_motion
 from deckpose.render.compression import jpeg_round_trip
@@ -32,6 +33,13 @@ from deckpose.render.lens import distort, raster_camera
 from deckpose.render.light import unit_factors
 from deckpose.render.occlusion import OCCLUSION_STREAM, OcclusionRecord, occlude
 from deckpose.render.optics import LensedFrame, OpticsRecord, optics_row, through_lens
+from deckpose.render.painted_ring import (
+    RingTruth,
+    floodlight_gain,
+    paint_splats,
+    ring_rows,
+    ring_truth,
+)
 from deckpose.render.plan import FrameSpec
 from deckpose.render.rolling_shutter import ShutterFrame, rolling_shutter_beacons
 from deckpose.render.scene import DeckRenderer, radiance_scale
@@ -69,6 +77,12 @@ class RenderedFrame:
     #: The exposure the auto-exposure chose (:mod:`deckpose.render.auto_exposure`); None: ``sensor.exposure``.
     exposure: float | None = None
     optics: OpticsRecord | None = None
+    #: The painted ring's truth (:mod:`deckpose.render.painted_ring`); None without ``painted_ring``.
+    ring: RingTruth | None = None
+
+
+#: A row gain of the sensor's background, ``f(r0, r1) -> (r1 - r0, W)`` float32.
+RowGain = Callable[[int, int], np.ndarray]
 
 
 def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
@@ -117,8 +131,16 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
     rng = np.random.default_rng(spec.seed)
     spots = lens.spots if lens else spot_record(raster, scale, splats, sensor, cfg.layout.n_beacons)
     pattern = fixed_pattern(sensor, cfg.seed, camera.name, *raster.shape[:2])
-    image = expose(raster, scale, splats + extra, sensor, rng, pattern=pattern,
-                   background_gain=lens.background_gain if lens else None)
+    gain = lens.background_gain if lens else None
+    paint: list[Splat] = []
+    ring: RingTruth | None = None
+    if cfg.painted_ring is not None:  # off: today's frames, bit for bit
+        flood, flood_rows = floodlight_gain(cfg.painted_ring, spec.lighting, cfg.deck_half_size_m(), spec.ship,
+                                            cam_pose, camera)
+        paint = paint_splats(raster, scale, cfg.painted_ring, spec.ship, cam_pose, camera, deck_gain=flood)
+        gain = _product(gain, flood_rows)
+        ring = ring_truth(cfg.painted_ring, spec.ship, cam_pose, camera)
+    image = expose(raster, scale, splats + extra + paint, sensor, rng, pattern=pattern, background_gain=gain)
     if sensor.jpeg_quality is not None:
         image = jpeg_round_trip(image, sensor.jpeg_quality)
     image.setflags(write=False)  # Frame keeps a read-only array as is (no 200 MB copy at 64 MP)
@@ -129,7 +151,18 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
                          lights_in, flux_e,
                          global_points_px=None if shutter is None else shutter.global_points_px,
                          exposure=None if cfg.sensor.auto_exposure is None else sensor.exposure,
-                         optics=lens.record if lens else None)
+                         optics=lens.record if lens else None, ring=ring)
+
+
+def _product(a: RowGain | None, b: RowGain | None) -> RowGain | None:
+    """The product of two row-gain functions of :func:`~deckpose.render.sensor.expose` (None: 1)."""
+    if a is None or b is None:
+        return a or b
+
+    def both(r0: int, r1: int) -> np.ndarray:
+        return a(r0, r1) * b(r0, r1)
+
+    return both
 
 
 def _shutter(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel, factors: np.ndarray) -> ShutterFrame | None:
@@ -182,6 +215,11 @@ def beacon_rows(rf: RenderedFrame) -> list[dict[str, Any]]:
          **optics_row(rf.optics, i)}
         for i in range(p.points_px.shape[0])
     ]
+
+
+def painted_ring_rows(rf: RenderedFrame) -> list[dict[str, Any]]:
+    """The ``painted_ring.parquet`` rows of a rendered frame (none without a painted ring)."""
+    return [] if rf.ring is None else ring_rows(rf.spec.frame_id, rf.ring)
 
 
 def light_rows(rf: RenderedFrame) -> list[dict[str, Any]]:

@@ -25,6 +25,7 @@ SUBCOMMAND_MODULES: tuple[str, ...] = (
     "deckpose.cli.bench_detectors_cmd",
     "deckpose.cli.estimate_cmd",
     "deckpose.cli.track_cmd",
+    "deckpose.cli.painted_ring_cmd",
     "deckpose.cli.crb_cmd",
     "deckpose.cli.evaluate_cmd",
     "deckpose.cli.export_cmd",

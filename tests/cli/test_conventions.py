@@ -12,9 +12,9 @@ from deckpose.cli.common_options import default_workers
 PARSER = build_parser()
 COMMANDS = next(a for a in PARSER._actions if isinstance(a, argparse._SubParsersAction)).choices
 #: Commands that write files (each takes -o/--output, or writes into the run folder it is given).
-WRITE_INTO_RUN = {"evaluate", "report", "pipeline", "track"}
+WRITE_INTO_RUN = {"evaluate", "report", "pipeline", "track", "painted-ring"}
 #: Commands with a progress bar.
-LONG = {"demo", "pipeline", "render", "detect", "bench-detectors", "estimate", "thesis-tables",
+LONG = {"demo", "pipeline", "render", "detect", "bench-detectors", "estimate", "painted-ring", "thesis-tables",
         "estimator-tables", "track"}
 
 

@@ -1,0 +1,210 @@
+"""Ship pose from a painted ring's edges: the conic method, then a refinement on the edge points.
+
+1. **Closed form.** The outer edge's fitted conic (undistorted pixels, ``K`` removed) gives
+   the two candidate deck planes of a circle of the outer radius
+   (:func:`deckpose.estimate.circle_pose.circle_planes`); on each, the bow mark's two ends
+   (cast onto the plane) give the bow direction, hence yaw.
+2. **Refinement.** From each candidate, the six pose parameters
+   (:mod:`deckpose.estimate.pose_model`, the camera attitude known) are fitted to every edge
+   point: each point's ray meets the deck plane at distance ``rho`` from the centre, and its
+   residual is ``(rho - r_edge) / |grad rho|``, its distance from the projected edge circle in
+   pixels to first order (``grad rho`` in metres per pixel, taken at the linearisation pose);
+   the bow mark adds the mean deck angle of its two ends (0 at the bow) over its sigma.
+   Each edge's residuals are whitened by its measured point noise, the RMS distance of its
+   points from their ellipse times the square root of their correlation factor along the
+   edge (:attr:`deckpose.ring_detection.RingDetection.residual_scale`). The candidate of least
+   chi-square wins; when the other fits as well (chi-square within :data:`AMBIGUITY_CHI2`) at
+   a pose more than 5 sigmas away, the estimate is not ok ("ambiguous").
+3. **Covariance and bound.** The covariance is ``(J^T J)^-1`` of the whitened Jacobian at the
+   optimum: the measured noise. The bound is the same Jacobian with each edge point's sigma
+   replaced by the image-derived Cramér–Rao bound of one edge point,
+   ``edge_crb_px / sqrt(spacing_px)`` (:mod:`deckpose.detect.ring_edges`: contrast, noise and
+   blur measured in the frame), the bow rows unchanged: the bound of any unbiased estimator
+   from the same edges if the pixel noise were white; deck texture that is not white raises
+   the measured noise above it.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from deckpose.estimate.circle_pose import circle_planes
+from deckpose.estimate.pose_model import params_from_relative, relative_from_params
+from numpy.typing import NDArray
+from scipy.optimize import least_squares
+
+from deckpose.camera import CameraModel
+from deckpose.painted_ring import PaintedRing
+from deckpose.records import PoseEstimate
+from deckpose.ring_detection import RingDetection
+
+__all__ = ["AMBIGUITY_CHI2", "METHOD", "PaintedRingPose", "estimate_painted_ring"]
+
+FloatArray = NDArray[np.float64]
+
+#: The estimator's name in tables.
+METHOD = "painted-ring"
+#: A second candidate this close in chi-square at a distinct pose makes the tilt ambiguous.
+AMBIGUITY_CHI2 = 25.0
+#: Edge points the refinement needs per edge.
+MIN_POINTS = 20
+
+
+@dataclass(frozen=True)
+class PaintedRingPose:
+    """A painted-ring estimate with its bound.
+
+    Attributes
+    ----------
+    estimate : PoseEstimate
+        Method :data:`METHOD`; covariance from the measured edge-point noise.
+    bound : (6, 6) array of float or None
+        Covariance bound from the image-derived edge noise, same Jacobian (None when not ok).
+    chi2_per_point : float
+        Chi-square of the optimum over the number of residuals.
+    """
+
+    estimate: PoseEstimate
+    bound: FloatArray | None = None
+    chi2_per_point: float = math.nan
+
+
+def _normalised(camera: CameraModel, points_px: FloatArray) -> FloatArray:
+    """Undistorted normalised rays ``(x, y, 1)`` of pixels, (N, 3)."""
+    und = camera.undistort(points_px)
+    y = (und[:, 1] - camera.cy) / camera.fy
+    x = (und[:, 0] - camera.cx - camera.K[0, 1] * y) / camera.fx
+    return np.column_stack([x, y, np.ones_like(x)])
+
+
+def _deck_xy(params: FloatArray, R_wc: FloatArray, rays: FloatArray) -> FloatArray:
+    """Deck-frame ``(x, y)`` metres where rays (N, 3) meet the deck plane of pose ``params``."""
+    R, t = relative_from_params(params, R_wc)
+    n = R[:, 2]
+    denom = rays @ n
+    s = float(n @ t) / np.where(np.abs(denom) > 1e-12, denom, np.nan)
+    P = s[:, None] * rays - t
+    return (P @ R)[:, :2]
+
+
+def _grad_norm(camera: CameraModel, params: FloatArray, R_wc: FloatArray, points_px: FloatArray,
+               f: str) -> FloatArray:
+    """``|d q / d pixel|`` of ``q`` = ``rho`` (m/px) or ``phi`` (rad/px) at each point, by differences."""
+    def q(p: FloatArray) -> FloatArray:
+        xy = _deck_xy(params, R_wc, _normalised(camera, p))
+        return np.hypot(xy[:, 0], xy[:, 1]) if f == "rho" else np.arctan2(xy[:, 1], xy[:, 0])
+
+    h = 0.5
+    du = (q(points_px + [h, 0]) - q(points_px - [h, 0])) / (2 * h)
+    dv = (q(points_px + [0, h]) - q(points_px - [0, h])) / (2 * h)
+    return np.hypot(du, dv)
+
+
+def _residuals(p: FloatArray, R_wc: FloatArray, rays: list[FloatArray], end_rays: FloatArray, ring: PaintedRing,
+               scales: list[FloatArray], sigma: FloatArray, sig_phi: float) -> FloatArray:
+    """Whitened residuals: each edge point's pixel distance from its edge circle, then the bow angle."""
+    res = []
+    for k, r_edge in enumerate(ring.edge_radii_m):
+        xy = _deck_xy(p, R_wc, rays[k])
+        res.append((np.hypot(xy[:, 0], xy[:, 1]) - r_edge) / scales[k] / sigma[k])
+    e = _deck_xy(p, R_wc, end_rays)
+    ang = np.arctan2(e[:, 1], e[:, 0])
+    phi = math.atan2(float(np.sin(ang).sum()), float(np.cos(ang).sum()))  # mean angle of the two ends
+    res.append(np.array([phi / sig_phi]))
+    return np.nan_to_num(np.concatenate(res), nan=1e6)
+
+
+def _candidates(det: RingDetection, camera: CameraModel, ring: PaintedRing, R_wc: FloatArray) -> list[FloatArray]:
+    """Closed-form pose parameters of both candidate deck planes (outer conic and bow)."""
+    Cn = camera.K.T @ det.conics_px[1] @ camera.K
+    ends = _normalised(camera, det.bow_ends_px)
+    out = []
+    for plane in circle_planes(Cn, ring.outer_radius_m):
+        n, c = plane.normal_up, plane.centre_m
+        s = float(n @ c) / (ends @ n)
+        v = (s[:, None] * ends).mean(axis=0) - c
+        v -= (v @ n) * n  # the ends' midpoint lies on the bow ray from the centre (gap and bar alike)
+        if not np.linalg.norm(v) > 0:
+            continue
+        x = v / np.linalg.norm(v)
+        R = np.asarray(np.column_stack([x, np.cross(n, x), n]), dtype=np.float64)
+        out.append(params_from_relative(R, c, R_wc))
+    return out
+
+
+def estimate_painted_ring(det: RingDetection, camera: CameraModel, ring: PaintedRing,
+                          R_world_from_cam: FloatArray) -> PaintedRingPose:
+    """Ship pose from a :class:`~deckpose.ring_detection.RingDetection` (module docstring).
+
+    Parameters
+    ----------
+    det : RingDetection
+    camera : CameraModel
+    ring : PaintedRing
+    R_world_from_cam : (3, 3) array of float
+        The camera's attitude (known, as for every estimator of deckpose).
+
+    Returns
+    -------
+    PaintedRingPose
+        Never raises on a bad detection: failures are a falsy estimate with a reason.
+    """
+    def failed(reason: str) -> PaintedRingPose:
+        return PaintedRingPose(PoseEstimate.failed(METHOD, reason).for_frame(det.frame_id))
+
+    if not det.ok:
+        return failed(f"ring not detected: {det.reason}")
+    if min(len(det.inner_px), len(det.outer_px)) < MIN_POINTS:
+        return failed(f"too few edge points (needs {MIN_POINTS} per edge)")
+    R_wc = np.asarray(R_world_from_cam, dtype=float)
+    rays = [_normalised(camera, p) for p in det.edges_px]
+    end_rays = _normalised(camera, det.bow_ends_px)
+    sigma = det.rms_px * np.sqrt(det.residual_scale)
+    if not np.all(sigma > 0):
+        return failed("edge points without scatter: no noise to weigh them by")
+
+    def solve(x0: FloatArray) -> tuple[FloatArray, FloatArray, float, list[FloatArray], float]:
+        x = x0
+        scales: list[FloatArray] = []
+        sig_phi = math.nan
+        J, cost = np.zeros((0, 6)), math.inf
+        for _ in range(2):  # the pixel scales at the start, then at the first optimum
+            scales = [_grad_norm(camera, x, R_wc, p, "rho") for p in det.edges_px]
+            g_phi = _grad_norm(camera, x, R_wc, det.bow_ends_px, "phi")
+            sig_phi = float(det.bow_sigma_px * np.mean(g_phi) / math.sqrt(2.0))
+            sol = least_squares(_residuals, x, method="lm", x_scale="jac",
+                                args=(R_wc, rays, end_rays, ring, scales, sigma, sig_phi))
+            x, J, cost = np.asarray(sol.x, np.float64), np.asarray(sol.jac, np.float64), float(sol.cost)
+        return x, J, 2.0 * cost, scales, sig_phi
+
+    cands = _candidates(det, camera, ring, R_wc)
+    if not cands:
+        return failed("the outer edge's conic is not the image of a circle in front of the camera")
+    sols = sorted((solve(c) for c in cands), key=lambda s: s[2])
+    x, J, chi2, _, _ = sols[0]
+    n_res = len(det.inner_px) + len(det.outer_px) + 1
+    try:
+        cov = np.asarray(np.linalg.inv(J.T @ J), dtype=np.float64)
+    except np.linalg.LinAlgError:
+        return failed("singular normal matrix: the edges do not fix the pose")
+    sig = np.sqrt(np.diag(cov))
+    if len(sols) > 1 and sols[1][2] - chi2 < AMBIGUITY_CHI2:
+        d = sols[1][0] - x
+        d[:3] = (d[:3] + math.pi) % (2 * math.pi) - math.pi
+        if np.any(np.abs(d) > 5 * sig):
+            return failed(f"ambiguous: both deck planes fit the edges (chi2 {chi2:.0f} and {sols[1][2]:.0f})")
+    # the bound: the same Jacobian, edge rows at the image-derived CRB of a point
+    crb = det.edge_crb_px / np.sqrt(det.spacing_px)
+    if not np.all(np.isfinite(crb) & (crb > 0)):
+        bound = None
+    else:
+        w = np.concatenate([np.full(len(det.inner_px), sigma[0] / crb[0]), np.full(len(det.outer_px), sigma[1] / crb[1]),
+                            [1.0]])
+        Jb = J * w[:, None]
+        bound = np.asarray(np.linalg.inv(Jb.T @ Jb), dtype=np.float64)
+    est = PoseEstimate(METHOD, True, roll_rad=float(x[0]), pitch_rad=float(x[1]), yaw_rad=float(x[2]),
+                       surge_m=float(x[3]), sway_m=float(x[4]), height_m=float(x[5]), covariance=cov,
+                       frame_id=det.frame_id)
+    return PaintedRingPose(est, bound, chi2 / n_res)
