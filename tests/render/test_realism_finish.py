@@ -59,7 +59,7 @@ def _walk(charge_e: np.ndarray, full_well_e: float) -> np.ndarray:
 _LUMA = np.array([0.299, 0.587, 0.114])  # expose()'s grey, as the reference had it
 
 
-def _bloom_splats_reference(splats: list[Splat], raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32],
+def reference_bloom_splats(splats: list[Splat], raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32],
                  sensor: SensorSpec, vignetting: tuple[CameraModel, float] | None = None) -> list[Splat]:
     """The reference, as it was before (with :func:`_walk`)."""
     e_per_rad = sensor.exposure * sensor.full_well_e
@@ -163,7 +163,7 @@ def test_bloom_splats_are_the_reference(mono: bool) -> None:
     raster[200:300, 250:400] = 40  # a brighter patch of deck (0.8 wells) under some spots
     vig = (camera, 4.0)
     got = bloom_splats(lensed, raster, scale, sensor, vig)
-    want = _bloom_splats_reference(lensed, raster, scale, sensor, vig)
+    want = reference_bloom_splats(lensed, raster, scale, sensor, vig)
     assert len(got) == len(want) and sum(a.row0 != b.row0 for a, b in zip(got, lensed)) >= 6  # they bloomed
     for a, b in zip(got, want):
         assert (a.row0, a.col0, a.patch.shape) == (b.row0, b.col0, b.patch.shape)
