@@ -242,6 +242,9 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     t0 = time.time()
     load0 = os.getloadavg()[0]
+    # the code the run starts from (commits made while it runs are not its code)
+    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], check=False, capture_output=True, text=True,
+                            cwd=ROOT).stdout.strip()
     names = args.detectors.split(",") if args.detectors else registry.names()
     todo = datasets()
     if args.only:
@@ -273,8 +276,6 @@ def main(argv: list[str] | None = None) -> int:
     res = pd.concat(tables, ignore_index=True)
     every = datasets()
     res = res.sort_values("dataset", key=lambda c: c.map({k: i for i, k in enumerate(every)}), kind="stable")
-    commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], check=False, capture_output=True, text=True,
-                            cwd=ROOT).stdout.strip()
     this_run = {"command": " ".join([".venv/bin/python", "benchmarks/detector_ladder.py", *(argv or sys.argv[1:])]),
                 "commit": commit, "machine": f"{platform.machine()}, {os.cpu_count()} cores",
                 "load_start": load0, "load_end": os.getloadavg()[0], "minutes": (time.time() - t0) / 60,
