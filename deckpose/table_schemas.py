@@ -159,6 +159,11 @@ BEACON_COLUMNS: tuple[Column, ...] = (
     _C("v_r_px", "float64", "px", "true centre of the red channel, row"),
     _C("u_b_px", "float64", "px", "true centre of the blue channel under lateral chromatic aberration, column"),
     _C("v_b_px", "float64", "px", "true centre of the blue channel, row"),
+    _C("spot_flux_r_e", "float64", "e-", "electrons of spot_flux_e that the red light gives (the channel sum's "
+       "share of the red channel; with u_r_px, v_r_px it places the light a channel-sum detector sees; optics; "
+       "null: off)"),
+    _C("spot_flux_g_e", "float64", "e-", "electrons of spot_flux_e that the green light gives (optics; null: off)"),
+    _C("spot_flux_b_e", "float64", "e-", "electrons of spot_flux_e that the blue light gives (optics; null: off)"),
 )
 
 #: ``lights.parquet``: one row per frame x non-beacon light (navigation lights, floodlights, glints).

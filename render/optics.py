@@ -83,7 +83,7 @@ from deckpose.camera import CameraModel
 
 __all__ = [
     "OPTICS_CHANNELS", "OPTICS_COLUMNS", "KernelParts", "LensedFrame", "OpticsRecord", "SpotOptics", "apply_optics",
-    "ca_centres_px", "channel_kernels", "defocus_diameter_px", "field_sigma_px", "focal_length_m", "kernel_parts",
+    "ca_centres_px", "channel_flux_e", "channel_kernels", "defocus_diameter_px", "field_sigma_px", "focal_length_m", "kernel_parts",
     "optics_block", "optics_record", "optics_row", "through_lens", "vignetting_gain", "vignetting_rows",
 ]
 
@@ -320,6 +320,10 @@ class OpticsRecord:
     vignetting : ``cos(theta)^n`` at the beacon's centre (1 without vignetting).
     centres_px : (N, 3, 2) each channel's true centre (r, g, b), pixels; green = ``u_px, v_px``.
     crb_px : per-axis centroid Cramér–Rao bound of the spot drawn (:func:`spot_crb_px`).
+    channel_flux_e : (N, 3) electrons of the spot's core in the channel sum that come from the
+        red, green and blue light (they sum to ``spot_flux_e``); with ``centres_px`` they give
+        the centroid of the light a channel-sum detector sees
+        (:func:`deckpose.detect.benchmark.channel_sum_centre_px`).
     """
 
     defocus_px: NDArray[np.float64]
@@ -327,14 +331,41 @@ class OpticsRecord:
     vignetting: NDArray[np.float64]
     centres_px: NDArray[np.float64]
     crb_px: NDArray[np.float64]
+    channel_flux_e: NDArray[np.float64]
 
 
 def optics_record(optics: OpticsSpec, camera: CameraModel, points_px: NDArray[np.float64],
-                  depth_m: NDArray[np.float64], crb_px: NDArray[np.float64]) -> OpticsRecord:
-    """The frame's :class:`OpticsRecord` from the beacons' true centres (N, 2) and depths (N,)."""
+                  depth_m: NDArray[np.float64], crb_px: NDArray[np.float64],
+                  channel_flux_e: NDArray[np.float64]) -> OpticsRecord:
+    """The frame's :class:`OpticsRecord` from the beacons' true centres (N, 2), depths (N,), bounds (N,)
+    and per-channel core electrons (N, 3)."""
     return OpticsRecord(defocus_diameter_px(depth_m, camera, optics), field_sigma_px(points_px, camera, optics),
                         vignetting_gain(points_px, camera, optics.vignetting_exponent),
-                        ca_centres_px(points_px, camera, optics), np.asarray(crb_px, float))
+                        ca_centres_px(points_px, camera, optics), np.asarray(crb_px, float),
+                        np.asarray(channel_flux_e, float).reshape(-1, OPTICS_CHANNELS))
+
+
+def channel_flux_e(flux_e: NDArray[np.float64], rgb: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Split each spot's channel-sum electrons into the parts its red, green and blue light give.
+
+    The channel sum of a spot is ``sum_c rgb_c P_c`` (RGB frames; a mono frame's grey is that
+    over 3), every channel's profile ``P_c`` holding the same light, so channel ``c``'s share
+    is ``rgb_c / sum(rgb)``.
+
+    Parameters
+    ----------
+    flux_e : (N,) array of float
+        Electrons of each spot's core, summed over channels (``spot_flux_e``).
+    rgb : (N, 3) array of float
+        Each spot's colour.
+
+    Returns
+    -------
+    (N, 3) array of float
+        Electrons per channel; rows sum to ``flux_e``.
+    """
+    c = np.asarray(rgb, float).reshape(-1, OPTICS_CHANNELS)
+    return np.asarray(np.asarray(flux_e, float).reshape(-1, 1) * c / c.sum(axis=1, keepdims=True), float)
 
 
 def optics_block(optics: OpticsSpec, cameras: dict[str, CameraModel]) -> dict[str, object]:
@@ -421,6 +452,9 @@ def through_lens(optics: OpticsSpec, camera: CameraModel, sensor: SensorSpec, ra
     vig = vignetting_gain(points_px, camera, optics.vignetting_exponent)
     spots = replace(spots, background_e=spots.background_e * np.where(np.isfinite(vig), vig, 1.0))
     crb = np.full(n, np.nan)
+    rgb = np.full((n, OPTICS_CHANNELS), np.nan)
+    for sp in beacons:
+        rgb[sp.beacon_id] = sp.rgb
     for sp, u in zip(beacons, used):
         crb[sp.beacon_id] = spot_crb_px(sp, u.kernels, u.gain, float(spots.background_e[sp.beacon_id]),
                                         sensor)
@@ -428,8 +462,8 @@ def through_lens(optics: OpticsSpec, camera: CameraModel, sensor: SensorSpec, ra
         vig = (camera, optics.vignetting_exponent) if optics.vignetting_exponent > 0 else None
         lensed = bloom_splats(lensed, raster, scale_rgb, sensor, vig)
         lensed_lights = bloom_splats(lensed_lights, raster, scale_rgb, sensor, vig)
-    return LensedFrame(lensed, lensed_lights, spots, optics_record(optics, camera, points_px, depth_m, crb),
-                       gain_rows)
+    record = optics_record(optics, camera, points_px, depth_m, crb, channel_flux_e(spots.flux_e, rgb))
+    return LensedFrame(lensed, lensed_lights, spots, record, gain_rows)
 
 
 def optics_row(record: OpticsRecord | None, i: int) -> dict[str, float]:
@@ -437,11 +471,13 @@ def optics_row(record: OpticsRecord | None, i: int) -> dict[str, float]:
     if record is None:
         return dict.fromkeys(OPTICS_COLUMNS, float("nan"))
     c = record.centres_px[i]
+    f = record.channel_flux_e[i]
     return {"spot_crb_px": float(record.crb_px[i]), "defocus_px": float(record.defocus_px[i]),
             "field_blur_sigma_px": float(record.field_sigma_px[i]), "vignetting": float(record.vignetting[i]),
-            "u_r_px": float(c[0, 0]), "v_r_px": float(c[0, 1]), "u_b_px": float(c[2, 0]), "v_b_px": float(c[2, 1])}
+            "u_r_px": float(c[0, 0]), "v_r_px": float(c[0, 1]), "u_b_px": float(c[2, 0]), "v_b_px": float(c[2, 1]),
+            "spot_flux_r_e": float(f[0]), "spot_flux_g_e": float(f[1]), "spot_flux_b_e": float(f[2])}
 
 
 #: The optics columns of ``beacons.parquet`` (:data:`deckpose.table_schemas.BEACON_COLUMNS`).
 OPTICS_COLUMNS = ("spot_crb_px", "defocus_px", "field_blur_sigma_px", "vignetting",
-                  "u_r_px", "v_r_px", "u_b_px", "v_b_px")
+                  "u_r_px", "v_r_px", "u_b_px", "v_b_px", "spot_flux_r_e", "spot_flux_g_e", "spot_flux_b_e")

@@ -34,7 +34,7 @@ BEACON_COLS = ["frame_id", "beacon_id", "u_px", "v_px", "visible", "in_image", "
                "apparent_radius_px", "spot_sigma_px", "spot_flux_e", "spot_background_e",
                "spot_peak_e", "unit_factor", "occluded_fraction", "light_u_px", "light_v_px", "global_u_px",
                "global_v_px", "spot_crb_px", "defocus_px", "field_blur_sigma_px", "vignetting", "u_r_px", "v_r_px",
-               "u_b_px", "v_b_px"]
+               "u_b_px", "v_b_px", "spot_flux_r_e", "spot_flux_g_e", "spot_flux_b_e"]
 
 
 def _images(ds: Path) -> dict[str, bytes]:
