@@ -31,8 +31,9 @@ class InputDataError(DeckposeError, ValueError):
 def short_repr(value: object, limit: int = 60) -> str:
     """``repr(value)`` cut to ``limit`` characters, for messages (a 5-million-character
     cell must not become a 5 MB error)."""
-    if hasattr(value, "item") and getattr(value, "shape", None) == ():
-        value = value.item()  # a numpy scalar as the Python value it holds: nan, not np.float64(nan)
+    item = getattr(value, "item", None)
+    if callable(item) and getattr(value, "shape", None) == ():
+        value = item()  # a numpy scalar as the Python value it holds: nan, not np.float64(nan)
     s = repr(value)
     return s if len(s) <= limit else s[: limit - 3] + "..."
 
