@@ -202,6 +202,20 @@ class RunPaths:
             pairs.append((det, method))
         return pairs
 
+    def track_triples(self) -> list[tuple[str, str, str]]:
+        """``(detector, method, tracker)`` triples with tracks in this run (``deckpose track``'s outputs)."""
+        d = self.tracks_dir
+        if not d.is_dir():
+            return []
+        triples = []
+        for p in sorted(d.glob(f"*{SEPARATOR}*{SEPARATOR}*.parquet")):
+            if p.name.startswith(".") or p.name.endswith(".predictions.parquet"):
+                continue
+            parts = p.stem.split(SEPARATOR)
+            if len(parts) == 3:
+                triples.append((parts[0], parts[1], parts[2]))
+        return triples
+
 
 def _require(path: Path, command: str) -> None:
     if not path.exists():
@@ -272,6 +286,20 @@ def read_estimates(run: RunPaths, detector: str, method: str) -> pd.DataFrame:
     p = run.estimates(detector, method)
     _require(p, f"deckpose estimate --run {run.root} --detector {detector} --method {method}")
     return read_table(p, "estimates")
+
+
+def read_tracks(run: RunPaths, detector: str, method: str, tracker: str) -> pd.DataFrame:
+    """The filtered states of one track (``TRACK_COLUMNS``)."""
+    p = run.tracks(detector, method, tracker)
+    _require(p, f"deckpose track {run.root} --detector {detector} --estimates {method} --method {tracker}")
+    return read_table(p, "tracks")
+
+
+def read_track_predictions(run: RunPaths, detector: str, method: str, tracker: str) -> pd.DataFrame:
+    """The predictions of one track (``TRACK_PREDICTION_COLUMNS``)."""
+    p = run.track_predictions(detector, method, tracker)
+    _require(p, f"deckpose track {run.root} --detector {detector} --estimates {method} --method {tracker}")
+    return read_table(p, "track predictions")
 
 
 def check_frames_match(frames: pd.DataFrame, other: pd.DataFrame, what: str, command: str) -> None:

@@ -12,7 +12,14 @@ Topics (Foxglove protobuf schemas, zstd-compressed chunks):
   and ``world -> deck_est/<detector>--<method>`` per solved estimate;
 * ``/scene`` (``foxglove.SceneUpdate``): the deck, ring and beacons, the camera frustum and
   each estimator's deck (:mod:`deckpose.evaluate.mcap_scene`);
-* ``/errors/<detector>--<method>`` (JSON): the per-frame errors, for Foxglove's Plot panel.
+* ``/errors/<detector>--<method>`` (JSON): the per-frame errors, for Foxglove's Plot panel;
+* ``/estimates/<detector>--<method>`` and ``/truth/deck`` (JSON): each frame's estimated and
+  true deck pose, to plot against time;
+* with tracks (``deckpose track``): ``/tracks/<detector>--<method>--<tracker>`` (JSON, the
+  filtered state with its sigmas, status and landing-window indicator),
+  ``/predictions/<...>/<horizon>`` (JSON, what the filter predicted for this frame one
+  horizon earlier), and ``deck_track/<...>`` and ``deck_pred/<...>/<horizon>`` decks in
+  ``/tf`` and ``/scene``. Names: :mod:`deckpose.evaluate.log_topics`.
 
 Log times (:func:`deckpose.capture_time.log_stamps`) are on a capture epoch. A dataset whose ``stamp_ns`` is
 already on one (at or after 2000-01-01) is logged at ``stamp_ns``. A rendered dataset's
@@ -46,6 +53,17 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from deckpose.evaluate.export_frames import deck_half_size_m
+from deckpose.evaluate.log_topics import (
+    TRUTH_DECK_TOPIC,
+    errors_topic,
+    estimate_frame,
+    estimates_topic,
+    prediction_frame,
+    prediction_topic,
+    track_frame,
+    track_stem,
+    track_topic,
+)
 from deckpose.evaluate.mcap_records import write_records
 from deckpose.evaluate.mcap_scene import (
     ESTIMATE_RGBA,
@@ -78,6 +96,7 @@ from deckpose.errors import InputDataError
 from deckpose.image_store import ImageFormat, decode_image, encode_image
 from deckpose.preview import PREVIEW_PX, make_preview, preview_size
 from deckpose.rotation import R_from_zyx
+from deckpose.tracking.due_predictions import predictions_due
 
 TRUTH_RGBA = (0.1, 0.9, 0.2, 1.0)
 DETECTION_RGBA = (1.0, 0.3, 0.1, 1.0)
@@ -221,8 +240,18 @@ def errors_json_schema(errors: pd.DataFrame, title: str = "deckpose.FrameErrors"
     Every field gets a ``properties`` entry with a JSON type the Foxglove app's
     parser accepts (number, integer, boolean, string); NaN is written as null.
     """
+    return table_json_schema(errors, title)
+
+
+def table_json_schema(table: pd.DataFrame, title: str) -> dict:
+    """JSON Schema of per-frame messages made of ``table``'s columns plus the frame's keys.
+
+    The frame's keys (``frame_id``, ``t_s``, ``stamp_ns``, ``detector``, ``method``) are
+    always declared; every column gets the JSON type of its dtype (number, integer,
+    boolean, string), which the Foxglove app's parser requires.
+    """
     props: dict[str, dict] = {}
-    for name, dtype in errors.dtypes.items():
+    for name, dtype in table.dtypes.items():
         if pd.api.types.is_bool_dtype(dtype):
             kind = "boolean"
         elif pd.api.types.is_integer_dtype(dtype):
@@ -235,13 +264,47 @@ def errors_json_schema(errors: pd.DataFrame, title: str = "deckpose.FrameErrors"
     props.update(frame_id={"type": "integer"},
                  t_s={"type": "number", "description": "motion time, s"},
                  stamp_ns={"type": "integer", "description": "the frame's stamp_ns (frames.parquet), ns"},
-                 detector={"type": "string"}, method={"type": "string"})
+                 detector={"type": "string"}, method={"type": "string"},
+                 track={"type": "string", "description": "<detector>--<method>--<tracker>"})
     return {"$schema": "https://json-schema.org/draft/2020-12/schema", "title": title,
             "type": "object", "properties": props}
 
 
 def _finite(d: dict) -> dict:
     return {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in d.items()}
+
+
+def _plain(rec: pd.Series) -> dict:
+    """A table row as JSON-ready Python values (numpy scalars unwrapped, pandas NA as None)."""
+    out = {}
+    for k, v in rec.items():
+        v = v.item() if hasattr(v, "item") else v
+        out[str(k)] = None if v is pd.NA else v
+    return out
+
+
+#: Columns of the estimates and tracks tables logged as JSON (the covariances stay in the tables).
+_ESTIMATE_LOGGED = ("ok", "reason", "roll_deg", "pitch_deg", "yaw_deg", "surge_m", "sway_m", "height_m",
+                    "sigma_roll_deg", "sigma_pitch_deg", "sigma_yaw_deg", "sigma_surge_m", "sigma_sway_m",
+                    "sigma_height_m")
+_TRUTH_LOGGED = ("roll_deg", "pitch_deg", "yaw_deg", "heave_m", "surge_m", "sway_m", "camera_height_m")
+
+
+def _row(table: pd.DataFrame, frame_id: int) -> pd.Series:
+    """The row of ``table`` (indexed by frame id) of one frame."""
+    return table.loc[frame_id]  # pyright: ignore[reportReturnType]  (a unique index gives one row)
+
+
+def _deck_translation(row: pd.Series, surge_m: float, sway_m: float, height_m: float) -> np.ndarray:
+    """World position of a deck estimated relative to the camera of frames-table ``row``.
+
+    Surge and sway are the deck centre minus the camera (world x, y) and height the
+    camera above the deck centre, so the deck sits at the camera's true position plus
+    (surge, sway, -height); an unknown surge or sway (NaN) is taken as 0.
+    """
+    tx = row["cam_x_m"] + (surge_m if np.isfinite(surge_m) else 0.0)
+    ty = row["cam_y_m"] + (sway_m if np.isfinite(sway_m) else 0.0)
+    return np.array([tx, ty, row["cam_z_m"] - height_m])
 
 
 def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px: int = PREVIEW_PX,
@@ -274,6 +337,19 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
     dets = {d: df.set_index("frame_id") for d, df in dets.items()}
     pairs = run.estimate_pairs()
     ests = {p: rl.read_estimates(run, *p).set_index("frame_id") for p in pairs}
+    est_logged = {p: [c for c in _ESTIMATE_LOGGED if c in e.columns] for p, e in ests.items()}
+    est_schema = {p: table_json_schema(ests[p][est_logged[p]], "deckpose.FrameEstimate") for p in pairs}
+    truth_cols = [c for c in _TRUTH_LOGGED if c in frames.columns]
+    truth_schema = table_json_schema(frames[truth_cols], "deckpose.DeckTruth")
+    tracks = {}
+    for t in run.track_triples():
+        tr = rl.read_tracks(run, *t)
+        due = predictions_due(tr, rl.read_track_predictions(run, *t))
+        track_cols = [c for c in tr.columns if not c.startswith("cov_") and c != "frame_id"]
+        tracks[track_stem(*t)] = (tr.set_index("frame_id"), track_cols,
+                                  {f: g for f, g in due.groupby("frame_id")},
+                                  table_json_schema(tr[track_cols], "deckpose.TrackState"),
+                                  table_json_schema(due.drop(columns="frame_id"), "deckpose.DuePrediction"))
     err_by_pair = {}
     err_schema: dict = {}
     if errors is not None and len(errors):
@@ -318,25 +394,53 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
             tfs.transforms.append(_transform("world", "camera", rl.R_world_from_cam(row),
                                              np.array([row["cam_x_m"], row["cam_y_m"], row["cam_z_m"]]), ts))
             entities = [deck_entity(layout, deck_half_m, ts), camera_entity(cam, float(row["camera_height_m"]), ts)]
+            keys = {"frame_id": f, "t_s": float(row["t_s"]), "stamp_ns": int(row["stamp_ns"])}
+            log.json(TRUTH_DECK_TOPIC, _finite({**_plain(row[truth_cols]), **keys}), ts, truth_schema)
             for k, ((d, m), edf) in enumerate(ests.items()):
-                if f not in edf.index or not bool(edf.loc[f, "ok"]):
+                if f not in edf.index:
                     continue
-                e = edf.loc[f]
+                e = _row(edf, f)
+                log.json(estimates_topic(d, m), _finite({**_plain(e[est_logged[(d, m)]]), **keys,
+                                                         "detector": d, "method": m}), ts, est_schema[(d, m)])
+                if not bool(e["ok"]):
+                    continue
                 R_est = R_from_zyx(*np.radians([e["roll_deg"], e["pitch_deg"], e["yaw_deg"]]))
-                # Translation: camera position minus the estimated camera-to-deck offset.
-                tx = row["cam_x_m"] + (e["surge_m"] if np.isfinite(e["surge_m"]) else 0.0)
-                ty = row["cam_y_m"] + (e["sway_m"] if np.isfinite(e["sway_m"]) else 0.0)
-                tz = row["cam_z_m"] - e["height_m"]
-                frame_est = f"deck_est/{d}{rl.SEPARATOR}{m}"
-                tfs.transforms.append(_transform("world", frame_est, R_est, np.array([tx, ty, tz]), ts))
+                frame_est = estimate_frame(d, m)
+                tfs.transforms.append(_transform("world", frame_est, R_est,
+                                                 _deck_translation(row, float(e["surge_m"]), float(e["sway_m"]),
+                                                                   float(e["height_m"])), ts))
                 entities.append(estimate_entity(frame_est, layout.radius_m, ESTIMATE_RGBA[k % len(ESTIMATE_RGBA)], ts))
+            for k, (stem, (tdf, track_cols, due_by_frame, track_schema, due_schema)) in enumerate(tracks.items()):
+                if f not in tdf.index:
+                    continue
+                tr = _row(tdf, f)
+                log.json(track_topic(stem), _finite({**_plain(tr[track_cols]), **keys, "track": stem}), ts,
+                         track_schema)
+                R_tr = R_from_zyx(*np.radians([tr["roll_deg"], tr["pitch_deg"], tr["yaw_deg"]]))
+                colour = ESTIMATE_RGBA[(len(ests) + k) % len(ESTIMATE_RGBA)]
+                tfs.transforms.append(_transform("world", track_frame(stem), R_tr,
+                                                 _deck_translation(row, float(tr["surge_m"]), float(tr["sway_m"]),
+                                                                   float(tr["height_m"])),
+                                                 ts))
+                entities.append(estimate_entity(track_frame(stem), layout.radius_m, colour, ts))
+                due = due_by_frame.get(f)
+                for _, p in (due.iterrows() if due is not None else ()):
+                    h = float(p["horizon_s"])
+                    log.json(prediction_topic(stem, h), _finite({**_plain(p.drop("frame_id")), **keys,
+                                                                  "track": stem}), ts, due_schema)
+                    # the predicted deck: predicted roll, pitch and height; yaw, surge and sway as filtered now
+                    R_p = R_from_zyx(*np.radians([p["roll_deg"], p["pitch_deg"], tr["yaw_deg"]]))
+                    tfs.transforms.append(_transform("world", prediction_frame(stem, h), R_p,
+                                                     _deck_translation(row, float(tr["surge_m"]), float(tr["sway_m"]),
+                                                                       float(p["height_m"])), ts))
+                    entities.append(estimate_entity(prediction_frame(stem, h), layout.radius_m,
+                                                    (colour[0], colour[1], colour[2], 0.15), ts))
             log.proto("/tf", tfs, ts)
             log.proto("/scene", scene_update(entities, ts), ts)
             for (d, m), edf in err_by_pair.items():
                 if f in edf.index:
-                    rec = edf.loc[f]
-                    obj = {k: (v.item() if hasattr(v, "item") else v) for k, v in rec.items()}
-                    obj.update(frame_id=f, t_s=float(row["t_s"]), stamp_ns=int(row["stamp_ns"]), detector=d, method=m)
-                    log.json(f"/errors/{d}{rl.SEPARATOR}{m}", _finite(obj), ts, err_schema)
+                    obj = _plain(_row(edf, f))
+                    obj.update(keys, detector=d, method=m)
+                    log.json(errors_topic(d, m), _finite(obj), ts, err_schema)
         log.finish()
     return out

@@ -14,7 +14,7 @@ from deckpose import run_folder as rl
 from deckpose.atomic_io import atomic_open
 from deckpose.errors import InputDataError
 from deckpose.preview import PREVIEW_PX
-from deckpose.tables import write_table
+from deckpose.tables import read_table, write_table
 
 
 def frame_crb(run: rl.RunPaths, frames: pd.DataFrame, centroid_rms_px: pd.Series) -> pd.DataFrame:
@@ -94,18 +94,32 @@ def evaluate_run(run: rl.RunPaths, *, mcap: bool = True, preview_px: int = PREVI
     return paths
 
 
+def track_horizons(run: rl.RunPaths) -> list[tuple[str, str, str, list[float]]]:
+    """``(detector, method, tracker, horizons_s)`` of every track of the run, horizons ascending."""
+    out = []
+    for d, m, t in run.track_triples():
+        horizons = rl.read_track_predictions(run, d, m, t)["horizon_s"].to_numpy(float)
+        out.append((d, m, t, sorted({float(h) for h in horizons})))
+    return out
+
+
 def write_log(run: rl.RunPaths, *, errors: pd.DataFrame | None = None, preview_px: int = PREVIEW_PX,
               command: Sequence[str] = ()) -> dict[str, Path]:
     """Write the run's MCAP log and its Foxglove layout; return their paths (``mcap``, ``layout``).
 
     The log attaches the run's report when there is one, so the pipeline writes it after
-    the report. ``errors`` (from :func:`compute_errors`) saves reading them again.
+    the report. ``errors`` (from :func:`compute_errors`) saves reading them again; without
+    it, the run's ``evaluation/errors.parquet`` is read when there is one, and the layout
+    plots the errors the log holds.
     """
     from deckpose.evaluate.foxglove_layout import foxglove_layout
     from deckpose.evaluate.mcap_log import write_run_log
 
+    if errors is None and run.errors.is_file():
+        errors = read_table(run.errors, "errors")
     mcap = write_run_log(run, errors=errors, preview_px=preview_px, command=command)
     layout_path = run.root / "foxglove_layout.json"
+    plotted = sorted({(str(d), str(m)) for d, m in zip(errors["detector"], errors["method"])}) if errors is not None else []
     with atomic_open(layout_path, "w") as fh:
-        json.dump(foxglove_layout(run.detectors(), run.estimate_pairs()), fh, indent=1)
+        json.dump(foxglove_layout(run.detectors(), plotted, track_horizons(run)), fh, indent=1)
     return {"mcap": mcap, "layout": layout_path}

@@ -83,4 +83,5 @@ def run(args: argparse.Namespace) -> int:
                         method=args.estimates, command=command, progress=bar.update)
     print(res.summary())
     print(f"predictions: {res.predictions_path}")
+    print(f"to play it in Foxglove (filtered and predicted decks, roll against time): deckpose evaluate {run_folder.root}")
     return 0

@@ -6,6 +6,7 @@
 * :mod:`~deckpose.tracking.kalman`: predict, and update in Joseph form with a Mahalanobis gate;
 * :mod:`~deckpose.tracking.sequence_filter`: the filter over one time sequence of estimates;
 * :mod:`~deckpose.tracking.prediction`: roll, pitch, heave and heave rate predicted ahead;
+* :mod:`~deckpose.tracking.due_predictions`: each prediction placed at the frame it was made for;
 * :mod:`~deckpose.tracking.landing_window`: the landing-window indicator and its truth;
 * :mod:`~deckpose.tracking.measurements`: estimates tables as measurements;
 * :mod:`~deckpose.tracking.config`, :mod:`~deckpose.tracking.run`: the tracker's config and
@@ -28,6 +29,7 @@ __all__ = [
     "landing_window_go",
     "load_track_config",
     "predict_outputs",
+    "predictions_due",
     "track_run",
     "track_table",
     "truth_window_calm",
@@ -38,6 +40,7 @@ _API: dict[str, str] = {
     "FilterTrack": "deckpose.tracking.sequence_filter",
     "filter_sequence": "deckpose.tracking.sequence_filter",
     "kalman_predict": "deckpose.tracking.kalman",
+    "predictions_due": "deckpose.tracking.due_predictions",
     "kalman_update": "deckpose.tracking.kalman",
     "LandingLimits": "deckpose.tracking.landing_window",
     "landing_window_go": "deckpose.tracking.landing_window",
@@ -53,6 +56,7 @@ _API: dict[str, str] = {
 if TYPE_CHECKING:
     from deckpose.tracking.config import TrackConfig, load_track_config
     from deckpose.tracking.deck_motion_model import DeckMotionModel
+    from deckpose.tracking.due_predictions import predictions_due
     from deckpose.tracking.kalman import kalman_predict, kalman_update
     from deckpose.tracking.landing_window import LandingLimits, landing_window_go, truth_window_calm
     from deckpose.tracking.prediction import predict_outputs

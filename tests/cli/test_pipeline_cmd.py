@@ -46,7 +46,13 @@ def test_pipeline_runs_every_stage_publishes_and_resumes(tmp_path: Path, capsys:
 
     with open(run / "log.mcap", "rb") as fh:
         attached = {a.name for a in make_reader(fh).iter_attachments()}
+        fh.seek(0)
+        topics = {c.topic for c in make_reader(fh).get_summary().channels.values()}
     assert "report/report.md" in attached
+    # the per-frame errors the layout plots are in the log (it was written after evaluate, from its table)
+    plotted = {p["value"].rsplit(".", 1)[0].strip('"')
+               for p in json.loads((run / "foxglove_layout.json").read_text())["configById"]["Plot!errors"]["paths"]}
+    assert plotted == {"/errors/cog--conic", "/errors/cog--pnp+mean"} and plotted <= topics
     report = (pub / "report.md").read_text()
     assert report.startswith("# deckpose report: tiny\n")  # titled by the config, not the folder
     assert "## How this was made" in report and "config `tiny`" in report and "seed 3" in report

@@ -15,7 +15,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
-from deckpose.evaluate.foxglove_layout import IMAGE_PANEL, PLOT_PANEL, SCENE_PANEL
+from deckpose.evaluate.foxglove_layout import IMAGE_PANEL, PLOT_PANEL, SCENE_PANEL, TRACK_PLOT_PANEL
 
 from deckpose.capture_time import DEFAULT_CAPTURE_EPOCH_NS
 
@@ -34,19 +34,22 @@ pytestmark = pytest.mark.skipif(
 )
 
 
-@pytest.fixture(scope="module")
-def viewed(evaluated_run, tmp_path_factory):
-    """The harness's report (dict) and screenshot (BGR array) for the evaluated fake run."""
-    out = tmp_path_factory.mktemp("viewer")
+def _view(run: Path, out: Path):
     env = {**os.environ, "CHROMIUM": str(CHROMIUM)}
-    r = subprocess.run([str(NODE), str(TOOL / "view.mjs"), str(evaluated_run / "log.mcap"),
-                        str(evaluated_run / "foxglove_layout.json"), str(out), "--timeout-s", "60"],
+    r = subprocess.run([str(NODE), str(TOOL / "view.mjs"), str(run / "log.mcap"),
+                        str(run / "foxglove_layout.json"), str(out), "--timeout-s", "60"],
                        capture_output=True, text=True, timeout=150, check=False, env=env)
     assert r.returncode == 0, r.stdout + r.stderr
     report = json.loads((out / "report.json").read_text())
     shot = cv2.imread(str(out / "screenshot.png"), cv2.IMREAD_COLOR)
     assert shot is not None
     return report, shot
+
+
+@pytest.fixture(scope="module")
+def viewed(evaluated_run, tmp_path_factory):
+    """The harness's report (dict) and screenshot (BGR array) for the evaluated fake run."""
+    return _view(evaluated_run, tmp_path_factory.mktemp("viewer"))
 
 
 def _panel(report, panel_id):
@@ -58,6 +61,13 @@ def _panel(report, panel_id):
 def _body_pixels(shot, panel):
     x, y, w, h = (round(v) for v in panel["body"])
     return shot[y:y + h, x:x + w].reshape(-1, 3).astype(int)  # BGR
+
+
+def _series_pixels(shot, panel) -> int:
+    """Coloured pixels in the right third of a plot's body: series lines (the legend sits on the left half)."""
+    x, y, w, h = (round(v) for v in panel["body"])
+    px = shot[y:y + h, x + 2 * w // 3:x + w].reshape(-1, 3).astype(int)
+    return int(((px.max(axis=1) - px.min(axis=1)) > 100).sum())
 
 
 def _count(px, lo_rgb, hi_rgb):
@@ -105,7 +115,16 @@ def test_the_plot_panel_plots_the_error_series(viewed):
     panel = _panel(report, PLOT_PANEL)
     for q in ("roll_err_deg", "pitch_err_deg", "yaw_err_deg", "height_err_m"):
         assert f"fake+thesis {q}" in panel["text"]
-    px = _body_pixels(shot, panel)
     # series lines in the plot's colours (blue, orange, yellow, green), not only axes and legend
-    colourful = (px.max(axis=1) - px.min(axis=1)) > 100
-    assert colourful.sum() > 300
+    assert _series_pixels(shot, panel) > 50
+
+
+def test_a_tracked_run_plots_roll_true_per_frame_filtered_and_predicted(tracked_run, tmp_path):
+    report, shot = _view(tracked_run, tmp_path)
+    assert report["loaded"] and report["errors"] == [] and report["problems"]["count"] == 0
+    assert {p["id"] for p in report["panels"]} == {IMAGE_PANEL, SCENE_PANEL, PLOT_PANEL, TRACK_PLOT_PANEL}
+    panel = _panel(report, TRACK_PLOT_PANEL)
+    for label in ("true roll_deg", "fake+thesis per frame", "wave-bank filtered", "wave-bank predicted 0.1 s ahead",
+                  "wave-bank predicted 0.2 s ahead"):
+        assert label in panel["text"]
+    assert _series_pixels(shot, panel) > 50   # series drawn, not only axes and legend
