@@ -719,6 +719,30 @@ def default_config() -> RenderConfig:
     return config_from_dict(DEFAULT_CONFIG, "default config")
 
 
+#: The demo's short approach (the same as ``configs/approach_small.yaml``): 30 s at 2 Hz from 60 m
+#: down to 30 m over sea state 6 on a 960x540 camera, 61 frames.
+APPROACH_DEMO_CONFIG: dict[str, Any] = {
+    "name": "approach_small",
+    "seed": 21,
+    "backend": "egl",
+    "cameras": [{"preset": "8mp-square", "size": [960, 540], "name": "960x540"}],
+    "lighting": ["night"],
+    "motion": {"source": "sea_state",
+               "params": {"sea": {"sea_state": 6, "hs_m": 5.0, "tp_s": 12.4, "heading_deg": 135, "speed_kn": 15},
+                          "duration_s": 40, "dt_s": 0.1, "seed": 1},
+               "exposure_s": 0.005},
+    "approach": {"times_s": [0, 5, 25, 30], "heights_m": [60, 60, 30, 30], "rate_hz": 2, "drift_m": 1.0,
+                 "drift_period_s": 30, "wobble_deg": 2.0, "wobble_period_s": 4},
+    "sensor": {"bit_depth": 8, "read_noise_e": 5},
+    "scene": {"shading": "flat", "texture_px": 1024},
+}
+
+
+def approach_demo_config() -> RenderConfig:
+    """The demo's embedded short approach (no file needed)."""
+    return config_from_dict(APPROACH_DEMO_CONFIG, "demo approach config")
+
+
 def load_config(path: str | os.PathLike[str]) -> RenderConfig:
     """Read and validate a render config YAML file."""
     return config_from_dict(load_yaml(path, "render config"), str(path))

@@ -2,8 +2,9 @@
 
 render (embedded smoke config: two small cameras x two heights x night/day)
 -> detect -> estimate (thesis, conic, pnp) -> evaluate (errors, resolution
-tables, MCAP log + Foxglove layout) -> report, plus the thesis's tables at
-reduced scale. Each step is the same code as its own subcommand; running the
+tables, MCAP log + Foxglove layout) -> report; a short approach over sea state 6
+(embedded ``configs/approach_small.yaml``) rendered with detection, estimated
+(pnp), tracked and logged; and the thesis's tables at reduced scale. Each step is the same code as its own subcommand; running the
 demo again resumes the dataset and rewrites the later stages' outputs.
 """
 
@@ -25,7 +26,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         description=(
             "Render the embedded default dataset, detect the beacons, estimate the pose with the "
             "thesis, conic and pnp estimators, evaluate against the ground truth (tables, MCAP log for "
-            "Foxglove) and write a report; then reproduce the thesis's tables at reduced scale."
+            "Foxglove) and write a report; then fly a short approach over sea state 6 (render with "
+            "detection, estimate, track, log), and reproduce the thesis's tables at reduced scale."
         ),
         formatter_class=HelpFormatter,
     )
@@ -69,7 +71,7 @@ def run(args: argparse.Namespace) -> int:
 
     from deckpose.cli.pipeline_cmd import PipelineOptions, run_pipeline
     from deckpose.evaluate.thesis_tables import ThesisTablesConfig, cell_specs, run_thesis_tables
-    from deckpose.render.config import default_config
+    from deckpose.render.config import approach_demo_config, default_config
 
     t0 = time.perf_counter()
     out = Path(args.output)
@@ -82,11 +84,22 @@ def run(args: argparse.Namespace) -> int:
 
     def pipeline_step(n: int, total: int, text: str) -> None:
         pipeline_steps[0] = total
-        _step(n, total + 1, text)
+        _step(n, total + 2, text)
 
     paths = run_pipeline(default_config(), options, config_label="the embedded default (configs/smoke.yaml)",
                          step=pipeline_step)
-    total = pipeline_steps[0] + 1
+    total = pipeline_steps[0] + 2
+    _step(total - 1, total, "a short approach over sea state 6 (61 frames at 2 Hz, 60 m to 30 m): render with "
+                            "detection, estimate (pnp), track, log")
+    approach_dir = out / "approach"
+    _drop_stale_demo(approach_dir, approach_demo_config())
+    approach = run_pipeline(
+        approach_demo_config(),
+        PipelineOptions(run_dir=approach_dir, detectors=(args.detector,), methods=("pnp",), workers=workers(args),
+                        progress=not args.no_progress, detect_at_render=True, keep_images=False, track=True,
+                        command=("deckpose", "demo", "-o", str(out))),
+        config_label="the embedded approach (configs/approach_small.yaml)",
+        step=lambda n, t, text: print(f"      approach {n}/{t}: {text}", flush=True))
     _step(total, total, f"thesis tables 4.2-4.15, {args.repetitions} x 495 images per cell")
     config = ThesisTablesConfig(repetitions=args.repetitions, seed=args.seed)
     bar = tqdm(total=len(cell_specs()), desc="thesis tables", unit="cell", disable=True if args.no_progress else None)
@@ -95,6 +108,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"\ndone in {time.perf_counter() - t0:.0f} s.")
     for label, path in (("report", paths["report"]), ("resolution tables", paths["tables"]),
                         ("MCAP log", f"{paths['mcap']}  (open in Foxglove with {run_dir / 'foxglove_layout.json'})"),
+                        ("approach log", f"{approach['mcap']}  (tracked; layout {approach_dir / 'foxglove_layout.json'})"),
                         ("thesis tables", md)):
         print(f"  {label + ':':19s}{path}")
     return 0

@@ -71,6 +71,10 @@ class PipelineOptions:
         of decoding every frame again in a detect stage.
     keep_images : bool
         Write the frames' image files (``False`` needs ``detect_at_render``).
+    track : bool
+        After estimating, track every estimates table over time (``deckpose track``'s default
+        tracker and config), so the log plays the filtered and predicted decks; needs frames in
+        time (a motion series or an approach).
     """
 
     run_dir: Path
@@ -85,6 +89,7 @@ class PipelineOptions:
     command: tuple[str, ...] = field(default_factory=tuple)
     detect_at_render: bool = False
     keep_images: bool = True
+    track: bool = False
 
     def __post_init__(self) -> None:
         if not self.detectors:
@@ -133,6 +138,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="detect each frame as it is rendered, from memory (no frame decoded again)")
     p.add_argument("--no-images", action="store_true",
                    help="keep no frame (previews and tables only); needs --detect-at-render")
+    p.add_argument("--track", action="store_true",
+                   help="after estimating, track each estimates table over time (deckpose track's default "
+                        "tracker); needs frames in time: a motion series or an approach")
     add_progress(p)
     p.set_defaults(func=run)
 
@@ -145,7 +153,7 @@ def run(args: argparse.Namespace) -> int:
         run_dir=args.run, detectors=tuple(args.detector), methods=tuple(args.method), workers=workers(args),
         scheduler=args.scheduler, mcap=not args.no_mcap, progress=not args.no_progress,
         publish_dir=args.publish, from_stage=args.from_stage, command=_canonical_command(args),
-        detect_at_render=args.detect_at_render, keep_images=not args.no_images,
+        detect_at_render=args.detect_at_render, keep_images=not args.no_images, track=args.track,
     )
     paths = run_pipeline(config, options, config_label=str(args.config))
     for key, path in paths.items():
@@ -169,6 +177,8 @@ def _canonical_command(args: argparse.Namespace) -> tuple[str, ...]:
         cmd.append("--detect-at-render")
     if args.no_images:
         cmd.append("--no-images")
+    if args.track:
+        cmd.append("--track")
     return tuple(cmd)
 
 
@@ -238,6 +248,10 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     from deckpose.run_folder import run_paths
 
     check_names(options)
+    if options.track and config.motion.source.value == "fixed":
+        raise ConfigError("--track needs frames in time, and this config renders fixed attitudes (motion source "
+                          "'fixed'): give it a motion series (motion.source sea_state, file or thesis) or an "
+                          "approach: section, or drop --track")
     say = step or (lambda n, total, text: print(f"[{n}/{total}] {text}", flush=True))
     run_dir = Path(options.run_dir)
     total = 5 + bool(options.mcap) + (options.publish_dir is not None)
@@ -283,13 +297,22 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         log.info("stage detect: %.1f s", seconds["detect"])
     t = time.perf_counter()
     if runs("estimate"):
-        say(3, total, f"estimate the pose ({', '.join(options.methods)})")
+        say(3, total, f"estimate the pose ({', '.join(options.methods)})"
+                      + (", then track it over time" if options.track else ""))
         for det in options.detectors:
             for method in options.methods:
                 spec = parse_method(method)
                 with frame_bar(f"estimate ({spec.label})", enabled=options.progress) as b:
                     est = estimate_run(run_dir, spec, detector=det, progress=b.update)
                 print(est.summary())
+                if options.track:
+                    from deckpose.tracking.config import TRACKERS, TrackConfig
+                    from deckpose.tracking.run import track_run
+
+                    with frame_bar(f"track ({spec.label})", enabled=options.progress) as b:
+                        tr = track_run(run_dir, TrackConfig(), tracker=TRACKERS[0], detector=det, method=spec.label,
+                                       command=list(options.command), progress=b.update)
+                    print(tr.summary())
         seconds["estimate"] = time.perf_counter() - t
         log.info("stage estimate: %.1f s", seconds["estimate"])
     t = time.perf_counter()
@@ -309,7 +332,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         "detectors": list(options.detectors), "methods": list(options.methods), "workers": options.workers,
         "scheduler": options.scheduler, "deckpose_version": __version__, "machine": _machine(),
         "from_stage": options.from_stage, "detect_at_render": options.detect_at_render,
-        "images_kept": options.keep_images,
+        "images_kept": options.keep_images, "tracked": options.track,
         "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "stage_seconds": {k: stage_seconds[k] for k in STAGES if k in stage_seconds},
     }

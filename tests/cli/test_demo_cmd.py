@@ -18,3 +18,15 @@ def test_demo_runs_the_whole_pipeline(tmp_path, capsys):
     steps = [(int(n), int(t)) for n, t in re.findall(r"^\[(\d+)/(\d+)\]", printed, re.MULTILINE)]
     total = steps[-1][1]
     assert steps == [(n, total) for n in range(1, total + 1)], steps
+    # the short approach: detected at render time (no frame kept), estimated, tracked and logged with its track
+    approach = out / "approach"
+    for p in ("detections/cog.parquet", "estimates/cog--pnp.parquet", "tracks/cog--pnp--wave-bank.parquet",
+              "tracks/cog--pnp--wave-bank.predictions.parquet", "log.mcap"):
+        assert (approach / p).exists(), p
+    assert not (approach / "images").exists()
+    from mcap.reader import make_reader
+
+    with open(approach / "log.mcap", "rb") as fh:
+        topics = {c.topic for c in make_reader(fh).get_summary().channels.values()}
+    assert {"/tracks/cog--pnp--wave-bank", "/predictions/cog--pnp--wave-bank/1s"} <= topics
+    assert str(approach / "log.mcap") in printed

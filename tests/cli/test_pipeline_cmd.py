@@ -103,3 +103,11 @@ def test_from_stage_needs_a_dataset(tmp_path: Path, capsys: pytest.CaptureFixtur
     cfg = _tiny_config(tmp_path)
     assert main(["pipeline", str(cfg), str(tmp_path / "none"), "--from-stage", "detect", "--no-progress"]) == 2
     assert "needs a rendered dataset" in capsys.readouterr().err
+
+
+def test_track_on_fixed_attitudes_is_refused_before_rendering(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    cfg, run = _tiny_config(tmp_path), tmp_path / "run"
+    assert main(["pipeline", str(cfg), str(run), "--method", "pnp", "--track", "--no-progress"]) != 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "--track needs frames in time" in err[0] and "motion source 'fixed'" in err[0]
+    assert not run.exists()

@@ -120,6 +120,13 @@ def test_embedded_default_is_the_smoke_config() -> None:
     assert len(plan_frames(default_config())) == 24
 
 
+def test_embedded_demo_approach_is_the_small_approach_config() -> None:
+    from deckpose.render.config import approach_demo_config
+
+    assert approach_demo_config() == load_config(REPO / "configs" / "approach_small.yaml")
+    assert len(plan_frames(approach_demo_config())) == 61   # 30 s at 2 Hz, both ends
+
+
 def test_thesis_sweep_size() -> None:
     cfg = load_config(REPO / "configs" / "thesis_sweep.yaml")
     frames = plan_frames(cfg)
