@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 from deckpose.evaluate import thesis_reference as ref
 from deckpose.evaluate.errors import centroid_errors
@@ -142,6 +143,47 @@ def _run_title(run: rl.RunPaths) -> str:
     return run.root.name
 
 
+def track_sections(run: rl.RunPaths, frames: pd.DataFrame, fig_dir: Path) -> list[str]:
+    """The report's tracking sections, one per track of the run (none without tracks), with their figures."""
+    from deckpose.evaluate.report_figures import plot_track_errors
+    from deckpose.evaluate.track_errors import (
+        filtered_by_height,
+        markdown_table,
+        predicted_roll_errors,
+        prediction_errors,
+        track_frame_errors,
+    )
+
+    lines: list[str] = []
+    for d, m, t in run.track_triples():
+        stem = f"{d}{rl.SEPARATOR}{m}{rl.SEPARATOR}{t}"
+        tracks = rl.read_tracks(run, d, m, t)
+        preds = rl.read_track_predictions(run, d, m, t)
+        est = rl.read_estimates(run, d, m)
+        errs = track_frame_errors(frames, est, tracks)
+        pred = prediction_errors(frames, est, tracks, preds)
+        horizons = sorted(preds["horizon_s"].unique())
+        h_plot = min(horizons, key=lambda h: abs(h - 1.0)) if horizons else 1.0
+        fig = f"track_{stem}.png"
+        plot_track_errors(errs, predicted_roll_errors(frames, tracks, preds, h_plot), pred,
+                          f"{d}+{m}, tracked ({t})", fig_dir / fig)
+        status = tracks["status"].value_counts()
+        z = errs[["roll_z_filtered", "pitch_z_filtered", "height_z_filtered"]].abs().to_numpy(float)
+        lines += [f"## Tracking: {d}+{m} ({t})", "",
+                  (f"{len(tracks)} frames in {tracks['sequence'].nunique()} sequence(s): "
+                   + ", ".join(f"{int(status.get(k, 0))} {k}" for k in ("updated", "gated", "skipped"))
+                   + f"; landing window \"go\" in {tracks['landing_go'].mean():.0%} of frames. Filtered "
+                   f"errors beyond 5 of their own sigmas (roll, pitch, height): {int((z > 5).sum())} of "
+                   f"{int(np.isfinite(z).sum())}."), "",
+                  f"![tracking {stem}](figures/{fig})", "",
+                  "Filtered against per-frame error (RMS) by true height:", "",
+                  *markdown_table(filtered_by_height(errs)), "",
+                  ("Predictions against holding the last ok estimate as long (RMS at the frame each was made for; "
+                   "z: RMS of the error in the prediction's own sigmas):"), "",
+                  *markdown_table(pred), ""]
+    return lines
+
+
 def write_report(run: rl.RunPaths) -> Path:
     """Write ``report/report.md`` and its figures for an evaluated run; return the Markdown path."""
     rl.require_dataset(run)  # a missing run folder is named as such, not as a missing stage
@@ -194,6 +236,7 @@ def write_report(run: rl.RunPaths) -> Path:
     lines += thesis_comparison(table, sizes)
     lines += ["", "## Example frames", ""]
     lines += [f"![{cam}](figures/{name})" for cam, name in examples]
+    lines += track_sections(run, frames, fig_dir)
     lines += ["", resolution_markdown(table).replace("# Resolution tables", "## Resolution tables", 1)]
     md = run.report_dir / "report.md"
     with atomic_open(md, "w") as fh:

@@ -22,7 +22,7 @@ from deckpose.errors import InputDataError
 from deckpose.image_store import decode_image
 
 __all__ = ["example_frame", "plot_centroid_vs_size", "plot_distributions", "plot_error_vs_height",
-           "plot_error_vs_resolution"]
+           "plot_error_vs_resolution", "plot_track_errors"]
 
 if TYPE_CHECKING:
     from matplotlib.axes import Axes
@@ -160,6 +160,49 @@ def plot_error_vs_height(table: pd.DataFrame, path: Path) -> None:
                 ax.set_xlabel("camera height [m]")
     _legend(axes[0, 0], fontsize=7)
     fig.suptitle("Error sigma vs height per resolution (dashed: Cramér–Rao bound of each estimator's frames)")
+    _save(fig, path)
+
+
+def plot_track_errors(errors: pd.DataFrame, due_errors: pd.DataFrame, predictions: pd.DataFrame, title: str,
+                      path: Path) -> None:
+    """A track's errors: against time (per frame, filtered, predicted) and the prediction's against its horizon.
+
+    Parameters
+    ----------
+    errors : DataFrame
+        :func:`deckpose.evaluate.track_errors.track_frame_errors`'s table.
+    due_errors : DataFrame
+        The roll error of the predictions due at each frame for one horizon: ``t_s``, ``roll_err_deg``
+        (NaN where none is due); its horizon is in its ``attrs["horizon_s"]``.
+    predictions : DataFrame
+        :func:`deckpose.evaluate.track_errors.prediction_errors`'s table.
+    """
+    plt = _pyplot()
+    fig, axes = plt.subplots(4, 1, figsize=(9, 10))
+    t = errors["t_s"].to_numpy(float)
+    axes[0].plot(t, errors["true_height_m"], "k-", lw=1)
+    axes[0].set_ylabel("true height [m]")
+    for ax, (q, label) in zip(axes[1:3], (("roll_err_deg", "roll error [deg]"), ("height_err_m", "height error [m]"))):
+        ax.plot(t, errors[f"{q}_estimate"], ".", ms=3, color="0.55", label="per frame")
+        ax.plot(t, errors[f"{q}_filtered"], "-", lw=1, color="C0", label="filtered")
+        if q == "roll_err_deg" and len(due_errors):
+            ax.plot(due_errors["t_s"], due_errors["roll_err_deg"], "-", lw=0.8, color="C3",
+                    label=f"predicted {due_errors.attrs['horizon_s']:g} s earlier")
+        ax.set_ylabel(label)
+        ax.grid(alpha=0.3)
+        _legend(ax, fontsize=7, loc="upper right")
+    axes[2].set_xlabel("time [s]")
+    ax = axes[3]
+    for q, colour in (("roll_deg", "C0"), ("pitch_deg", "C1")):
+        ax.plot(predictions["horizon_s"], predictions[f"{q}_rms_predicted"], "o-", color=colour,
+                label=f"{q.split('_')[0]} predicted")
+        ax.plot(predictions["horizon_s"], predictions[f"{q}_rms_held"], "s--", color=colour, alpha=0.6,
+                label=f"{q.split('_')[0]} last estimate held")
+    ax.set_xlabel("horizon [s]")
+    ax.set_ylabel("RMS error [deg]")
+    ax.grid(alpha=0.3)
+    _legend(ax, fontsize=7)
+    fig.suptitle(title)
     _save(fig, path)
 
 
