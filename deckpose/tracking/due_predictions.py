@@ -5,8 +5,9 @@ A track's predictions table holds, per frame, the deck's roll, pitch and heave p
 against time, or in a viewer that plays the run), it belongs at the time it was made *for*:
 the frame whose capture time is the prediction's frame time plus the horizon. Frames come
 at a finite rate, so "plus the horizon" is matched to the nearest frame of the same time
-sequence, within half the sequence's median frame interval; a horizon that falls between
-frames by more than that (or before the sequence began) has no prediction due.
+sequence, within half the sequence's median frame interval, and never at the frame the prediction was made at; a
+horizon that falls between frames by more than that, under half a frame interval, or beyond
+the sequence's end has no prediction due.
 """
 
 from __future__ import annotations
@@ -56,7 +57,8 @@ def predictions_due(tracks: pd.DataFrame, predictions: pd.DataFrame) -> pd.DataF
         k = np.clip(np.searchsorted(stamps, target), 1, len(stamps) - 1)
         k = np.where(np.abs(stamps[k - 1] - target) <= np.abs(stamps[k] - target), k - 1, k)
         offset = stamps[k] - target
-        keep = np.abs(offset) <= half_ns
+        made_at = p["made_at_frame_id"].to_numpy(np.int64)
+        keep = (np.abs(offset) <= half_ns) & (ids[k] != made_at)   # a prediction is due at a later frame
         parts.append(pd.DataFrame({
             "frame_id": ids[k][keep], "horizon_s": p["horizon_s"].to_numpy(float)[keep],
             "made_at_frame_id": p["made_at_frame_id"].to_numpy(np.int64)[keep],

@@ -31,7 +31,7 @@ def _brute_force(tracks: pd.DataFrame, preds: pd.DataFrame) -> set[tuple[int, fl
         half = 0.5 * float(np.median(np.diff(g["stamp_ns"].to_numpy())))
         d = (g["stamp_ns"] - p["stamp_ns"]).abs()
         best = d.idxmin()
-        if d[best] <= half:
+        if d[best] <= half and int(g.loc[best, "frame_id"]) != int(p["frame_id"]):
             key = (int(g.loc[best, "frame_id"]), float(p["horizon_s"]))
             cand = (int(d[best]), int(p["frame_id"]))
             best_of[key] = min(best_of.get(key, cand), cand)
@@ -43,7 +43,7 @@ def test_each_prediction_lands_on_the_frame_it_was_made_for():
     # two sequences: 10 Hz with +-20 ms jitter, and 4 Hz; the second starts later (its own time base)
     a = np.cumsum(np.full(40, 100_000_000) + rng.integers(-20_000_000, 20_000_000, 40))
     b = 10**12 + np.arange(25) * 250_000_000
-    tracks, preds = _tables([a, b], (0.5, 1.0, 2.0, 5.0))
+    tracks, preds = _tables([a, b], (0.04, 0.5, 1.0, 2.0, 5.0))
     due = predictions_due(tracks, preds)
     got = {(int(r.frame_id), float(r.horizon_s), int(r.made_at_frame_id)) for r in due.itertuples()}
     assert got == _brute_force(tracks, preds)
@@ -58,9 +58,10 @@ def test_each_prediction_lands_on_the_frame_it_was_made_for():
 
 
 def test_horizons_beyond_the_sequence_have_nothing_due_and_an_empty_track_is_empty():
-    tracks, preds = _tables([np.arange(5) * 100_000_000], (0.1, 5.0))
+    tracks, preds = _tables([np.arange(5) * 100_000_000], (0.01, 0.1, 5.0))
     due = predictions_due(tracks, preds)
-    # 0.1 s ahead lands on the next frame (4 of 5 frames have a successor); 5 s ahead is beyond the run
+    # 0.1 s ahead lands on the next frame (4 of 5 frames have a successor); 5 s ahead is beyond the run;
+    # 0.01 s ahead is nearest the frame it was made at, which is not a frame ahead
     assert set(due["horizon_s"]) == {0.1}
     assert due["made_at_frame_id"].tolist() == [0, 1, 2, 3] and due["frame_id"].tolist() == [1, 2, 3, 4]
     one, one_pred = _tables([np.array([0])], (0.5,))
