@@ -13,7 +13,7 @@ import numpy as np
 from deckpose.estimate.least_squares_batch import (
     FitBatch,
     FrameObservations,
-    evaluate_fit_batch,
+    chi2_batch,
     levenberg_marquardt_batch,
     params_from_relative_batch,
 )
@@ -27,15 +27,36 @@ from deckpose.estimate.pnp import (
 )
 from deckpose.estimate.solution_batch import BatchCandidates, Extra, scatter_fit
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
 
 def rotation_matrices(rvec: FloatArray) -> FloatArray:
-    """Rotation matrices (F, 3, 3) of Rodrigues vectors (F, 3), as ``cv2.Rodrigues`` gives them."""
-    return Rotation.from_rotvec(rvec).as_matrix()
+    """Rotation matrices (F, 3, 3) of Rodrigues vectors (F, 3), as ``cv2.Rodrigues`` gives them.
+
+    ``R = cos(t) I + (1 - cos(t)) k k^T + sin(t) [k]x`` with ``t = |rvec|``, ``k = rvec / t``
+    (the identity for ``t = 0``), written out: a few ufuncs on (F,) columns, no per-call objects.
+    """
+    x, y, z = rvec[:, 0], rvec[:, 1], rvec[:, 2]
+    t = np.sqrt(x * x + y * y + z * z)
+    zero = t == 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        inv = np.where(zero, 0.0, 1.0 / t)
+    kx, ky, kz = x * inv, y * inv, z * inv
+    c, s = np.cos(t), np.sin(t)
+    c1 = 1.0 - c
+    R = np.empty((rvec.shape[0], 3, 3))
+    R[:, 0, 0] = c + c1 * kx * kx
+    R[:, 0, 1] = c1 * kx * ky - s * kz
+    R[:, 0, 2] = c1 * kx * kz + s * ky
+    R[:, 1, 0] = c1 * ky * kx + s * kz
+    R[:, 1, 1] = c + c1 * ky * ky
+    R[:, 1, 2] = c1 * ky * kz - s * kx
+    R[:, 2, 0] = c1 * kz * kx - s * ky
+    R[:, 2, 1] = c1 * kz * ky + s * kx
+    R[:, 2, 2] = c + c1 * kz * kz
+    return R
 
 
 def _opencv_starts(obs: FrameObservations) -> tuple[FloatArray, BoolArray, FloatArray, BoolArray]:
@@ -97,9 +118,8 @@ def pnp_candidates_batch(obs: FrameObservations) -> BatchCandidates:
     valid &= np.all(np.isfinite(starts), axis=2)
     # Evaluate every valid start, order them by chi2 (stable), refine the best.
     rows_s, slot_s = np.nonzero(valid)
-    raw = evaluate_fit_batch(starts[rows_s, slot_s], obs.take(rows_s))
     chi_raw = np.full((F, 3), np.inf)
-    chi_raw[rows_s, slot_s] = raw.chi2
+    chi_raw[rows_s, slot_s] = chi2_batch(starts[rows_s, slot_s], obs.take(rows_s))
     order = np.argsort(np.where(valid, chi_raw, np.inf), axis=1, kind="stable")
     n_valid = valid.sum(axis=1)
     ar = np.arange(F)
