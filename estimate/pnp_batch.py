@@ -110,9 +110,10 @@ def pnp_candidates_batch(obs: FrameObservations) -> BatchCandidates:
               Extra("ippe_alt_yaw_rad", starts[:, 2, 2], n_ippe2),
               Extra("ippe_alt_height_m", starts[:, 2, 5], n_ippe2))
     # SQPnP joins (in front) unless it repeats an IPPE solution; then non-finite starts drop out.
-    dup = np.zeros(F, dtype=bool)
-    for j in (1, 2):
-        dup |= present[:, j] & poses_close(starts[:, 0], starts[:, j], SAME_TOL)
+    # (both IPPE slots against SQPnP's in one call: rows (F, 2) flattened)
+    same = poses_close(np.repeat(starts[:, 0], 2, axis=0), starts[:, 1:].reshape(-1, 6),
+                       SAME_TOL).reshape(F, 2)
+    dup = np.any(present[:, 1:] & same, axis=1)
     valid = present.copy()
     valid[:, 0] &= ~dup
     valid &= np.all(np.isfinite(starts), axis=2)
@@ -127,12 +128,17 @@ def pnp_candidates_batch(obs: FrameObservations) -> BatchCandidates:
     fit0 = _refine_rows(F, rows0, starts[rows0, order[rows0, 0]], obs)
     fits = [fit0]
     kept = [n_valid >= 1]
+    # Which of the second and third starts compete with the refined best (both in one call).
+    alt_slots = order[:, 1:]  # (F, 2)
+    alt_raw = starts[ar[:, None], alt_slots]  # (F, 2, 6)
+    with np.errstate(invalid="ignore"):
+        competing = ((n_valid[:, None] > np.array([1, 2]))
+                     & ~poses_close(alt_raw.reshape(-1, 6), np.repeat(fit0.params, 2, axis=0),
+                                    BASIN_TOL).reshape(F, 2)
+                     & (chi_raw[ar[:, None], alt_slots] < (fit0.chi2 + ALT_MARGIN_CHI2)[:, None]))
     for pos in (1, 2):
-        slot = order[:, pos]
-        p_raw = starts[ar, slot]
-        with np.errstate(invalid="ignore"):
-            compete = (n_valid > pos) & ~poses_close(p_raw, fit0.params, BASIN_TOL) & (
-                chi_raw[ar, slot] < fit0.chi2 + ALT_MARGIN_CHI2)
+        compete = competing[:, pos - 1]
+        p_raw = alt_raw[:, pos - 1]
         if not compete.any():
             continue  # no frame has a competing start here: no slot (the single-frame method lists none)
         rows = np.flatnonzero(compete)

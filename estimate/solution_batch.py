@@ -215,7 +215,7 @@ def finish_batch(
     fallback |= ~pose_constrained(best_p, sig)  # the single-frame path flags them not ok
     M = obs.xy.shape[1]
     n_points = float(M)
-    ids = tuple(int(i) for i in obs.ids)
+    ids = tuple(obs.ids.tolist())
     base_refined = float(refined)
     dof = float(2 * M - 6)
     pre = [(e.name, e.values.tolist(), None if e.present is None else e.present.tolist())
