@@ -9,9 +9,10 @@ maximum-likelihood refinement when ``options.refine`` is set, and
 :func:`estimate_batch` estimates many frames at once: ``conic``, ``pnp`` and
 ``thesis`` (and the refinement) run as stacked array operations over all frames
 that share a beacon set, which costs a small fraction of one call per frame.
-``thesis`` has one implementation (a lone frame is a batch of one of
-:func:`~deckpose.estimate.thesis.estimate_thesis_frames`). For ``conic`` and
-``pnp``, frames the batched path cannot settle (an outlier to remove, an
+``thesis`` and ``pnp`` have one implementation each (a lone frame is a batch of one
+of :func:`~deckpose.estimate.thesis.estimate_thesis_frames`,
+:func:`~deckpose.estimate.pnp.estimate_pnp_frames`). For ``conic`` and the
+refinement, frames the batched path cannot settle (an outlier to remove, an
 unresolved ambiguity, any failure) are still re-estimated by the single-frame
 path, so every result is the one :func:`run_estimator` gives, to rounding.
 """
@@ -25,7 +26,7 @@ import numpy as np
 from deckpose.estimate import registry
 from deckpose.estimate.conic_batch import conic_candidates_batch
 from deckpose.estimate.observations_batch import group_observations, stack_detections
-from deckpose.estimate.pnp_batch import pnp_candidates_batch
+from deckpose.estimate.pnp import estimate_pnp_frames
 from deckpose.estimate.pose_checks import check_poses
 from deckpose.estimate.posterior_mean import apply_posterior_mean
 from deckpose.estimate.refine import refine_estimate, refine_estimates_batch
@@ -92,22 +93,19 @@ def _least_squares_batch(
     name: str, dets: Sequence[Detections], camera: CameraModel, layout: DeckLayout,
     options: EstimateOptions, R_wc: np.ndarray,
 ) -> list[PoseEstimate | None]:
-    """``conic`` or ``pnp`` on stacked frames; None where the single-frame path must decide."""
+    """``conic`` on stacked frames; None where the single-frame path must decide."""
     out: list[PoseEstimate | None] = [None] * len(dets)
     groups = group_observations(stack_detections(dets), camera, layout, R_wc, sigma_px=options.sigma_px,
                                 use_detection_covariance=options.use_detection_covariance)
     for g in groups:
         with np.errstate(all="ignore"):
-            if name == "conic":
-                cands = conic_candidates_batch(g.observations, layout, options)
-            else:
-                cands = pnp_candidates_batch(g.observations)
+            cands = conic_candidates_batch(g.observations, layout, options)
             if not len(cands.fits):
                 continue
             ests = finish_batch(name, cands, g.observations, g.n_ignored,
                                 ambiguity_chi2=options.ambiguity_chi2, outlier_chi2=options.outlier_chi2,
                                 max_reprojection_rms_px=options.max_reprojection_rms_px,
-                                refined=options.refine if name == "conic" else True)
+                                refined=options.refine)
         for f, e in zip(g.frames.tolist(), ests):
             out[f] = e
     return out
@@ -161,8 +159,10 @@ def estimate_batch(
     for lo in range(0, F, CHUNK_FRAMES):
         chunk, R_chunk = dets[lo:lo + CHUNK_FRAMES], np.ascontiguousarray(R_wc[lo:lo + CHUNK_FRAMES])
         got: list[PoseEstimate | None]
-        if name in ("conic", "pnp"):
+        if name == "conic":
             got = _least_squares_batch(name, chunk, camera, layout, options, R_chunk)
+        elif name == "pnp":
+            got = list(estimate_pnp_frames(chunk, camera, layout, options, R_chunk))
         elif name == "thesis":
             got = list(estimate_thesis_frames(chunk, camera, layout, R_chunk))
         else:
