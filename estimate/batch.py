@@ -9,12 +9,13 @@ maximum-likelihood refinement when ``options.refine`` is set, and
 :func:`estimate_batch` estimates many frames at once: ``conic``, ``pnp`` and
 ``thesis`` (and the refinement) run as stacked array operations over all frames
 that share a beacon set, which costs a small fraction of one call per frame.
-``thesis`` and ``pnp`` have one implementation each (a lone frame is a batch of one
-of :func:`~deckpose.estimate.thesis.estimate_thesis_frames`,
-:func:`~deckpose.estimate.pnp.estimate_pnp_frames`). For ``conic`` and the
-refinement, frames the batched path cannot settle (an outlier to remove, an
-unresolved ambiguity, any failure) are still re-estimated by the single-frame
-path, so every result is the one :func:`run_estimator` gives, to rounding.
+``thesis``, ``pnp`` and the refinement have one implementation each (a lone frame
+is a batch of one of :func:`~deckpose.estimate.thesis.estimate_thesis_frames`,
+:func:`~deckpose.estimate.pnp.estimate_pnp_frames`,
+:func:`~deckpose.estimate.refine.refine_estimates`). For ``conic``, frames the
+batched path cannot settle (an outlier to remove, an unresolved ambiguity, any
+failure) are still re-estimated by the single-frame path, so every result is the
+one :func:`run_estimator` gives, to rounding.
 """
 
 from __future__ import annotations
@@ -29,7 +30,7 @@ from deckpose.estimate.observations_batch import group_observations, stack_detec
 from deckpose.estimate.pnp import estimate_pnp_frames
 from deckpose.estimate.pose_checks import check_poses
 from deckpose.estimate.posterior_mean import apply_posterior_mean
-from deckpose.estimate.refine import refine_estimate, refine_estimates_batch
+from deckpose.estimate.refine import refine_estimates
 from deckpose.estimate.registry import EstimateOptions
 from deckpose.estimate.solution_batch import finish_batch
 from deckpose.estimate.thesis import estimate_thesis_frames
@@ -55,7 +56,8 @@ def run_estimator(
         ref = run_estimator("pnp", detections, camera, layout, options)
         est = flag_off_centre([est], [detections], [ref], camera, layout, options)[0]
     if options.refine and est.ok and not est.extras.get("refined", 0.0):
-        est = refine_estimate(est, detections, camera, layout, options)
+        est = refine_estimates([est], [detections], camera, layout, options,
+                               np.asarray(options.R_world_from_cam)[None])[0]
     if options.posterior_mean:
         est = apply_posterior_mean([est], [detections], camera, layout, options,
                                    np.asarray(options.R_world_from_cam)[None])[0]
@@ -182,8 +184,7 @@ def estimate_batch(
                 for i, e in zip(fresh, flagged):
                     ests[i] = e
         if options.refine and name not in ("conic", "pnp"):
-            ests = refine_estimates_batch(ests, chunk, camera, layout, options, R_chunk,
-                                          skip=set(todo))
+            ests = refine_estimates(ests, chunk, camera, layout, options, R_chunk, skip=set(todo))
         if options.posterior_mean:  # the single-frame results in ``todo`` have theirs already
             single = set(todo)
             fresh = [i for i in range(len(ests)) if i not in single]
