@@ -9,13 +9,11 @@ maximum-likelihood refinement when ``options.refine`` is set, and
 :func:`estimate_batch` estimates many frames at once: ``conic``, ``pnp`` and
 ``thesis`` (and the refinement) run as stacked array operations over all frames
 that share a beacon set, which costs a small fraction of one call per frame.
-``thesis``, ``pnp`` and the refinement have one implementation each (a lone frame
-is a batch of one of :func:`~deckpose.estimate.thesis.estimate_thesis_frames`,
-:func:`~deckpose.estimate.pnp.estimate_pnp_frames`,
-:func:`~deckpose.estimate.refine.refine_estimates`). For ``conic``, frames the
-batched path cannot settle (an outlier to remove, an unresolved ambiguity, any
-failure) are still re-estimated by the single-frame path, so every result is the
-one :func:`run_estimator` gives, to rounding.
+``thesis`` has one implementation (a lone frame is a batch of one of
+:func:`~deckpose.estimate.thesis.estimate_thesis_frames`). For ``conic`` and
+``pnp``, frames the batched path cannot settle (an outlier to remove, an
+unresolved ambiguity, any failure) are still re-estimated by the single-frame
+path, so every result is the one :func:`run_estimator` gives, to rounding.
 """
 
 from __future__ import annotations
@@ -27,10 +25,10 @@ import numpy as np
 from deckpose.estimate import registry
 from deckpose.estimate.conic_batch import conic_candidates_batch
 from deckpose.estimate.observations_batch import group_observations, stack_detections
-from deckpose.estimate.pnp import estimate_pnp_frames
+from deckpose.estimate.pnp_batch import pnp_candidates_batch
 from deckpose.estimate.pose_checks import check_poses
 from deckpose.estimate.posterior_mean import apply_posterior_mean
-from deckpose.estimate.refine import refine_estimates
+from deckpose.estimate.refine import refine_estimate, refine_estimates_batch
 from deckpose.estimate.registry import EstimateOptions
 from deckpose.estimate.solution_batch import finish_batch
 from deckpose.estimate.thesis import estimate_thesis_frames
@@ -56,8 +54,7 @@ def run_estimator(
         ref = run_estimator("pnp", detections, camera, layout, options)
         est = flag_off_centre([est], [detections], [ref], camera, layout, options)[0]
     if options.refine and est.ok and not est.extras.get("refined", 0.0):
-        est = refine_estimates([est], [detections], camera, layout, options,
-                               np.asarray(options.R_world_from_cam)[None])[0]
+        est = refine_estimate(est, detections, camera, layout, options)
     if options.posterior_mean:
         est = apply_posterior_mean([est], [detections], camera, layout, options,
                                    np.asarray(options.R_world_from_cam)[None])[0]
@@ -95,19 +92,22 @@ def _least_squares_batch(
     name: str, dets: Sequence[Detections], camera: CameraModel, layout: DeckLayout,
     options: EstimateOptions, R_wc: np.ndarray,
 ) -> list[PoseEstimate | None]:
-    """``conic`` on stacked frames; None where the single-frame path must decide."""
+    """``conic`` or ``pnp`` on stacked frames; None where the single-frame path must decide."""
     out: list[PoseEstimate | None] = [None] * len(dets)
     groups = group_observations(stack_detections(dets), camera, layout, R_wc, sigma_px=options.sigma_px,
                                 use_detection_covariance=options.use_detection_covariance)
     for g in groups:
         with np.errstate(all="ignore"):
-            cands = conic_candidates_batch(g.observations, layout, options)
+            if name == "conic":
+                cands = conic_candidates_batch(g.observations, layout, options)
+            else:
+                cands = pnp_candidates_batch(g.observations)
             if not len(cands.fits):
                 continue
             ests = finish_batch(name, cands, g.observations, g.n_ignored,
                                 ambiguity_chi2=options.ambiguity_chi2, outlier_chi2=options.outlier_chi2,
                                 max_reprojection_rms_px=options.max_reprojection_rms_px,
-                                refined=options.refine)
+                                refined=options.refine if name == "conic" else True)
         for f, e in zip(g.frames.tolist(), ests):
             out[f] = e
     return out
@@ -161,10 +161,8 @@ def estimate_batch(
     for lo in range(0, F, CHUNK_FRAMES):
         chunk, R_chunk = dets[lo:lo + CHUNK_FRAMES], np.ascontiguousarray(R_wc[lo:lo + CHUNK_FRAMES])
         got: list[PoseEstimate | None]
-        if name == "conic":
+        if name in ("conic", "pnp"):
             got = _least_squares_batch(name, chunk, camera, layout, options, R_chunk)
-        elif name == "pnp":
-            got = list(estimate_pnp_frames(chunk, camera, layout, options, R_chunk))
         elif name == "thesis":
             got = list(estimate_thesis_frames(chunk, camera, layout, R_chunk))
         else:
@@ -184,7 +182,8 @@ def estimate_batch(
                 for i, e in zip(fresh, flagged):
                     ests[i] = e
         if options.refine and name not in ("conic", "pnp"):
-            ests = refine_estimates(ests, chunk, camera, layout, options, R_chunk, skip=set(todo))
+            ests = refine_estimates_batch(ests, chunk, camera, layout, options, R_chunk,
+                                          skip=set(todo))
         if options.posterior_mean:  # the single-frame results in ``todo`` have theirs already
             single = set(todo)
             fresh = [i for i in range(len(ests)) if i not in single]

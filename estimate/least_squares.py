@@ -22,8 +22,6 @@ from deckpose.estimate.least_squares_batch import (
     DAMPING_UP,
     MAX_ITERATIONS,
     STEP_TOL_SIGMA,
-    FitBatch,
-    FrameObservations,
 )
 from deckpose.estimate.observations import Observations
 from deckpose.estimate.pose_model import project_normalised
@@ -196,26 +194,3 @@ def levenberg_marquardt(
             if lam > DAMPING_CEILING:
                 break
     return evaluate_fit(p, obs, R_world_from_cam, it, converged)
-
-
-def frame_observations_of(obs: Observations, R_world_from_cam: FloatArray) -> FrameObservations:
-    """One frame's observations as a batch of one (no copies), for the batched kernels.
-
-    Parameters
-    ----------
-    obs : Observations
-    R_world_from_cam : (3, 3) array of float
-
-    Returns
-    -------
-    FrameObservations
-        ``F = 1``.
-    """
-    return FrameObservations(obs.ids, obs.points_deck_m, obs.xy[None], obs.sqrt_info[None],
-                             obs.px_from_norm[None], np.asarray(R_world_from_cam, dtype=float)[None])
-
-
-def fit_of_row(fit: FitBatch, row: int) -> Fit:
-    """Frame ``row`` of a batch of fits as the per-frame :class:`Fit` the robust protocol handles."""
-    return Fit(fit.params[row], float(fit.chi2[row]), fit.information[row], fit.whitened[row],
-               fit.residuals_px[row], fit.gradient[row], int(fit.iterations[row]), bool(fit.converged[row]))

@@ -4,12 +4,6 @@ Starting from an estimate (the thesis's, which has no surge or sway, starts
 them at 0: the deck centre under the camera), minimise the reprojection error
 of the identified beacons weighted by the detections' covariances, with the
 same outlier removal, covariance and flags as the package's own estimators.
-
-Batch-first (:func:`refine_estimates`): one stacked Levenberg–Marquardt per beacon
-set; a lone estimate is a batch of one. A frame whose refined fit leaves an outlier
-to remove or fails goes through the robust protocol
-(:func:`~estimate.solution.estimate_robustly`), whose fit is the same batched
-Levenberg–Marquardt on that frame.
 """
 
 from __future__ import annotations
@@ -19,13 +13,10 @@ import math
 from collections.abc import Collection, Sequence
 
 import numpy as np
-from deckpose.estimate.least_squares import fit_of_row, frame_observations_of
-from deckpose.estimate.least_squares_batch import levenberg_marquardt_batch
+from deckpose.estimate.least_squares import levenberg_marquardt
 from deckpose.estimate.observations import Observations
-from deckpose.estimate.observations_batch import group_observations, stack_detections
 from deckpose.estimate.registry import EstimateOptions
 from deckpose.estimate.solution import Candidate, estimate_robustly
-from deckpose.estimate.solution_batch import BatchCandidates, finish_batch
 
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
@@ -44,6 +35,45 @@ def initial_params(estimate: PoseEstimate) -> np.ndarray | None:
     return arr if np.all(np.isfinite(arr)) and arr[5] > 0 else None
 
 
+def refine_estimate(
+    estimate: PoseEstimate,
+    detections: Detections,
+    camera: CameraModel,
+    layout: DeckLayout,
+    options: EstimateOptions,
+) -> PoseEstimate:
+    """Refine ``estimate`` to the maximum-likelihood pose.
+
+    Parameters
+    ----------
+    estimate : PoseEstimate
+        Any estimator's result; a failed one is returned unchanged.
+    detections, camera, layout, options
+        As for the estimator that produced it.
+
+    Returns
+    -------
+    PoseEstimate
+        Same ``method``; ``extras["refined"] = 1`` plus the original extras
+        (the original values under ``unrefined_*``).
+    """
+    if not estimate.ok:
+        return estimate
+    p0 = initial_params(estimate)
+    if p0 is None:
+        return estimate
+
+    def solve(o: Observations, R_wc: np.ndarray) -> Candidate | str:
+        return Candidate(levenberg_marquardt(p0, o, R_wc))
+
+    refined = estimate_robustly(estimate.method, solve, detections, camera, layout, options,
+                                min_points=MIN_BEACONS, refined=True,
+                                failure_prefix="refinement failed numerically")
+    if not refined.ok and refined.reason.startswith("refinement failed numerically"):
+        return refined
+    return _merge(estimate, refined)
+
+
 def _merge(estimate: PoseEstimate, refined: PoseEstimate) -> PoseEstimate:
     """The refined record under the estimate's method, keeping the estimate's extras and values."""
     extras = {k: v for k, v in estimate.extras.items() if k not in refined.extras}
@@ -53,26 +83,7 @@ def _merge(estimate: PoseEstimate, refined: PoseEstimate) -> PoseEstimate:
     return dataclasses.replace(refined, method=estimate.method, extras=extras)
 
 
-#: The reason of a refinement that failed numerically starts with this (the estimate is not merged).
-FAILURE_PREFIX = "refinement failed numerically"
-
-
-def _refine_robustly(estimate: PoseEstimate, p0: np.ndarray, detections: Detections, camera: CameraModel,
-                     layout: DeckLayout, options: EstimateOptions, R_world_from_cam: np.ndarray) -> PoseEstimate:
-    """One frame through the robust protocol (outlier removal, failure reasons) from ``p0``."""
-    def solve(o: Observations, R_wc: np.ndarray) -> Candidate | str:
-        fit = levenberg_marquardt_batch(p0[None], frame_observations_of(o, R_wc))
-        return Candidate(fit_of_row(fit, 0))
-
-    refined = estimate_robustly(estimate.method, solve, detections, camera, layout, options,
-                                min_points=MIN_BEACONS, refined=True, failure_prefix=FAILURE_PREFIX,
-                                R_world_from_cam=R_world_from_cam)
-    if not refined.ok and refined.reason.startswith(FAILURE_PREFIX):
-        return refined
-    return _merge(estimate, refined)
-
-
-def refine_estimates(
+def refine_estimates_batch(
     estimates: Sequence[PoseEstimate],
     detections: Sequence[Detections],
     camera: CameraModel,
@@ -82,28 +93,30 @@ def refine_estimates(
     *,
     skip: Collection[int] = (),
 ) -> list[PoseEstimate]:
-    """Refine each estimate to the maximum-likelihood pose: one stacked Levenberg–Marquardt per beacon set.
+    """:func:`refine_estimate` for many frames: one stacked Levenberg–Marquardt per beacon set.
 
     Parameters
     ----------
     estimates : sequence of PoseEstimate
-        Any estimator's results, one per frame; a failed one, or one already refined
-        (``extras["refined"]``), is returned unchanged.
+        Any estimator's results, one per frame.
     detections : sequence of Detections
-        The frames' detections, as for the estimator that produced them.
     camera, layout, options
-        As for that estimator.
+        As for :func:`refine_estimate`.
     R_world_from_cam : (F, 3, 3) array of float
         Each frame's camera attitude.
     skip : collection of int, keyword-only
-        Frames returned unchanged.
+        Frames returned unchanged (already refined).
 
     Returns
     -------
     list of PoseEstimate
-        Same ``method``; ``extras["refined"] = 1`` plus the original extras (the
-        original values under ``unrefined_*``).
+        What :func:`refine_estimate` returns frame by frame, to rounding; frames
+        the batch cannot settle (outliers, failures) go through it.
     """
+    from deckpose.estimate.least_squares_batch import levenberg_marquardt_batch
+    from deckpose.estimate.observations_batch import group_observations, stack_detections
+    from deckpose.estimate.solution_batch import BatchCandidates, finish_batch
+
     out = list(estimates)
     todo = [i for i, e in enumerate(estimates)
             if i not in skip and e.ok and not e.extras.get("refined", 0.0)]
@@ -133,10 +146,11 @@ def refine_estimates(
             if e is not None:
                 done[i] = _merge(estimates[i], e)
     for i in todo:
-        p = p0[i]
         if i in done:
             out[i] = done[i]
-        elif p is not None:  # an outlier to remove, too few beacons or a failure
-            out[i] = _refine_robustly(estimates[i], p, detections[i], camera, layout, options,
-                                      R_world_from_cam[i])
+        else:
+            R = R_world_from_cam[i]
+            opts = options if np.array_equal(R, options.R_world_from_cam) else dataclasses.replace(
+                options, R_world_from_cam=R)
+            out[i] = refine_estimate(estimates[i], detections[i], camera, layout, opts)
     return out
