@@ -95,7 +95,7 @@ _EYE2.setflags(write=False)
 @functools.lru_cache(maxsize=16)
 def _normalising_map(K_bytes: bytes) -> tuple[FloatArray, FloatArray]:
     """``(A, b)`` with ``xy = px @ A + b`` the normalised coordinates of pixels, for ``K`` as bytes (cached)."""
-    Kinv = np.linalg.inv(np.frombuffer(K_bytes, dtype=np.float64).reshape(3, 3))
+    Kinv = np.asarray(np.linalg.inv(np.frombuffer(K_bytes, dtype=np.float64).reshape(3, 3)), dtype=np.float64)
     A, b = Kinv[:2, :2].T.copy(), Kinv[:2, 2].copy()
     A.setflags(write=False)
     b.setflags(write=False)
@@ -147,13 +147,18 @@ def group_observations(
     raw = stacked.covariance_px2
     distorted = camera.has_distortion
     own = use_detection_covariance & ~_per_frame_all(np.all(raw == _EYE2, axis=(1, 2)), frame_of, F)
-    own &= stacked.counts > 0
+    has_any = stacked.counts > 0
+    own &= has_any
+    any_own = bool(own.any())
     cov = raw if own.all() else np.where(own[frame_of, None, None], raw, _EYE2 * sigma_px**2)
     # One isotropic sigma for the whole frame (the single-frame fast path).
     iso = np.zeros(F, dtype=bool)
     sigma_iso = np.full(F, np.nan)
-    has = np.flatnonzero(stacked.counts > 0)
-    if has.size:
+    has = np.flatnonzero(has_any)
+    if has.size and not any_own and 0.0 < sigma_px**2 < np.inf:  # every frame at sigma_px**2 * I
+        iso[has] = True
+        sigma_iso[has] = np.sqrt(sigma_px**2)
+    elif has.size:
         c0 = cov[stacked.starts[has]]
         with np.errstate(invalid="ignore"):
             first_iso = ((c0[:, 0, 1] == 0.0) & (c0[:, 1, 0] == 0.0) & (c0[:, 0, 0] == c0[:, 1, 1])

@@ -142,13 +142,10 @@ def pick_batch(cands: BatchCandidates, *, ambiguity_chi2: float) -> PickBatch:
         chi2 = np.stack([f.chi2 for f in cands.fits], axis=1)
     good = cands.valid & np.isfinite(chi2) & np.isfinite(params).all(axis=2)
     n_good = good.sum(axis=1)
-    if K == 1:
-        kb = np.zeros(F, dtype=np.int64)
-        best_p = cands.fits[0].params
-    else:
-        order = np.argsort(np.where(good, chi2, np.inf), axis=1, kind="stable")
-        kb = order[:, 0]
-        best_p = _take(params, kb)
+    order = (np.zeros((F, 1), dtype=np.int64) if K == 1
+             else np.argsort(np.where(good, chi2, np.inf), axis=1, kind="stable"))
+    kb = order[:, 0]
+    best_p = cands.fits[0].params if K == 1 else _take(params, kb)
     cov, cov_ok = covariance_from_information(_select(cands.fits, "information", kb))
     unresolved = np.zeros(F, dtype=bool)
     alt_p, dchi2, maha = np.full((F, 6), np.nan), np.full(F, np.nan), np.full(F, np.nan)
