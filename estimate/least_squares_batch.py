@@ -141,6 +141,17 @@ def covariance_from_information(H: FloatArray) -> tuple[FloatArray, BoolArray]:
         (the single-frame ``Fit.covariance`` is not None).
     """
     F = H.shape[0]
+    if F and np.isfinite(H).all():  # the common case: every matrix at once, no gathers
+        try:
+            Linv = np.linalg.inv(np.linalg.cholesky(H))
+        except np.linalg.LinAlgError:
+            pass  # some matrix is not positive definite: row by row below
+        else:
+            cov = np.swapaxes(Linv, 1, 2) @ Linv
+            ok = _rows_ok(cov)
+            if not ok.all():
+                cov[~ok] = np.nan
+            return cov, ok
     cov = np.full(H.shape, np.nan)
     ok = _rows_ok(H)
     idx = np.flatnonzero(ok)
@@ -462,9 +473,11 @@ def params_from_relative_batch(R_cam_from_deck: FloatArray, t_cam_from_deck: Flo
                                R_world_from_cam: FloatArray) -> FloatArray:
     """Pose parameters (F, 6) from ``T_cam_from_deck`` (F, 3, 3), (F, 3) and the camera attitude (F, 3, 3)."""
     R_wd = R_world_from_cam @ R_cam_from_deck
-    roll, pitch, yaw = zyx_from_R(R_wd)
-    d = np.einsum("fij,fj->fi", R_world_from_cam, t_cam_from_deck)
-    return np.stack([roll, pitch, yaw, d[:, 0], d[:, 1], -d[:, 2]], axis=1)
+    out = np.empty((R_wd.shape[0], 6))
+    out[:, 0], out[:, 1], out[:, 2] = zyx_from_R(R_wd)
+    out[:, 3:] = (R_world_from_cam @ t_cam_from_deck[:, :, None])[:, :, 0]
+    out[:, 5] *= -1.0
+    return out
 
 
 def relative_from_params_batch(params: FloatArray, R_world_from_cam: FloatArray
@@ -472,8 +485,8 @@ def relative_from_params_batch(params: FloatArray, R_world_from_cam: FloatArray
     """Inverse of :func:`params_from_relative_batch`: ``R_cam_from_deck`` (F, 3, 3), ``t`` (F, 3)."""
     R_cw = np.swapaxes(R_world_from_cam, 1, 2)
     R_wd = rotation_batch(params[:, :3])
-    tw = np.stack([params[:, 3], params[:, 4], -params[:, 5]], axis=1)
-    return R_cw @ R_wd, np.einsum("fij,fj->fi", R_cw, tw)
+    tw = params[:, 3:, None] * _TRANSLATION_SIGN[:, None]  # (surge, sway, -height)
+    return R_cw @ R_wd, (R_cw @ tw)[:, :, 0]
 
 
 def rotation_vectors(R: FloatArray) -> FloatArray:
@@ -484,13 +497,17 @@ def rotation_vectors(R: FloatArray) -> FloatArray:
     """
     import cv2
 
-    v = np.stack([R[:, 2, 1] - R[:, 1, 2], R[:, 0, 2] - R[:, 2, 0], R[:, 1, 0] - R[:, 0, 1]], axis=1)
+    flat = R.reshape(-1, 9)
+    # the skew part (R - R^T) / 2 as a vector: entries (2,1)-(1,2), (0,2)-(2,0), (1,0)-(0,1)
+    v = flat[:, [7, 2, 3]] - flat[:, [5, 6, 1]]
     s = np.sqrt(np.sum(v * v, axis=1) * 0.25)
-    c = np.clip((np.trace(R, axis1=1, axis2=2) - 1.0) * 0.5, -1.0, 1.0)
+    c = np.clip((flat[:, 0] + flat[:, 4] + flat[:, 8] - 1.0) * 0.5, -1.0, 1.0)
     theta = np.arccos(c)
     special = ~(s >= 1e-5)
     with np.errstate(divide="ignore", invalid="ignore"):
         out = v * (theta / (2.0 * s))[:, None]
+    if not special.any():
+        return out
     for i in np.flatnonzero(special):
         if np.all(np.isfinite(R[i])):
             out[i] = cv2.Rodrigues(np.ascontiguousarray(R[i]))[0].ravel()

@@ -11,6 +11,7 @@ is one group.
 
 from __future__ import annotations
 
+import functools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -75,7 +76,8 @@ class StackedDetections:
 def stack_detections(detections: Sequence[Detections]) -> StackedDetections:
     """Concatenate the frames' detections (no copies of the records' own arrays are kept)."""
     counts = np.fromiter((len(d) for d in detections), dtype=np.int64, count=len(detections))
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64) if counts.size else counts
+    starts = np.zeros_like(counts)
+    np.cumsum(counts[:-1], out=starts[1:])
     if counts.size == 0 or counts.sum() == 0:
         return StackedDetections(counts, starts, np.zeros((0, 2)), np.zeros(0, dtype=np.int64),
                                  np.zeros((0, 2, 2)))
@@ -83,6 +85,21 @@ def stack_detections(detections: Sequence[Detections]) -> StackedDetections:
     ids = np.concatenate([d.beacon_ids for d in detections])
     cov = np.concatenate([d.covariance_px2 for d in detections])
     return StackedDetections(counts, starts, pts, ids, cov)
+
+
+#: The 2x2 identity: the covariance a detection without its own carries ("unknown").
+_EYE2 = np.eye(2)
+_EYE2.setflags(write=False)
+
+
+@functools.lru_cache(maxsize=16)
+def _normalising_map(K_bytes: bytes) -> tuple[FloatArray, FloatArray]:
+    """``(A, b)`` with ``xy = px @ A + b`` the normalised coordinates of pixels, for ``K`` as bytes (cached)."""
+    Kinv = np.asarray(np.linalg.inv(np.frombuffer(K_bytes, dtype=np.float64).reshape(3, 3)), dtype=np.float64)
+    A, b = Kinv[:2, :2].T.copy(), Kinv[:2, 2].copy()
+    A.setflags(write=False)
+    b.setflags(write=False)
+    return A, b
 
 
 def _per_frame_all(flags: NDArray[np.bool_], frame_of: NDArray[np.int64], n_frames: int) -> NDArray[np.bool_]:
@@ -128,15 +145,20 @@ def group_observations(
     ids_all = stacked.beacon_ids
     pts_all = stacked.points_px
     raw = stacked.covariance_px2
-    eye = np.eye(2)
-    own = use_detection_covariance & ~_per_frame_all(np.all(raw == eye, axis=(1, 2)), frame_of, F)
-    own &= stacked.counts > 0
-    cov = np.where(own[frame_of, None, None], raw, eye * sigma_px**2)
+    distorted = camera.has_distortion
+    own = use_detection_covariance & ~_per_frame_all(np.all(raw == _EYE2, axis=(1, 2)), frame_of, F)
+    has_any = stacked.counts > 0
+    own &= has_any
+    any_own = bool(own.any())
+    cov = raw if own.all() else np.where(own[frame_of, None, None], raw, _EYE2 * sigma_px**2)
     # One isotropic sigma for the whole frame (the single-frame fast path).
     iso = np.zeros(F, dtype=bool)
     sigma_iso = np.full(F, np.nan)
-    has = np.flatnonzero(stacked.counts > 0)
-    if has.size:
+    has = np.flatnonzero(has_any)
+    if has.size and not any_own and 0.0 < sigma_px**2 < np.inf:  # every frame at sigma_px**2 * I
+        iso[has] = True
+        sigma_iso[has] = np.sqrt(sigma_px**2)
+    elif has.size:
         c0 = cov[stacked.starts[has]]
         with np.errstate(invalid="ignore"):
             first_iso = ((c0[:, 0, 1] == 0.0) & (c0[:, 1, 0] == 0.0) & (c0[:, 0, 0] == c0[:, 1, 1])
@@ -157,16 +179,16 @@ def group_observations(
     index = np.flatnonzero(keep)
     fidx = frame_of[index]
     K = camera.K
-    Kinv = np.linalg.inv(K)
-    und = camera.undistort(pts_all[index]) if camera.has_distortion else pts_all[index]
-    xy = und @ Kinv[:2, :2].T + Kinv[:2, 2]
+    A_norm, b_norm = _normalising_map(np.ascontiguousarray(K, dtype=np.float64).tobytes())
+    und = camera.undistort(pts_all[index]) if distorted else pts_all[index]
+    xy = und @ A_norm + b_norm
     n = index.size
     K22 = K[:2, :2]
-    if camera.has_distortion and n:
+    if distorted and n:
         D = distortion_jacobian(camera, xy)
     else:
         D = np.broadcast_to(K22, (n, 2, 2))
-    general = ~iso[fidx] | camera.has_distortion
+    general = ~iso[fidx] | distorted
     if not general.any():  # one whitening matrix per frame
         L = K22[None] / sigma_iso[fidx, None, None]
     else:
@@ -203,7 +225,8 @@ def group_observations(
     used = np.bincount(fidx, minlength=F)
     ids = ids_all[index]
     pos = layout_positions_m(layout)
-    first = np.concatenate([[0], np.cumsum(used)[:-1]]).astype(np.int64) if F else used
+    first = np.zeros_like(used)
+    np.cumsum(used[:-1], out=first[1:])
     groups: dict[bytes, list[int]] = {}
     for f in range(F):
         key = ids[first[f]:first[f] + used[f]].tobytes()

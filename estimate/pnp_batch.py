@@ -13,7 +13,7 @@ import numpy as np
 from deckpose.estimate.least_squares_batch import (
     FitBatch,
     FrameObservations,
-    evaluate_fit_batch,
+    chi2_batch,
     levenberg_marquardt_batch,
     params_from_relative_batch,
 )
@@ -27,15 +27,36 @@ from deckpose.estimate.pnp import (
 )
 from deckpose.estimate.solution_batch import BatchCandidates, Extra, scatter_fit
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
 
 def rotation_matrices(rvec: FloatArray) -> FloatArray:
-    """Rotation matrices (F, 3, 3) of Rodrigues vectors (F, 3), as ``cv2.Rodrigues`` gives them."""
-    return Rotation.from_rotvec(rvec).as_matrix()
+    """Rotation matrices (F, 3, 3) of Rodrigues vectors (F, 3), as ``cv2.Rodrigues`` gives them.
+
+    ``R = cos(t) I + (1 - cos(t)) k k^T + sin(t) [k]x`` with ``t = |rvec|``, ``k = rvec / t``
+    (the identity for ``t = 0``), written out: a few ufuncs on (F,) columns, no per-call objects.
+    """
+    x, y, z = rvec[:, 0], rvec[:, 1], rvec[:, 2]
+    t = np.sqrt(x * x + y * y + z * z)
+    zero = t == 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        inv = np.where(zero, 0.0, 1.0 / t)
+    kx, ky, kz = x * inv, y * inv, z * inv
+    c, s = np.cos(t), np.sin(t)
+    c1 = 1.0 - c
+    R = np.empty((rvec.shape[0], 3, 3))
+    R[:, 0, 0] = c + c1 * kx * kx
+    R[:, 0, 1] = c1 * kx * ky - s * kz
+    R[:, 0, 2] = c1 * kx * kz + s * ky
+    R[:, 1, 0] = c1 * ky * kx + s * kz
+    R[:, 1, 1] = c + c1 * ky * ky
+    R[:, 1, 2] = c1 * ky * kz - s * kx
+    R[:, 2, 0] = c1 * kz * kx - s * ky
+    R[:, 2, 1] = c1 * kz * ky + s * kx
+    R[:, 2, 2] = c + c1 * kz * kz
+    return R
 
 
 def _opencv_starts(obs: FrameObservations) -> tuple[FloatArray, BoolArray, FloatArray, BoolArray]:
@@ -89,17 +110,17 @@ def pnp_candidates_batch(obs: FrameObservations) -> BatchCandidates:
               Extra("ippe_alt_yaw_rad", starts[:, 2, 2], n_ippe2),
               Extra("ippe_alt_height_m", starts[:, 2, 5], n_ippe2))
     # SQPnP joins (in front) unless it repeats an IPPE solution; then non-finite starts drop out.
-    dup = np.zeros(F, dtype=bool)
-    for j in (1, 2):
-        dup |= present[:, j] & poses_close(starts[:, 0], starts[:, j], SAME_TOL)
+    # (both IPPE slots against SQPnP's in one call: rows (F, 2) flattened)
+    same = poses_close(np.repeat(starts[:, 0], 2, axis=0), starts[:, 1:].reshape(-1, 6),
+                       SAME_TOL).reshape(F, 2)
+    dup = np.any(present[:, 1:] & same, axis=1)
     valid = present.copy()
     valid[:, 0] &= ~dup
     valid &= np.all(np.isfinite(starts), axis=2)
     # Evaluate every valid start, order them by chi2 (stable), refine the best.
     rows_s, slot_s = np.nonzero(valid)
-    raw = evaluate_fit_batch(starts[rows_s, slot_s], obs.take(rows_s))
     chi_raw = np.full((F, 3), np.inf)
-    chi_raw[rows_s, slot_s] = raw.chi2
+    chi_raw[rows_s, slot_s] = chi2_batch(starts[rows_s, slot_s], obs.take(rows_s))
     order = np.argsort(np.where(valid, chi_raw, np.inf), axis=1, kind="stable")
     n_valid = valid.sum(axis=1)
     ar = np.arange(F)
@@ -107,12 +128,17 @@ def pnp_candidates_batch(obs: FrameObservations) -> BatchCandidates:
     fit0 = _refine_rows(F, rows0, starts[rows0, order[rows0, 0]], obs)
     fits = [fit0]
     kept = [n_valid >= 1]
+    # Which of the second and third starts compete with the refined best (both in one call).
+    alt_slots = order[:, 1:]  # (F, 2)
+    alt_raw = starts[ar[:, None], alt_slots]  # (F, 2, 6)
+    with np.errstate(invalid="ignore"):
+        competing = ((n_valid[:, None] > np.array([1, 2]))
+                     & ~poses_close(alt_raw.reshape(-1, 6), np.repeat(fit0.params, 2, axis=0),
+                                    BASIN_TOL).reshape(F, 2)
+                     & (chi_raw[ar[:, None], alt_slots] < (fit0.chi2 + ALT_MARGIN_CHI2)[:, None]))
     for pos in (1, 2):
-        slot = order[:, pos]
-        p_raw = starts[ar, slot]
-        with np.errstate(invalid="ignore"):
-            compete = (n_valid > pos) & ~poses_close(p_raw, fit0.params, BASIN_TOL) & (
-                chi_raw[ar, slot] < fit0.chi2 + ALT_MARGIN_CHI2)
+        compete = competing[:, pos - 1]
+        p_raw = alt_raw[:, pos - 1]
         if not compete.any():
             continue  # no frame has a competing start here: no slot (the single-frame method lists none)
         rows = np.flatnonzero(compete)

@@ -95,7 +95,12 @@ def covariance_scale(point_chi2: np.ndarray) -> np.ndarray:
     if n < MIN_POINTS_FOR_SCALE:
         return np.ones(pc.shape[:-1])
     with np.errstate(invalid="ignore"):
-        s2 = np.median(pc, axis=-1) / (_MEDIAN_CHI2_2 * (n - 3) / n)
+        # the median through one sort (np.median's dispatch costs more than the sort of a few points)
+        srt = np.sort(pc, axis=-1)
+        h = n // 2
+        med = srt[..., h] if n % 2 else (srt[..., h - 1] + srt[..., h]) / 2.0
+        med = np.where(np.isnan(srt[..., -1]), np.nan, med)  # NaN sorts last; np.median gives NaN
+        s2 = med / (_MEDIAN_CHI2_2 * (n - 3) / n)
         return np.where(s2 > SCALE_TRIGGER, s2, 1.0)
 
 

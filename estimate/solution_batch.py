@@ -87,7 +87,9 @@ def _take(a: np.ndarray, k: NDArray[np.int64]) -> np.ndarray:
 
 
 def _select(fits: tuple[FitBatch, ...], attr: str, k: NDArray[np.int64]) -> np.ndarray:
-    """``getattr(fits[k[f]], attr)[f]`` for every frame ``f``."""
+    """``getattr(fits[k[f]], attr)[f]`` for every frame ``f`` (read-only: may be ``fits[0]``'s own array)."""
+    if len(fits) == 1 or not k.any():
+        return getattr(fits[0], attr)
     out = np.array(getattr(fits[0], attr))
     for j in range(1, len(fits)):
         rows = k == j
@@ -133,13 +135,17 @@ class PickBatch:
 def pick_batch(cands: BatchCandidates, *, ambiguity_chi2: float) -> PickBatch:
     """Choose between each frame's solutions: the lowest chi2, and whether the ambiguity is resolved."""
     F, K = cands.valid.shape
-    params = np.stack([f.params for f in cands.fits], axis=1)  # (F, K, 6)
-    chi2 = np.stack([f.chi2 for f in cands.fits], axis=1)
-    good = cands.valid & np.isfinite(chi2) & np.all(np.isfinite(params), axis=2)
+    if K == 1:  # one solution per frame: nothing to order
+        params, chi2 = cands.fits[0].params[:, None], cands.fits[0].chi2[:, None]
+    else:
+        params = np.stack([f.params for f in cands.fits], axis=1)  # (F, K, 6)
+        chi2 = np.stack([f.chi2 for f in cands.fits], axis=1)
+    good = cands.valid & np.isfinite(chi2) & np.isfinite(params).all(axis=2)
     n_good = good.sum(axis=1)
-    order = np.argsort(np.where(good, chi2, np.inf), axis=1, kind="stable")
+    order = (np.zeros((F, 1), dtype=np.int64) if K == 1
+             else np.argsort(np.where(good, chi2, np.inf), axis=1, kind="stable"))
     kb = order[:, 0]
-    best_p = _take(params, kb)
+    best_p = cands.fits[0].params if K == 1 else _take(params, kb)
     cov, cov_ok = covariance_from_information(_select(cands.fits, "information", kb))
     unresolved = np.zeros(F, dtype=bool)
     alt_p, dchi2, maha = np.full((F, 6), np.nan), np.full(F, np.nan), np.full(F, np.nan)
@@ -206,7 +212,7 @@ def finish_batch(
     fallback |= ~pose_constrained(best_p, sig)  # the single-frame path flags them not ok
     M = obs.xy.shape[1]
     n_points = float(M)
-    ids = tuple(int(i) for i in obs.ids)
+    ids = tuple(obs.ids.tolist())
     base_refined = float(refined)
     dof = float(2 * M - 6)
     pre = [(e.name, e.values.tolist(), None if e.present is None else e.present.tolist())
