@@ -238,13 +238,16 @@ def significant_spots(
         if isinstance(found, str):
             return np.zeros((0, 2)), np.zeros(0), found, ""
         pts, rad, val = found
-        # a spot the finer smoothing found is not found again
+        # a spot the finer smoothing found is not found again (within `near` on both axes)
         near = max(2.0, 0.5 * min(RING_RADII[n_scale:]))
-        for p_, r_, v_ in zip(pts, rad, val):
-            if all(abs(p_[0] - q[0]) > near or abs(p_[1] - q[1]) > near for q in pts_all):
-                pts_all.append(p_)
-                rad_all.append(r_)
-                val_all.append(v_)
+        if pts_all:
+            prev = np.array(pts_all, float)
+            close = ((np.abs(pts[:, None, 0] - prev[None, :, 0]) <= near)
+                     & (np.abs(pts[:, None, 1] - prev[None, :, 1]) <= near)).any(axis=1)
+            pts, rad, val = pts[~close], rad[~close], val[~close]
+        pts_all.extend(pts)
+        rad_all.extend(rad.tolist())
+        val_all.extend(val.tolist())
     if not pts_all:
         return np.zeros((0, 2)), np.zeros(0), "", ""
     centres = (np.array(pts_all, float) + 0.5) * f - 0.5
