@@ -12,7 +12,8 @@ peak pixel (of the channel sum) and above the local background,
   possible optical spot puts there relative to its peak pixel
   (:func:`min_neighbour_ratio`: a pixel-integrated Gaussian of sigma
   :data:`SIGMA_MIN_PX` centred on a pixel, the most concentrated case: 1.75 at
-  0.6 px; a hot pixel's is 0); or
+  0.6 px; a hot pixel's is 0), by :data:`SHARP_SIGMAS` of that difference's noise
+  (a faint spot's peak pixel is a noise spike: no evidence of a defect); or
 * **colour** (RGB frames): the two weaker channels hold clearly less light than any
   beacon's would beside the strongest one: each channel's light is measured in the 5x5
   around the peak as its least-squares slope on the strongest channel's profile (with
@@ -22,8 +23,7 @@ peak pixel (of the channel sum) and above the local background,
   layout: at least 0.050; a white beacon: 0.54). A faint or broad spot's colour is too
   noisy to judge: it stays a spot.
 
-The shape test sits half way between the two hypotheses' noise-free values, so the
-noise must cover half the gap to flip either. A demosaiced *red or blue* beacon of
+The shape test sits half way between the two hypotheses' noise-free values. A demosaiced *red or blue* beacon of
 sigma < ~1 px centred on its own photosite is, in its channel, a lone sample as a
 hot pixel is: only its colour (light in the other channels) keeps it.
 """
@@ -42,6 +42,9 @@ __all__ = ["COLOUR_SIGMAS", "LEAST_SHARE", "SIGMA_MIN_PX", "min_neighbour_ratio"
 #: Narrowest optical spot the detectors claim, Gaussian sigma, pixels (a real lens's PSF at
 #: the pixel pitch is sigma >= ~0.6-0.7 px; beacon spots 0.7-3 px).
 SIGMA_MIN_PX = 0.6
+#: The shape test calls a candidate sharp when its neighbours' deficit exceeds this many of
+#: its noise sigmas.
+SHARP_SIGMAS = 2.0
 #: Colour test: the least share of the strongest channel's light that the two weaker channels
 #: of a beacon hold, by its strongest channel (R, G, B), for the default layout's colours on a
 #: bilinear- or edge-aware-demosaiced Bayer frame at sigma 0.6 px (the worst sub-pixel
@@ -52,6 +55,9 @@ LEAST_SHARE = (0.050, 0.54, 0.54)
 #: below :data:`LEAST_SHARE`: a beacon is called a defect at most ~0.6 % of the time (one-sided
 #: 2.5 sigma), in its worst case.
 COLOUR_SIGMAS = 2.5
+#: The colour test judges a candidate only where at least this share of its template's
+#: variance (the strongest channel's 5x5 profile) is signal, not noise.
+TEMPLATE_SIGNAL = 0.9
 #: Half side of the window whose border gives the local background, pixels (a 9x9 window:
 #: a sigma-0.6 px spot puts < 1e-8 of its peak there).
 BACKGROUND_HALF_PX = 4
@@ -145,7 +151,13 @@ def point_defects(image: np.ndarray, centres_px: np.ndarray, search_px: int = 2)
     s = core.sum(axis=3)
     peak = s[:, 1, 1]
     neighbours = s.sum(axis=(1, 2)) - peak
-    sharp = (peak > 0) & (neighbours < 0.5 * min_neighbour_ratio(SIGMA_MIN_PX) * peak)
+    # sharp: the neighbours fall short of half the sharpest spot's share by SHARP_SIGMAS of
+    # that difference's noise (the channel sum's pixel noise, from the window border): a
+    # faint spot's peak pixel is a noise spike, and its neighbours' deficit is noise too
+    half = 0.5 * min_neighbour_ratio(SIGMA_MIN_PX)
+    s_border = border.sum(axis=2)
+    sigma_s = MAD_TO_SIGMA * np.median(np.abs(s_border - np.median(s_border, axis=1, keepdims=True)), axis=1)
+    sharp = (half * peak - neighbours) > SHARP_SIGMAS * sigma_s * math.sqrt(half**2 + 8.0)
     if excess.shape[3] == 1:
         return sharp
     # colour: each channel's light measured with the strongest channel's own profile as the
@@ -166,8 +178,15 @@ def point_defects(image: np.ndarray, centres_px: np.ndarray, search_px: int = 2)
     # to judge: it stays a spot.
     mad = np.median(np.abs(border - np.median(border, axis=1, keepdims=True)), axis=1)  # (n, C)
     var_c = (MAD_TO_SIGMA * mad) ** 2
-    var_others = var_c.sum(axis=1) - var_c[np.arange(n), strongest]
-    sigma_share = np.sqrt(var_others / np.maximum(tt, 1e-300))
+    var_own = var_c[np.arange(n), strongest]
+    var_others = var_c.sum(axis=1) - var_own
+    # The template is itself noisy, which biases every slope toward 0 (toward "one colour")
+    # by the share of noise in it, 24 var_own / tt: the slopes are corrected by it, and only
+    # a template at least TEMPLATE_SIGNAL signal is judged (a faint or broad spot's flat,
+    # noisy profile is not).
+    signal = 1.0 - 24.0 * var_own / np.maximum(tt, 1e-300)
+    others = others / np.maximum(signal, 1e-12)
+    sigma_share = np.sqrt(var_others / np.maximum(tt, 1e-300)) / np.maximum(signal, 1e-12)
     least = np.asarray(LEAST_SHARE)[strongest]
-    one_colour = (tt > 0) & (others + COLOUR_SIGMAS * sigma_share < least)
+    one_colour = (signal >= TEMPLATE_SIGNAL) & (others + COLOUR_SIGMAS * sigma_share < least)
     return sharp | one_colour
