@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
             found = total = 0
             for _ in range(args.frames):
                 t = gen.make_frame(spec, rng)
-                c, _r, _why = significant_spots(t.image, thr, 200)
+                c, _r, _why, _note = significant_spots(t.image, thr, 200)
                 idx, _ = gen.match(c, t, tol_px=4.0)
                 found += int((idx >= 0).sum())
                 total += idx.size

@@ -199,6 +199,20 @@ def find_candidates(
 ) -> tuple[list[Candidate], str]:
     """All blobs of a frame as :class:`Candidate` windows, or ``([], reason)``.
 
+    See :func:`search_candidates`, which also returns the search's note.
+    """
+    cands, reason, _note = search_candidates(frame, options, boxes_fn=boxes_fn)
+    return cands, reason
+
+
+def search_candidates(
+    frame: Frame, options: DetectorOptions, *, boxes_fn: BoxesFn = coarse_boxes
+) -> tuple[list[Candidate], str, str]:
+    """All blobs of a frame as :class:`Candidate` windows, the failure reason and a note.
+
+    The note says what the search left out of an ok frame (significant spots beyond
+    ``max_blobs``, :func:`~deckpose.detect.significance.significant_spots`).
+
     Parameters
     ----------
     frame : Frame
@@ -211,11 +225,11 @@ def find_candidates(
     image = frame.image
     if min(image.shape[:2]) < MIN_FRAME_SIDE_PX:
         return [], (f"image is {image.shape[1]}x{image.shape[0]} px: too small to find beacons in "
-                    f"(each side at least {MIN_FRAME_SIDE_PX} px)")
+                    f"(each side at least {MIN_FRAME_SIDE_PX} px)"), ""
     st = frame_stats(image)
     problem = frame_problem(st)
     if problem:
-        return [], problem
+        return [], problem, ""
     search = None
     spot_thr = spot_noise = 0.0
     if options.spot_level > 0:
@@ -231,7 +245,7 @@ def find_candidates(
     sat_dn = st.saturation_dn if search is None else search.saturation_dn
     boxes, reason = boxes_fn(image, options, search)
     if reason:
-        return [], reason
+        return [], reason, ""
     thr = st.background_dn + options.threshold_sigma * st.noise_dn
     k_noise = options.threshold_sigma * st.noise_dn
     H, W = image.shape[:2]
@@ -326,15 +340,16 @@ def find_candidates(
     # has no Gaussian noise to judge significance by: its rare 1-DN pixels cluster into
     # "spots" by chance (a 64 MP 8-bit frame with a 0.02 DN background gave 105). The
     # bright-spot search alone runs there.
+    note = ""
     if search is not None and options.significance_sigma > 0 and st.background_dn >= 0.5:
-        raw, reason = _significant_windows(image, options, st, sat_dn, raw)
+        raw, reason, note = _significant_windows(image, options, st, sat_dn, raw)
         if reason:
-            return [], reason
+            return [], reason, ""
     if not raw:
         return [], (
             f"dark frame: no blob above {thr:.1f} DN (background {st.background_dn:.1f} DN, "
             f"noise {st.noise_dn:.2f} DN, brightest pixel {float(np.max(image)):.0f} DN)"
-        )
+        ), ""
     gain0 = options.gain_dn_per_e or 1.0
     cands = [
         Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, gain0, t, clip_signal=clip,
@@ -344,7 +359,7 @@ def find_candidates(
     if options.gain_dn_per_e is None:
         gain = estimate_gain(cands, options.window_sigma)
         cands = [dataclasses.replace(c, gain_dn_per_e=gain) for c in cands]
-    return cands, ""
+    return cands, "", note
 
 
 def _significant_windows(
@@ -353,7 +368,7 @@ def _significant_windows(
     st: FrameStats,
     sat_dn: float,
     bright: list[RawWindow],
-) -> tuple[list[RawWindow], str]:
+) -> tuple[list[RawWindow], str, str]:
     """The bright-spot windows that are spots, and windows of the other significant spots.
 
     The significant spots are those of :mod:`deckpose.detect.significance`. A
@@ -364,13 +379,13 @@ def _significant_windows(
     on the channel sum above a plane fitted to its border; its blob is the spot's
     half-maximum region (of the window smoothed by a 1 px Gaussian) around its peak.
 
-    Returns the windows and, when the frame fails, the reason.
+    Returns the windows, the reason when the frame fails, and the search's note.
     """
-    centres, radii, reason = significant_spots(
+    centres, radii, reason, note = significant_spots(
         image, options.significance_sigma, options.max_blobs
     )
     if reason:
-        return [], reason
+        return [], reason, ""
     H, W = image.shape[:2]
     taken: list[tuple[float, float, float, float]] = []
     out: list[RawWindow] = []
@@ -413,7 +428,7 @@ def _significant_windows(
         out.append((wpix, mask, _saturated(image, wb, sat_dn), wb[0], wb[1], plane,
                     plane[0] + 0.5 * top, noise, False))
         taken.append((wb[0] + pu - 1.0, wb[1] + pv - 1.0, wb[0] + pu + 1.0, wb[1] + pv + 1.0))
-    return out, ""
+    return out, "", note
 
 
 def measure_candidates(
@@ -425,7 +440,7 @@ def measure_candidates(
     coarse footprint fell apart) is kept once: of two centres closer than the
     larger spot sigma (at least 1 px), the one with more flux stays.
     """
-    cands, reason = find_candidates(frame, options, boxes_fn=boxes_fn)
+    cands, reason, note = search_candidates(frame, options, boxes_fn=boxes_fn)
     if reason:
         return Blobs.empty(reason)
     rows = [r for r in (measure(c) for c in cands) if r is not None]
@@ -435,4 +450,4 @@ def measure_candidates(
     for r in sorted(rows, key=lambda r: -r[3]):
         if all(math.hypot(r[0] - k[0], r[1] - k[1]) >= max(1.0, r[4], k[4]) for k in kept):
             kept.append(r)
-    return Blobs.stack(kept)
+    return Blobs.stack(kept, note=note)

@@ -130,6 +130,8 @@ def detect_frame(
             )
             ids = np.asarray(ident.beacon_ids)
             reason = "" if ident else f"identification: {ident.reason}"
+            if reason and blobs.note:
+                reason += f" ({blobs.note})"
         except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
             # degenerate geometry the identification did not foresee: the frame fails
             reason = f"identification raised {type(exc).__name__}: {exc}"

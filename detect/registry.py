@@ -57,7 +57,10 @@ class DetectorOptions:
     min_area_px : int
         Smallest blob (full-resolution pixels above threshold) kept.
     max_blobs : int
-        More candidates than this fail the frame (noise, glare).
+        Most candidates a frame may give. Beyond it the bright-spot and threshold
+        searches fail the frame (noise, glare); the significance search keeps the
+        ``max_blobs`` most significant spots and lets identification decide (point
+        defects, :mod:`deckpose.detect.defects`, are dropped before the count).
     window_sigma : float
         Radius of the measuring window, in spot standard deviations (cog, log).
     gain_dn_per_e : float or None
@@ -144,6 +147,9 @@ class Blobs:
     ok : bool
     reason : str
         Why the frame failed (empty when ok).
+    note : str
+        What the search left out on an ok frame (e.g. spots beyond ``max_blobs``), so
+        that a later failure (identification) can say it; empty when nothing.
     """
 
     points_px: FloatArray
@@ -153,6 +159,7 @@ class Blobs:
     score: FloatArray
     ok: bool = True
     reason: str = ""
+    note: str = ""
 
     def __post_init__(self) -> None:
         pts = _ro(self.points_px).reshape(-1, 2)
@@ -181,13 +188,14 @@ class Blobs:
         return cls(np.zeros((0, 2)), np.zeros((0, 2, 2)), z, z, z, ok=not reason, reason=reason)
 
     @classmethod
-    def stack(cls, rows: list[tuple[float, float, FloatArray, float, float, float]]) -> Blobs:
+    def stack(cls, rows: list[tuple[float, float, FloatArray, float, float, float]], *,
+              note: str = "") -> Blobs:
         """Build from ``(u, v, cov (2, 2), flux_dn, size_px, score)`` tuples."""
         if not rows:
             return cls.empty()
         u, v, cov, flux, size, score = zip(*rows)
         return cls(np.column_stack([u, v]), np.stack(cov), np.asarray(flux, float),
-                   np.asarray(size, float), np.asarray(score, float))
+                   np.asarray(size, float), np.asarray(score, float), note=note)
 
 
 DetectorFn = Callable[[Frame, DetectorOptions], Blobs]

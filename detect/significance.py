@@ -22,7 +22,10 @@ finds spots by their significance instead, whatever their brightness:
    a line still stands above it. A short bar passes a ring wider than it, so the
    ring inside that one must be round too (:data:`MAX_RING_ASYMMETRY`).
 
-The result is a full-resolution box per spot, sized from the ring it passed on.
+Point defects (hot pixels, :mod:`deckpose.detect.defects`) pass these tests too (a
+demosaiced one is a compact bump); they are dropped by their shape and colour before
+the spots are counted. The result is a full-resolution centre per spot and the radius
+of the ring it passed on.
 """
 
 from __future__ import annotations
@@ -32,6 +35,7 @@ import math
 import cv2
 import numpy as np
 from deckpose.detect.background import MIN_NOISE_DN
+from deckpose.detect.defects import point_defects
 
 #: The coarse image has at most this many pixels (block size a power of two).
 SEARCH_MAX_PX = 4_200_000
@@ -186,8 +190,14 @@ def box_means(G: np.ndarray, ys: np.ndarray, xs: np.ndarray, half: int) -> np.nd
 
 def significant_spots(
     image: np.ndarray, significance_sigma: float, max_spots: int
-) -> tuple[np.ndarray, np.ndarray, str]:
+) -> tuple[np.ndarray, np.ndarray, str, str]:
     """Centres and sizes of the frame's significant compact spots.
+
+    Point defects (hot pixels, :func:`deckpose.detect.defects.point_defects`) are no
+    spots: they are dropped before the count. When more than ``max_spots`` spots remain
+    (a lit sea, glare), the ``max_spots`` most significant are kept (their smoothed
+    peaks above the background, in the frame's noise) and the note says so; whether the
+    beacons are among them is for identification to decide.
 
     Parameters
     ----------
@@ -195,16 +205,19 @@ def significant_spots(
     significance_sigma : float
         Threshold, in local noise sigmas of the smoothed coarse image.
     max_spots : int
-        More spots than this fail the frame.
+        At most this many spots are returned.
 
     Returns
     -------
     centres_px : (n, 2) array of float
-        Approximate full-resolution ``(u, v)`` of each spot (its coarse pixel's centre).
+        Approximate full-resolution ``(u, v)`` of each spot (its coarse pixel's centre),
+        most significant first.
     radius_px : (n,) array of float
         Full-resolution radius of the ring the spot passed on (its size, roughly).
     reason : str
-        Why the frame failed ("" when it did not).
+        Why the frame failed (more than :data:`MAX_PEAKS` local maxima); "" when it did not.
+    note : str
+        That spots were left out (more than ``max_spots``); "" otherwise.
     """
     f = search_factor(image.shape[:2])
     S = block_sum(image, f)
@@ -216,37 +229,52 @@ def significant_spots(
     n_ch = image.shape[2] if image.ndim == 3 else 1
     floor = f * math.sqrt(n_ch) if np.issubdtype(image.dtype, np.integer) else MIN_NOISE_DN
     noise_S = max(clipped_difference_noise(S), floor)
-    pts_all, rad_all = [], []
+    pts_all: list[np.ndarray] = []
+    rad_all: list[float] = []
+    val_all: list[float] = []
     for n_scale, smooth_px in enumerate(SMOOTH_PX):
         found = _spots_at_scale(S, max(0.5, smooth_px / f), noise_S, significance_sigma,
-                                RING_RADII[n_scale:], max_spots + 1)
+                                RING_RADII[n_scale:])
         if isinstance(found, str):
-            return np.zeros((0, 2)), np.zeros(0), found
-        pts, rad = found
-        # a spot the finer smoothing found is not found again
+            return np.zeros((0, 2)), np.zeros(0), found, ""
+        pts, rad, val = found
+        # a spot the finer smoothing found is not found again (within `near` on both axes)
         near = max(2.0, 0.5 * min(RING_RADII[n_scale:]))
-        for p_, r_ in zip(pts, rad):
-            if all(abs(p_[0] - q[0]) > near or abs(p_[1] - q[1]) > near for q in pts_all):
-                pts_all.append(p_)
-                rad_all.append(r_)
-        if len(pts_all) > max_spots:
-            return np.zeros((0, 2)), np.zeros(0), (
-                f"more than {max_spots} significant spots (max_blobs): glare, noise or texture"
-            )
+        if pts_all:
+            prev = np.array(pts_all, float)
+            close = ((np.abs(pts[:, None, 0] - prev[None, :, 0]) <= near)
+                     & (np.abs(pts[:, None, 1] - prev[None, :, 1]) <= near)).any(axis=1)
+            pts, rad, val = pts[~close], rad[~close], val[~close]
+        pts_all.extend(pts)
+        rad_all.extend(rad.tolist())
+        val_all.extend(val.tolist())
     if not pts_all:
-        return np.zeros((0, 2)), np.zeros(0), ""
+        return np.zeros((0, 2)), np.zeros(0), "", ""
     centres = (np.array(pts_all, float) + 0.5) * f - 0.5
-    return centres, np.array(rad_all, float) * f, ""
+    radii = np.array(rad_all, float) * f
+    order = np.argsort(-np.array(val_all), kind="stable")
+    centres, radii = centres[order], radii[order]
+    real = ~point_defects(image, centres, search_px=f + 1)
+    n_defects = int(np.count_nonzero(~real))
+    centres, radii = centres[real], radii[real]
+    note = ""
+    if centres.shape[0] > max_spots:
+        note = (f"{centres.shape[0]} significant spots (besides {n_defects} hot pixels), more than "
+                f"max_blobs={max_spots}: kept the {max_spots} most significant (glare, noise or "
+                "texture?)")
+        centres, radii = centres[:max_spots], radii[:max_spots]
+    return centres, radii, "", note
 
 
 def _spots_at_scale(
     S: np.ndarray, sigma_c: float, noise_S: float, significance_sigma: float,
-    radii: tuple[float, ...], max_kept: int,
-) -> tuple[np.ndarray, np.ndarray] | str:
+    radii: tuple[float, ...],
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | str:
     """The significant spots of block sums ``S`` smoothed by a Gaussian of ``sigma_c`` px.
 
-    Returns coarse ``(x, y)`` per spot (n, 2) and the radius of the ring it passed on
-    (n,), brightest first, at most ``max_kept`` of them; or why the frame fails.
+    Returns coarse ``(x, y)`` per spot (n, 2), the radius of the ring it passed on (n,)
+    and its height above the frame's background in ``sigma_G`` (n,), brightest first; or
+    why the frame fails.
     """
     k, norm = _gaussian_norm(sigma_c)
     G = cv2.GaussianBlur(S, (k, k), sigma_c, borderType=cv2.BORDER_REFLECT)
@@ -294,7 +322,7 @@ def _spots_at_scale(
             "a flat bright or noisy frame (glare?)"
         )
     if ys.size == 0:
-        return np.zeros((0, 2)), np.zeros(0)
+        return np.zeros((0, 2)), np.zeros(0), np.zeros(0)
     gp = G[ys, xs].astype(np.float64)
     # Pass 1, every peak: each ring's highest sample (a necessary condition: the spread of
     # the ring's samples only raises the noise it is judged by), first against the pixel
@@ -370,7 +398,5 @@ def _spots_at_scale(
             continue
         kept.append(int(i))
         taken[y : y + 5, x : x + 5] = True
-        if len(kept) >= max_kept:
-            break
     kept_a = np.array(kept, np.intp)
-    return pts[kept_a], rad[kept_a]
+    return pts[kept_a], rad[kept_a], (val[kept_a] - bg) / sigma_G

@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from deckpose.detect.defects import point_defects
 from deckpose.detect.registry import DetectorOptions
 
 #: The bright-spot level is the value of this brightest pixel (rank from the top).
@@ -293,6 +294,19 @@ def spot_boxes(
     s = spot_search(image, options) if search is None else search
     thr, bg, bright, f = s.threshold_dn, s.background_dn, s.bright_dn, s.factor
     stats = bright_components(s.small > thr)
+    # point defects (hot pixels) are no spots: a component of at most 2x2 blocks (a hot
+    # pixel, spread a pixel by demosaicing, on a block corner) is tested at its peak
+    small_c = (stats[:, 2] <= 2) & (stats[:, 3] <= 2)
+    if small_c.any():
+        centres = np.column_stack([(stats[small_c, 0] + 0.5 * stats[small_c, 2]) * f - 0.5,
+                                   (stats[small_c, 1] + 0.5 * stats[small_c, 3]) * f - 0.5])
+        drop = np.zeros(stats.shape[0], bool)
+        drop[np.flatnonzero(small_c)] = point_defects(s.image, centres, search_px=f + 1)
+        stats = stats[~drop]
+        if drop.all():
+            # the bright level is the hot pixels' (clipped ones, at night): no bright spot,
+            # and the significance search looks for the beacons
+            return [], ""
     n_spots = stats.shape[0]
     if n_spots > options.max_blobs:
         return [], (
