@@ -21,6 +21,7 @@ the deck sees the same sense counter-clockwise in the image as displayed
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from dataclasses import dataclass
@@ -286,6 +287,42 @@ def identify_beacons(
 ) -> Identification:
     """Assign layout beacon ids to detections.
 
+    A layout with an inner ring (``layout.inner_n_ring > 0``) is identified by
+    :func:`identify_two_rings`: the outer ring as below when enough of it, its
+    bow included, is in view; else the inner ring by the same steps; the other
+    ring's visible beacons then by the identified ring's homography.
+
+    Parameters
+    ----------
+    points_px : (N, 2) array of float
+        Detected centres, distorted pixels.
+    layout : DeckLayout
+    camera : CameraModel
+        For undistortion.
+    rgb_flux : (N, 3) array of float, optional
+        Per-channel flux of each blob (:func:`deckpose.detect.colour.blob_rgb_flux`);
+        ``None`` for mono frames.
+    options : IdentifyOptions
+
+    Returns
+    -------
+    Identification
+    """
+    if layout.inner_n_ring:
+        return identify_two_rings(points_px, layout, camera, rgb_flux=rgb_flux, options=options)
+    return _identify_ring(points_px, layout, camera, rgb_flux=rgb_flux, options=options)
+
+
+def _identify_ring(
+    points_px: FloatArray,
+    layout: DeckLayout,
+    camera: CameraModel,
+    *,
+    rgb_flux: FloatArray | None = None,
+    options: IdentifyOptions = IdentifyOptions(),
+) -> Identification:
+    """Assign the ids of a one-ring layout (its ring and centre) to detections.
+
     Parameters
     ----------
     points_px : (N, 2) array of float
@@ -317,7 +354,7 @@ def identify_beacons(
     usable = np.isfinite(pts).all(axis=1)
     if not usable.all():  # no ray in front of the camera (a fisheye past 90 deg): never a beacon
         rgb = None if rgb_flux is None else np.asarray(rgb_flux, dtype=float).reshape(-1, 3)[usable]
-        sub = identify_beacons(pts_d[usable], layout, camera, rgb_flux=rgb, options=options)
+        sub = _identify_ring(pts_d[usable], layout, camera, rgb_flux=rgb, options=options)
         ids = np.full(N, UNASSIGNED, np.int64)
         ids[usable] = sub.beacon_ids
         return Identification(ids, sub.ok, sub.reason)
@@ -390,4 +427,130 @@ def identify_beacons(
                 ids[ring] = (rel[ring] - rel[ring[b]] + layout.bow_id) % n
     if reasons:
         return Identification(ids, False, "; ".join(reasons))
+    return Identification(ids, True, "")
+
+
+def _one_ring(layout: DeckLayout, inner: bool) -> DeckLayout:
+    """The outer (``inner=False``) or the inner ring of a two-ring layout, with its centre, as a one-ring layout."""
+    if not inner:
+        return dataclasses.replace(layout, inner_n_ring=0)
+    return dataclasses.replace(layout, n_ring=layout.inner_n_ring, radius_m=layout.inner_radius_m,
+                               inner_n_ring=0)
+
+
+def ring_homography(ids: NDArray[np.int64], points_px: FloatArray, n: int) -> FloatArray | None:
+    """Homography from a ring's deck plane (radius 1, bow on +x) to undistorted pixels.
+
+    Parameters
+    ----------
+    ids : (K,) array of int
+        Ring positions ``0..n-1`` (counter-clockwise from the bow) of ``K >= 4`` blobs.
+    points_px : (K, 2) array of float
+        Their undistorted pixel positions.
+    n : int
+        Beacons on the ring.
+
+    Returns
+    -------
+    (3, 3) array of float or None
+        None when the points are degenerate.
+    """
+    return _homography(np.asarray(ids, np.int64), np.asarray(points_px, float), n)
+
+
+def _assign_more(
+    H: FloatArray, plane: FloatArray, pts: FloatArray, ids: NDArray[np.int64], new_ids: NDArray[np.int64],
+    tol_frac: float,
+) -> NDArray[np.int64]:
+    """Give free blobs (``ids < 0``) the ids ``new_ids`` of deck points ``plane`` predicted through ``H``.
+
+    A blob takes a prediction when nearer than ``tol_frac`` of the smallest spacing
+    between the predictions; each prediction is taken once, the closest blob first.
+    Blobs without a finite undistorted position stay free.
+    """
+    with np.errstate(invalid="ignore"):
+        pred = _apply(H, plane)
+    out = ids.copy()
+    if pred.shape[0] < 2:
+        return out
+    gap = np.linalg.norm(pred[:, None] - pred[None], axis=2)
+    spacing = float(np.min(gap[~np.eye(pred.shape[0], dtype=bool)]))
+    free = np.flatnonzero((ids < 0) & np.isfinite(pts).all(axis=1))
+    if not free.size:
+        return out
+    d = np.linalg.norm(pts[free][:, None, :] - pred[None], axis=2)
+    taken: set[int] = set()
+    for j in np.argsort(d.min(axis=1)):
+        k = int(np.argmin(d[j]))
+        if d[j, k] < tol_frac * spacing and k not in taken:
+            out[free[j]] = int(new_ids[k])
+            taken.add(k)
+    return out
+
+
+def identify_two_rings(
+    points_px: FloatArray,
+    layout: DeckLayout,
+    camera: CameraModel,
+    *,
+    rgb_flux: FloatArray | None = None,
+    options: IdentifyOptions = IdentifyOptions(),
+) -> Identification:
+    """Assign the ids of a two-ring layout: by the outer ring where it is identified, else by the inner.
+
+    Each ring is identified alone by :func:`identify_beacons`'s steps (its ellipse,
+    its even spacing, its own red bow beacon); the outer ring is tried first. The
+    deck-plane homography of the identified ring then predicts the other ring's
+    beacons (exact under perspective: both lie on the deck plane), and free blobs
+    near a prediction take its id. Fails with both rings' reasons when neither is
+    identified (then :func:`deckpose.detect.prior_identify.identify_with_prior`
+    can use the previous frame's pose).
+
+    Parameters
+    ----------
+    points_px : (N, 2) array of float
+        Detected centres, distorted pixels.
+    layout : DeckLayout
+        With ``inner_n_ring > 0``.
+    camera : CameraModel
+    rgb_flux : (N, 3) array of float, optional
+    options : IdentifyOptions
+
+    Returns
+    -------
+    Identification
+    """
+    pts_d = np.asarray(points_px, dtype=float)
+    check_shape("points_px", pts_d, (None, 2))
+    if not layout.inner_n_ring:
+        raise ConfigError("identify_two_rings needs a layout with an inner ring (inner_n_ring > 0)")
+    N = pts_d.shape[0]
+    first = layout.n_ring + int(layout.has_centre)  # the inner ring's bow id
+    outer_try = _identify_ring(pts_d, _one_ring(layout, False), camera, rgb_flux=rgb_flux, options=options)
+    if outer_try.ok:
+        ids = outer_try.beacon_ids.copy()
+        n_this, r_this = layout.n_ring, layout.radius_m
+        this_ring = (ids >= 0) & (ids < layout.n_ring)
+        this_pos = ids[this_ring]
+        n_other, r_other = layout.inner_n_ring, layout.inner_radius_m
+        other_ids = layout.inner_ring_ids()
+    else:
+        inner_try = _identify_ring(pts_d, _one_ring(layout, True), camera, rgb_flux=rgb_flux, options=options)
+        if not inner_try.ok:
+            return _fail(N, f"outer ring: {outer_try.reason}; inner ring: {inner_try.reason}")
+        sub = inner_try.beacon_ids
+        m = layout.inner_n_ring
+        ids = np.where(sub < 0, UNASSIGNED, np.where(sub == m, layout.n_ring, first + sub)).astype(np.int64)
+        n_this, r_this = m, layout.inner_radius_m
+        this_ring = (sub >= 0) & (sub < m)
+        this_pos = sub[this_ring]
+        n_other, r_other = layout.n_ring, layout.radius_m
+        other_ids = layout.ring_ids()
+    pts = camera.undistort(pts_d)
+    H = ring_homography(this_pos, pts[this_ring], n_this)
+    if H is None or not np.all(np.isfinite(H)):
+        return _fail(N, "degenerate ring geometry: no homography from the identified ring", ids)
+    ang = 2 * np.pi * np.arange(n_other) / n_other
+    plane = (r_other / r_this) * np.column_stack([np.cos(ang), np.sin(ang)])
+    ids = _assign_more(H, plane, pts, ids, np.asarray(other_ids, np.int64), options.assign_tol_frac)
     return Identification(ids, True, "")
