@@ -61,19 +61,30 @@ from deckpose.sequence_estimate import SequenceFrame, estimate_sequence
 BANDS_M = (80.0, 40.0, 20.0, 13.0, 8.0, 4.0, 1.5)
 
 
-def frames_for(args: argparse.Namespace, camera_name: str) -> tuple[pd.DataFrame, list[SequenceFrame], np.ndarray]:
-    """Truth rows, the estimator's inputs and the true pose parameters (F, 6) for one camera."""
+def frames_for(args: argparse.Namespace, camera_name: str, hide_bows: float
+               ) -> tuple[pd.DataFrame, list[SequenceFrame], np.ndarray]:
+    """Truth rows, the estimator's inputs and the true pose parameters (F, 6) for one camera.
+
+    In a fraction ``hide_bows`` of the frames (drawn at random) the bow beacons (the outer
+    ring's and the inner ring's) are hidden, as by the UAV's own legs or a person on deck:
+    those frames can only be identified with the previous frame's pose.
+    """
     cfg = load_config(args.config)
     cam = preset(camera_name)
     layout = cfg.layout
     rng = np.random.default_rng([args.seed, sum(map(ord, camera_name))])
+    hide_rng = np.random.default_rng([args.seed, 1 + sum(map(ord, camera_name)), round(1000 * hide_bows)])
     rgb_all = layout.beacon_rgb_all()
     rows, seq, truth = [], [], []
     for f in plan_frames(cfg):
         s, cp0 = f.ship, f.camera_pose
         cp = CameraPose(cp0.R_world_from_cam, cp0.position_world_m + np.array([s.surge_m, s.sway_m, s.heave_m]))
         proj = project_layout(layout, s, cp, cam)
-        vis = np.flatnonzero(proj.visible)
+        hidden = hide_rng.random() < hide_bows
+        seen = proj.visible.copy()
+        if hidden:
+            seen[list(layout.bow_ids)] = False
+        vis = np.flatnonzero(seen)
         order = rng.permutation(vis.size)
         ids = vis[order]
         pts = proj.points_px[ids] + rng.normal(0.0, args.sigma_px, (ids.size, 2))
@@ -81,9 +92,12 @@ def frames_for(args: argparse.Namespace, camera_name: str) -> tuple[pd.DataFrame
         seq.append(SequenceFrame(f.frame_id, f.stamp_ns, pts, cov, cp.R_world_from_cam, rgb_all[ids]))
         T = T_cam_from_deck(s, cp)
         truth.append(params_from_relative(T[:3, :3], T[:3, 3], cp.R_world_from_cam))
-        crb = cramer_rao_bound(layout, cam, s, cp, args.sigma_px)
+        # the bound of the beacons seen: a hidden beacon's pixel variance as good as infinite
+        var = np.where(seen, args.sigma_px ** 2, 1e12)
+        crb = cramer_rao_bound(layout, cam, s, cp, args.sigma_px, covariance_px2=var[:, None, None] * np.eye(2))
         inner = set(layout.inner_ring_ids().tolist())
-        rows.append({"camera": camera_name, "frame_id": f.frame_id, "t_s": f.t_s,
+        rows.append({"camera": camera_name, "hide_bows": hide_bows, "bows_hidden": hidden,
+                     "frame_id": f.frame_id, "t_s": f.t_s,
                      "true_height_m": float(truth[-1][5]), "n_visible": int(vis.size),
                      "n_outer_visible": int(np.count_nonzero(vis < layout.n_ring)),
                      "n_inner_visible": int(sum(int(i) in inner for i in vis)),
@@ -92,9 +106,9 @@ def frames_for(args: argparse.Namespace, camera_name: str) -> tuple[pd.DataFrame
     return pd.DataFrame(rows), seq, np.array(truth)
 
 
-def run_camera(args: argparse.Namespace, camera_name: str) -> pd.DataFrame:
+def run_camera(args: argparse.Namespace, camera_name: str, hide_bows: float) -> pd.DataFrame:
     """Per-frame results of one camera: truth, estimate, error, sigma, CRB, how identified."""
-    df, seq, truth = frames_for(args, camera_name)
+    df, seq, truth = frames_for(args, camera_name, hide_bows)
     cfg = load_config(args.config)
     cam = preset(camera_name)
     t0 = time.process_time()
@@ -114,7 +128,9 @@ def run_camera(args: argparse.Namespace, camera_name: str) -> pd.DataFrame:
         df[f"err_{n}"] = err[:, k]
         df[f"sigma_{n}"] = sig[:, k]
     with np.errstate(invalid="ignore", divide="ignore"):
-        df["max_z"] = np.nanmax(np.abs(err / sig), axis=1) if len(df) else []
+        z = np.abs(err / sig)
+    finite = np.isfinite(z)
+    df["max_z"] = np.where(finite.any(axis=1), np.where(finite, z, -np.inf).max(axis=1), np.nan)
     return df
 
 
@@ -127,14 +143,14 @@ def rms(a: pd.Series | np.ndarray) -> float:
 def band_table(df: pd.DataFrame) -> pd.DataFrame:
     """Per camera and height band: ok fraction, identification, errors, z and error / CRB."""
     out = []
-    for cam, d in df.groupby("camera", sort=False):
+    for (cam, hide), d in df.groupby(["camera", "hide_bows"], sort=False):
         for hi, lo in itertools.pairwise(BANDS_M):
             b = d[(d["true_height_m"] <= hi) & (d["true_height_m"] > lo)]
             if not len(b):
                 continue
             ok = b[b["ok"]]
             row: dict[str, object] = {
-                "camera": cam, "band_m": f"{lo:g}-{hi:g}", "frames": len(b), "ok_pct": 100 * len(ok) / len(b),
+                "camera": cam, "hide_bows": hide, "band_m": f"{lo:g}-{hi:g}", "frames": len(b), "ok_pct": 100 * len(ok) / len(b),
                 "by_prior_pct": 100 * float((b["identified_by"] == "prior").mean()),
                 "median_visible": float(b["n_visible"].median()),
                 "ok_beyond_5_sigma": int((ok["max_z"] > 5).sum()),
@@ -155,19 +171,22 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--cameras", nargs="+", default=["4mp-thesis", "8mp-thesis"])
     ap.add_argument("--sigma-px", type=float, default=0.2)
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--hide-bows", type=float, nargs="+", default=[0.0, 0.3],
+                    help="fractions of frames whose bow beacons are hidden (one run per value)")
     ap.add_argument("--out", type=Path)
     args = ap.parse_args(argv)
     load0 = os.getloadavg()
     t0 = time.time()
-    df = pd.concat([run_camera(args, c) for c in args.cameras], ignore_index=True)
+    df = pd.concat([run_camera(args, c, h) for h in args.hide_bows for c in args.cameras], ignore_index=True)
     bands = band_table(df)
     wall = time.time() - t0
     load1 = os.getloadavg()
     lines = []
-    for cam, d in df.groupby("camera", sort=False):
+    for (cam, hide), d in df.groupby(["camera", "hide_bows"], sort=False):
         ok = d["ok"].to_numpy(bool)
         n5 = int((d.loc[ok, "max_z"] > 5).sum())
-        lines.append(f"{cam}: ok in {100 * ok.mean():.2f} % of {len(d)} frames from "
+        lines.append(f"{cam}, bows hidden in {100 * float(d['bows_hidden'].mean()):.0f} % of frames "
+                     f"(asked {100 * hide:g} %): ok in {100 * ok.mean():.2f} % of {len(d)} frames from "
                      f"{d['true_height_m'].max():.1f} m down to {d['true_height_m'].min():.2f} m (target >= 99 %); "
                      f"ok beyond 5 own sigmas: {n5} (target 0); identified by the prior: "
                      f"{int((d['identified_by'] == 'prior').sum())}; "

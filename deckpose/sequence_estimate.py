@@ -181,7 +181,7 @@ def estimate_sequence(
     last: tuple[int, PoseEstimate] | None = None
     for f in frames:
         ident = identify_beacons(f.points_px, layout, camera, rgb_flux=f.rgb_flux, options=id_opts)
-        how, age = IdentifiedBy.FRAME, math.nan
+        how, age, reason = IdentifiedBy.FRAME, math.nan, ""
         if not ident.ok:
             reason = f"identification: {ident.reason}"
             how = IdentifiedBy.NONE

@@ -133,9 +133,9 @@ def identify_with_prior(
     gaps = np.linalg.norm(P[:, None] - P[None], axis=2)
     spacing = float(np.min(gaps[~np.eye(cand.size, dtype=bool)]))
     gate = options.gate_frac * spacing
-    usable = np.isfinite(pts).all(axis=1)
-    d = np.linalg.norm(np.where(usable[:, None], pts, np.inf)[:, None, :] - P[None], axis=2)
-    inside = d < gate
+    usable = np.asarray(np.isfinite(pts).all(axis=1), dtype=bool)
+    d = np.linalg.norm(np.where(usable.reshape(-1, 1), pts, np.inf)[:, None, :] - P[None], axis=2)
+    inside: NDArray[np.bool_] = np.asarray(d < gate, dtype=bool)
     # two detections in one prediction's gate: which is the beacon is not known, so neither
     crowded = inside.sum(axis=0) > 1
     inside[:, crowded] = False
