@@ -11,7 +11,9 @@
   (:mod:`~deckpose.detect.log_blobs`), ``opencv-blob``
   (:mod:`~deckpose.detect.opencv_blob`);
 * :mod:`~deckpose.detect.identify` — beacon ids (ellipse RANSAC, homography,
-  colour of the bow beacon);
+  colour of the bow beacon; a second, inner ring);
+* :mod:`~deckpose.detect.prior_identify` — beacon ids from a prior pose (the
+  previous frame's), for frames without a bow or a ring in view;
 * :mod:`~deckpose.detect.frame_detection` — one frame: detect + identify ->
   :class:`~deckpose.records.Detections`;
 * :mod:`~deckpose.detect.sources`, :mod:`~deckpose.detect.run`,
@@ -33,11 +35,13 @@ __all__ = [
     "DetectorOptions",
     "FrameDetections",
     "IdentifyOptions",
+    "PriorIdentifyOptions",
     "detect_frame",
     "detect_frames",
     "detect_run",
     "get",
     "identify_beacons",
+    "identify_with_prior",
     "load_plugin",
     "names",
     "register",
@@ -53,6 +57,8 @@ _API: dict[str, str] = {
     "load_plugin": "deckpose.detect.registry",
     "IdentifyOptions": "deckpose.detect.identify",
     "identify_beacons": "deckpose.detect.identify",
+    "PriorIdentifyOptions": "deckpose.detect.prior_identify",
+    "identify_with_prior": "deckpose.detect.prior_identify",
     "FrameDetections": "deckpose.detect.frame_detection",
     "detect_frame": "deckpose.detect.frame_detection",
     "DetectRunResult": "deckpose.detect.run",
@@ -63,6 +69,7 @@ _API: dict[str, str] = {
 if TYPE_CHECKING:  # the same names for type checkers (at run time __getattr__ imports them)
     from deckpose.detect.frame_detection import FrameDetections, detect_frame
     from deckpose.detect.identify import IdentifyOptions, identify_beacons
+    from deckpose.detect.prior_identify import PriorIdentifyOptions, identify_with_prior
     from deckpose.detect.registry import Blobs, DetectorOptions, get, load_plugin, names, register
     from deckpose.detect.run import DetectRunResult, detect_frames, detect_run
 

@@ -21,6 +21,7 @@ the deck sees the same sense counter-clockwise in the image as displayed
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from dataclasses import dataclass
@@ -60,6 +61,11 @@ class IdentifyOptions:
         5-subsets are tried exhaustively).
     seed : int
         Seed of the RANSAC sampler (identification is deterministic per frame).
+    max_axis_ratio : float or None
+        RANSAC rejects ring ellipses more elongated than this (major over minor
+        semi-axis); None: no limit. :func:`identify_two_rings` sets it (see
+        :data:`TWO_RING_MAX_AXIS_RATIO`), where a thin ellipse through half of the
+        outer ring, the inner ring and the centre can outnumber the outer ring.
     """
 
     inlier_tol_px: float = 2.0
@@ -69,6 +75,7 @@ class IdentifyOptions:
     min_red_margin: float = 0.15
     max_ransac: int = 1000
     seed: int = 0
+    max_axis_ratio: float | None = None
 
     def __post_init__(self) -> None:
         if not (
@@ -77,6 +84,8 @@ class IdentifyOptions:
             raise ConfigError(
                 "inlier_tol_px > 0, inlier_tol_frac >= 0 and 0 < assign_tol_frac < 0.5"
             )
+        if self.max_axis_ratio is not None and not self.max_axis_ratio > 1:
+            raise ConfigError(f"max_axis_ratio must be > 1 (or None: no limit), got {self.max_axis_ratio}")
         if self.min_ring is not None and self.min_ring < 5:
             raise ConfigError(
                 f"min_ring must be >= 5 (a conic needs 5 points), got {self.min_ring}"
@@ -117,6 +126,8 @@ def _ellipse_inliers(
 ) -> tuple[NDArray[np.bool_] | None, FloatArray, float]:
     axes = cn.ellipse_semi_axes(c) if c[1] ** 2 - 4 * c[0] * c[2] < 0 else None
     if axes is None:
+        return None, np.zeros(0), 0.0
+    if opts.max_axis_ratio is not None and not max(axes) <= opts.max_axis_ratio * min(axes):
         return None, np.zeros(0), 0.0
     tol = max(opts.inlier_tol_px, opts.inlier_tol_frac * 0.5 * sum(axes))
     d = cn.sampson_distance(c, points)
@@ -286,6 +297,42 @@ def identify_beacons(
 ) -> Identification:
     """Assign layout beacon ids to detections.
 
+    A layout with an inner ring (``layout.inner_n_ring > 0``) is identified by
+    :func:`identify_two_rings`: the outer ring as below when enough of it, its
+    bow included, is in view; else the inner ring by the same steps; the other
+    ring's visible beacons then by the identified ring's homography.
+
+    Parameters
+    ----------
+    points_px : (N, 2) array of float
+        Detected centres, distorted pixels.
+    layout : DeckLayout
+    camera : CameraModel
+        For undistortion.
+    rgb_flux : (N, 3) array of float, optional
+        Per-channel flux of each blob (:func:`deckpose.detect.colour.blob_rgb_flux`);
+        ``None`` for mono frames.
+    options : IdentifyOptions
+
+    Returns
+    -------
+    Identification
+    """
+    if layout.inner_n_ring:
+        return identify_two_rings(points_px, layout, camera, rgb_flux=rgb_flux, options=options)
+    return _identify_ring(points_px, layout, camera, rgb_flux=rgb_flux, options=options)
+
+
+def _identify_ring(
+    points_px: FloatArray,
+    layout: DeckLayout,
+    camera: CameraModel,
+    *,
+    rgb_flux: FloatArray | None = None,
+    options: IdentifyOptions = IdentifyOptions(),
+) -> Identification:
+    """Assign the ids of a one-ring layout (its ring and centre) to detections.
+
     Parameters
     ----------
     points_px : (N, 2) array of float
@@ -317,7 +364,7 @@ def identify_beacons(
     usable = np.isfinite(pts).all(axis=1)
     if not usable.all():  # no ray in front of the camera (a fisheye past 90 deg): never a beacon
         rgb = None if rgb_flux is None else np.asarray(rgb_flux, dtype=float).reshape(-1, 3)[usable]
-        sub = identify_beacons(pts_d[usable], layout, camera, rgb_flux=rgb, options=options)
+        sub = _identify_ring(pts_d[usable], layout, camera, rgb_flux=rgb, options=options)
         ids = np.full(N, UNASSIGNED, np.int64)
         ids[usable] = sub.beacon_ids
         return Identification(ids, sub.ok, sub.reason)
@@ -390,4 +437,218 @@ def identify_beacons(
                 ids[ring] = (rel[ring] - rel[ring[b]] + layout.bow_id) % n
     if reasons:
         return Identification(ids, False, "; ".join(reasons))
+    return Identification(ids, True, "")
+
+
+#: The most elongated ring ellipse :func:`identify_two_rings` accepts (major / minor semi-axis).
+#: A circle's image is elongated by about ``1 / cos(tilt)`` between the deck and the image
+#: plane; 3 allows a tilt of 70 deg, far beyond a downward camera over a ship in sea state 9,
+#: and rejects the near-parabolas that pass through two opposite arcs of the outer ring and the
+#: inner ring between them.
+TWO_RING_MAX_AXIS_RATIO = 3.0
+#: Free blobs at an inner ring's midpoints or inside half its radius that make it an alias.
+ALIAS_MIN_BLOBS = 2
+
+
+def _one_ring(layout: DeckLayout, inner: bool) -> DeckLayout:
+    """The outer (``inner=False``) or the inner ring of a two-ring layout, with its centre, as a one-ring layout."""
+    if not inner:
+        return dataclasses.replace(layout, inner_n_ring=0)
+    return dataclasses.replace(layout, n_ring=layout.inner_n_ring, radius_m=layout.inner_radius_m,
+                               inner_n_ring=0)
+
+
+def ring_homography(ids: NDArray[np.int64], points_px: FloatArray, n: int) -> FloatArray | None:
+    """Homography from a ring's deck plane (radius 1, bow on +x) to undistorted pixels.
+
+    Parameters
+    ----------
+    ids : (K,) array of int
+        Ring positions ``0..n-1`` (counter-clockwise from the bow) of ``K >= 4`` blobs.
+    points_px : (K, 2) array of float
+        Their undistorted pixel positions.
+    n : int
+        Beacons on the ring.
+
+    Returns
+    -------
+    (3, 3) array of float or None
+        None when the points are degenerate.
+    """
+    return _homography(np.asarray(ids, np.int64), np.asarray(points_px, float), n)
+
+
+def _assign_more(
+    H: FloatArray, plane: FloatArray, pts: FloatArray, ids: NDArray[np.int64], new_ids: NDArray[np.int64],
+    tol_frac: float,
+) -> NDArray[np.int64]:
+    """Give free blobs (``ids < 0``) the ids ``new_ids`` of deck points ``plane`` predicted through ``H``.
+
+    A blob takes a prediction when nearer than ``tol_frac`` of the smallest spacing
+    between the predictions; each prediction is taken once, the closest blob first.
+    Blobs without a finite undistorted position stay free.
+    """
+    with np.errstate(invalid="ignore"):
+        pred = _apply(H, plane)
+    out = ids.copy()
+    if pred.shape[0] < 2:
+        return out
+    gap = np.linalg.norm(pred[:, None] - pred[None], axis=2)
+    spacing = float(np.min(gap[~np.eye(pred.shape[0], dtype=bool)]))
+    free = np.flatnonzero((ids < 0) & np.isfinite(pts).all(axis=1))
+    if not free.size:
+        return out
+    d = np.linalg.norm(pts[free][:, None, :] - pred[None], axis=2)
+    taken: set[int] = set()
+    for j in np.argsort(d.min(axis=1)):
+        k = int(np.argmin(d[j]))
+        if d[j, k] < tol_frac * spacing and k not in taken:
+            out[free[j]] = int(new_ids[k])
+            taken.add(k)
+    return out
+
+
+#: Compact blob groups tried as the inner ring (its centre and nearest neighbours), most compact first.
+COMPACT_TRIES = 3
+
+
+def _identify_inner(
+    pts_d: FloatArray, layout: DeckLayout, camera: CameraModel, rgb_flux: FloatArray | None,
+    options: IdentifyOptions, outer_max_inliers: int,
+) -> Identification:
+    """The inner ring (``layout``: the inner ring as a one-ring layout) among all of a frame's blobs.
+
+    :func:`_identify_ring` on all blobs first. A partial outer arc can win its RANSAC, or
+    lend blobs to a chance ellipse through inner beacons (any 5 points fit a conic), so
+    where that fails: again without the largest ellipse of at most ``outer_max_inliers``
+    blobs (an outer arc); then on compact groups, each a blob and its ``n + 1`` nearest
+    neighbours (the centre beacon and the inner ring, one spare), the
+    :data:`COMPACT_TRIES` most compact first. The first failure's reason is kept when
+    every try fails.
+    """
+    N = pts_d.shape[0]
+    rgb = None if rgb_flux is None else np.asarray(rgb_flux, dtype=float).reshape(-1, 3)
+    pts = camera.undistort(pts_d)
+    usable = np.flatnonzero(np.isfinite(pts).all(axis=1))
+    tries: list[NDArray[np.int64]] = [np.arange(N)]
+    if usable.size >= 10:  # an arc to set aside and a ring after it: 5 blobs each
+        on = ransac_ellipse(pts[usable], options, max_inliers=outer_max_inliers)
+        tries.append(np.setdiff1d(np.arange(N), usable[on]))
+    k = layout.n_ring + 2
+    if usable.size > k:
+        d = np.linalg.norm(pts[usable][:, None] - pts[usable][None], axis=2)
+        near = np.argsort(d, axis=1)[:, :k]  # each blob first (distance 0), then its neighbours
+        spread = np.take_along_axis(d, near, axis=1).sum(axis=1)
+        tries += [np.sort(usable[near[j]]) for j in np.argsort(spread, kind="stable")[:COMPACT_TRIES]]
+    first: Identification | None = None
+    for keep in tries:
+        sub = _identify_ring(pts_d[keep], layout, camera, rgb_flux=None if rgb is None else rgb[keep],
+                             options=options)
+        if sub.ok:
+            ids = np.full(N, UNASSIGNED, np.int64)
+            ids[keep] = sub.beacon_ids
+            return Identification(ids, True, "")
+        if first is None:
+            first = sub
+    return _fail(N, first.reason if first is not None else "no ring found")
+
+
+def _alias_blobs(
+    H: FloatArray, pts: FloatArray, ids: NDArray[np.int64], n: int, tol_frac: float
+) -> int:
+    """Free blobs that say a ring identified as the inner ring is every other outer beacon.
+
+    Under that alias the outer ring's other beacons sit midway between the "inner"
+    beacons, on the same ellipse, and the true inner ring lies well inside it: count
+    free blobs near a midpoint (within ``tol_frac`` of the ring's spacing) or inside
+    half the ring's radius (deck plane through ``H``).
+    """
+    free = np.flatnonzero((ids < 0) & np.isfinite(pts).all(axis=1))
+    if not free.size:
+        return 0
+    ang = 2 * np.pi * (np.arange(n) + 0.5) / n
+    mid = np.column_stack([np.cos(ang), np.sin(ang)])
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q = np.column_stack([pts[free], np.ones(free.size)]) @ np.linalg.inv(H).T
+        plane = q[:, :2] / q[:, 2:3]
+    step = 2 * np.sin(np.pi / n)  # chord between neighbours, ring radii
+    near_mid = np.min(np.linalg.norm(plane[:, None] - mid[None], axis=2), axis=1) < tol_frac * step
+    inside = np.linalg.norm(plane, axis=1) < 0.5
+    return int(np.count_nonzero(near_mid | inside))
+
+
+def identify_two_rings(
+    points_px: FloatArray,
+    layout: DeckLayout,
+    camera: CameraModel,
+    *,
+    rgb_flux: FloatArray | None = None,
+    options: IdentifyOptions = IdentifyOptions(),
+) -> Identification:
+    """Assign the ids of a two-ring layout: by the outer ring where it is identified, else by the inner.
+
+    Each ring is identified alone by :func:`identify_beacons`'s steps (its ellipse,
+    its even spacing, its own red bow beacon); the outer ring is tried first. The
+    deck-plane homography of the identified ring then predicts the other ring's
+    beacons (exact under perspective: both lie on the deck plane), and free blobs
+    near a prediction take its id. Fails with both rings' reasons when neither is
+    identified (then :func:`deckpose.detect.prior_identify.identify_with_prior`
+    can use the previous frame's pose).
+
+    Parameters
+    ----------
+    points_px : (N, 2) array of float
+        Detected centres, distorted pixels.
+    layout : DeckLayout
+        With ``inner_n_ring > 0``.
+    camera : CameraModel
+    rgb_flux : (N, 3) array of float, optional
+    options : IdentifyOptions
+
+    Returns
+    -------
+    Identification
+    """
+    pts_d = np.asarray(points_px, dtype=float)
+    check_shape("points_px", pts_d, (None, 2))
+    if not layout.inner_n_ring:
+        raise ConfigError("identify_two_rings needs a layout with an inner ring (inner_n_ring > 0)")
+    N = pts_d.shape[0]
+    first = layout.n_ring + int(layout.has_centre)  # the inner ring's bow id
+    if options.max_axis_ratio is None:
+        options = dataclasses.replace(options, max_axis_ratio=TWO_RING_MAX_AXIS_RATIO)
+    outer_try = _identify_ring(pts_d, _one_ring(layout, False), camera, rgb_flux=rgb_flux, options=options)
+    if outer_try.ok:
+        ids = outer_try.beacon_ids.copy()
+        n_this, r_this = layout.n_ring, layout.radius_m
+        this_ring = (ids >= 0) & (ids < layout.n_ring)
+        this_pos = ids[this_ring]
+        n_other, r_other = layout.inner_n_ring, layout.inner_radius_m
+        other_ids = layout.inner_ring_ids()
+    else:
+        inner_try = _identify_inner(pts_d, _one_ring(layout, True), camera, rgb_flux, options,
+                                    layout.n_ring + 2)
+        if not inner_try.ok:
+            return _fail(N, f"outer ring: {outer_try.reason}; inner ring: {inner_try.reason}")
+        sub = inner_try.beacon_ids
+        m = layout.inner_n_ring
+        ids = np.where(sub < 0, UNASSIGNED, np.where(sub == m, layout.n_ring, first + sub)).astype(np.int64)
+        n_this, r_this = m, layout.inner_radius_m
+        this_ring = (sub >= 0) & (sub < m)
+        this_pos = sub[this_ring]
+        n_other, r_other = layout.n_ring, layout.radius_m
+        other_ids = layout.ring_ids()
+    pts = camera.undistort(pts_d)
+    H = ring_homography(this_pos, pts[this_ring], n_this)
+    if H is None or not np.all(np.isfinite(H)):
+        return _fail(N, "degenerate ring geometry: no homography from the identified ring", ids)
+    if not outer_try.ok:
+        n_alias = _alias_blobs(H, pts, ids, n_this, options.assign_tol_frac)
+        if n_alias >= ALIAS_MIN_BLOBS:
+            return _fail(N, (
+                f"outer ring: {outer_try.reason}; the ring taken for the inner ring has {n_alias} blobs "
+                "between its beacons or inside it: it may be every other beacon of the outer ring"))
+    ang = 2 * np.pi * np.arange(n_other) / n_other
+    plane = (r_other / r_this) * np.column_stack([np.cos(ang), np.sin(ang)])
+    ids = _assign_more(H, plane, pts, ids, np.asarray(other_ids, np.int64), options.assign_tol_frac)
     return Identification(ids, True, "")

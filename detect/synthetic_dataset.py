@@ -135,7 +135,7 @@ def write_synthetic_dataset(
     lay = config.layout
     n = lay.n_beacons
     frame_rows, beacon_rows, cams = [], [], {}
-    rgb_all = np.array([lay.bow_rgb if i == lay.bow_id else lay.beacon_rgb for i in range(n)])
+    rgb_all = np.array(lay.beacon_rgb_all())
     fid = 0
     for cam_name in config.cameras:
         cam = _camera(cam_name)

@@ -190,13 +190,14 @@ def beacon_splats(layout: DeckLayout, poses: tuple[ShipPose, ...], camera_pose: 
     fluxes = [beacon_flux(layout, camera, sensor, leds, J, geo[0], geo[1][0]) * factors
               for _, J, _, geo in per_pose]
     out: list[Splat] = []
+    colours = layout.beacon_rgb_all()
     for i in range(layout.n_beacons) if beacon_ids is None else beacon_ids:
         if not all(m[2][i] for m in per_pose):
             continue
         comps = [(c[i], J[i] @ J[i].T * (r * r / 4.0) + s2 * np.eye(2), float(f[i]))
                  for (c, J, _, _), f in zip(per_pose, fluxes)]
-        rgb = layout.bow_rgb if i == layout.bow_id else layout.beacon_rgb
-        sp = spot_splat(comps, rgb, sensor, camera, i)
+        r_, g_, b_ = (float(c) for c in colours[i])
+        sp = spot_splat(comps, (r_, g_, b_), sensor, camera, i)
         if sp is not None:
             out.append(sp)
     return out

@@ -54,7 +54,7 @@ def unit_factors(layout: DeckLayout, leds: LedSpec, seed: int) -> NDArray[np.flo
     if leds.intensity_tolerance > 0:
         rng = np.random.default_rng(np.random.SeedSequence([seed, UNIT_FACTOR_STREAM]))
         out = rng.uniform(1.0 - leds.intensity_tolerance, 1.0, layout.n_beacons)
-    out[layout.bow_id] *= leds.bow_intensity
+    out[list(layout.bow_ids)] *= leds.bow_intensity
     return out
 
 

@@ -86,8 +86,7 @@ def pool_gain(layout: DeckLayout, deck_half_size_m: float, intensity_cd: float, 
     src = np.asarray(layout.positions_deck_m(), float).copy()
     src[:, 2] += layout.beacon_radius_m
     lux = pool_illuminance_lux(src, intensity_cd, np.column_stack([xx.ravel(), yy.ravel()]).astype(np.float64))
-    rgb = np.array([layout.bow_rgb if i == layout.bow_id else layout.beacon_rgb
-                    for i in range(layout.n_beacons)], float)  # (N, 3)
+    rgb = np.array(layout.beacon_rgb_all(), float)  # (N, 3)
     gain = 1.0 + (lux @ rgb) / ambient_lux
     return gain.reshape(size_px, size_px, 3).astype(np.float32)
 
