@@ -226,7 +226,7 @@ class EdgeFit:
 
 
 def _gauss_newton(rows: EdgeProfiles, sigma_b: float, var_deck: float, var_paint: float, iterations: int
-                  ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], FloatArray, FloatArray]:
+                  ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_], FloatArray, FloatArray, FloatArray]:
     """Fit ``(c0, c1, p, delta)`` per profile.
 
     Returns params (K, 4), inverse Fisher information (K, 4, 4), ok (K,), the residuals
