@@ -84,6 +84,9 @@ def _run_one(camera: str, work: Path, heights: list[float], attitudes: int, seed
         ring_err[f"bound_{p}_deg"] = bnd[f"bound_{p}_deg"].reindex(ring_err["frame_id"]).to_numpy()
     for p in ("height", "surge", "sway"):
         ring_err[f"bound_{p}_m"] = bnd[f"bound_{p}_m"].reindex(ring_err["frame_id"]).to_numpy()
+    for p, u in (("roll", "deg"), ("pitch", "deg"), ("yaw", "deg"), ("height", "m")):
+        ring_err[f"bound_known_levels_{p}_{u}"] = bnd[f"bound_known_levels_{p}_{u}"].reindex(
+            ring_err["frame_id"]).to_numpy()
     ring_err["target"] = "painted ring"
     t0 = time.thread_time()
     d = detect_run(ds, "cog", progress=True, workers=0)
@@ -132,6 +135,8 @@ def bound_ratios(df: pd.DataFrame) -> pd.DataFrame:
             sig = h[f"sigma_{p}_{unit}"] if f"sigma_{p}_{unit}" in h else pd.Series(np.nan, index=h.index)
             row[f"{p}_err/sigma"] = _rms(err / sig)
             row[f"{p}_err/bound"] = _rms(err / h[f"bound_{p}_{unit}"])
+            known = f"bound_known_levels_{p}_{unit}"
+            row[f"{p}_err/bound_known_levels"] = _rms(err / h[known]) if known in h else math.nan
         rows.append(row)
     return pd.DataFrame(rows)
 
@@ -237,9 +242,11 @@ def _markdown(df: pd.DataFrame, command: str, load_before: str, load_after: str,
         "",
         "## Painted ring in daylight: error against its sigma and its bound",
         "",
-        ("RMS over frames of (error / the estimate's own sigma, from the measured edge-point noise) and of "
-        "(error / the image-derived bound: the same Jacobian with each edge point at the Cramér-Rao bound "
-        "of a Gaussian-blurred step under white noise of the measured contrast, pixel noise and blur)."),
+        ("RMS over frames of (error / the estimate's own sigma, from the measured edge-point scatter and its "
+         "correlation along the edge), of (error / the bound: the same Jacobian with each edge point at its own "
+         "Cramér-Rao bound, from the model fit of its pixels under white noise of the measured level, the deck's "
+         "level and slope and the paint's level beside it unknown) and of (error / the bound were those levels "
+         "known: the white-noise bound of the edge positions alone)."),
         "",
         table(b),
         "",

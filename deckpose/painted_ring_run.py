@@ -66,12 +66,16 @@ def painted_ring_of_run(run: RunPaths) -> PaintedRing:
     return painted_ring_from_dict(ring, f"{run.manifest}: config.painted_ring")
 
 
-def bound_row(frame_id: int, bound: np.ndarray | None, chi2_per_point: float) -> dict[str, object]:
+def bound_row(frame_id: int, bound: np.ndarray | None, chi2_per_point: float,
+              bound_known_levels: np.ndarray | None = None, used_disc: bool = False) -> dict[str, object]:
     """The bound table's row of one frame (NaN without a bound)."""
     s = np.sqrt(np.diag(bound)) if bound is not None else np.full(6, math.nan)
+    k = np.sqrt(np.diag(bound_known_levels)) if bound_known_levels is not None else np.full(6, math.nan)
     return {"frame_id": frame_id, "bound_roll_deg": math.degrees(s[0]), "bound_pitch_deg": math.degrees(s[1]),
             "bound_yaw_deg": math.degrees(s[2]), "bound_surge_m": s[3], "bound_sway_m": s[4],
-            "bound_height_m": s[5], "chi2_per_point": chi2_per_point}
+            "bound_height_m": s[5], "bound_known_levels_roll_deg": math.degrees(k[0]),
+            "bound_known_levels_pitch_deg": math.degrees(k[1]), "bound_known_levels_yaw_deg": math.degrees(k[2]),
+            "bound_known_levels_height_m": k[5], "used_disc": used_disc, "chi2_per_point": chi2_per_point}
 
 
 def painted_ring_run(run_dir: str | os.PathLike[str], *, progress: bool = False) -> PaintedRingRunResult:
@@ -113,7 +117,8 @@ def painted_ring_run(run_dir: str | os.PathLike[str], *, progress: bool = False)
         t2 = time.thread_time()
         det_rows.append(ring_detection_row(det, t1 - t0))
         ests.append(res.estimate)
-        bounds.append({**bound_row(fid, res.bound, res.chi2_per_point), "seconds": t2 - t1})
+        bounds.append({**bound_row(fid, res.bound, res.chi2_per_point, res.bound_known_levels, res.used_disc),
+                       "seconds": t2 - t1})
     run.detections_dir.mkdir(parents=True, exist_ok=True)
     run.estimates_dir.mkdir(parents=True, exist_ok=True)
     det_path = run.detections(DETECTOR)

@@ -62,6 +62,22 @@ class RingDetection:
     residual_scale : (2,) array of float
         Variance factor of each edge's point residuals for their correlation along the
         edge (batch means over blocks of 8, 32 and 128 points; 1: independent).
+    inner_crb_px, outer_crb_px : (N,) array of float
+        Each edge point's Cramér–Rao bound along the edge normal, pixels (the model fit of
+        its pixels: :mod:`deckpose.detect.edge_profile_fit`); empty when not measured.
+    crb_ratio : (2,) array of float
+        RMS of each edge's point distances from its ellipse over their bounds.
+    known_levels_ratio : float
+        An edge point's bound were the deck's and paint's levels known, over its bound (the
+        white-noise bound of the position alone; median over the points).
+    disc_px : (M, 2) array of float
+        Edge points of the centre disc, image pixels; empty when it is not used.
+    disc_crb_px : (M,) array of float
+        Their Cramér–Rao bounds along the normal, pixels.
+    disc_conic_px : (3, 3) array of float
+        The disc edge's conic, undistorted pixels (NaN without a disc).
+    disc_sigma_scale : float
+        The disc points' sigma over their bound (RMS ratio times the root of the correlation factor).
     frame_id : int
     """
 
@@ -79,6 +95,14 @@ class RingDetection:
     blur_px: float = math.nan
     edge_crb_px: float = math.nan
     residual_scale: FloatArray = field(default_factory=lambda: np.ones(2))
+    inner_crb_px: FloatArray = field(default_factory=lambda: np.zeros(0))
+    outer_crb_px: FloatArray = field(default_factory=lambda: np.zeros(0))
+    crb_ratio: FloatArray = field(default_factory=lambda: np.full(2, np.nan))
+    known_levels_ratio: float = math.nan
+    disc_px: FloatArray = field(default_factory=lambda: np.zeros((0, 2)))
+    disc_crb_px: FloatArray = field(default_factory=lambda: np.zeros(0))
+    disc_conic_px: FloatArray = field(default_factory=lambda: np.full((3, 3), np.nan))
+    disc_sigma_scale: float = math.nan
     frame_id: int = 0
 
     def __post_init__(self) -> None:
@@ -88,11 +112,26 @@ class RingDetection:
             raise ValueError("a failed RingDetection needs a reason")
         for name, shape in (("inner_px", (None, 2)), ("outer_px", (None, 2)), ("conics_px", (2, 3, 3)),
                             ("rms_px", (2,)), ("bow_ends_px", (2, 2)), ("spacing_px", (2,)),
-                            ("residual_scale", (2,))):
+                            ("residual_scale", (2,)), ("inner_crb_px", (None,)), ("outer_crb_px", (None,)),
+                            ("crb_ratio", (2,)), ("disc_px", (None, 2)), ("disc_crb_px", (None,)),
+                            ("disc_conic_px", (3, 3))):
             object.__setattr__(self, name, _frozen(getattr(self, name), shape, name))
+        for name, points in (("inner_crb_px", self.inner_px), ("outer_crb_px", self.outer_px),
+                             ("disc_crb_px", self.disc_px)):
+            n = len(getattr(self, name))
+            if n and n != len(points):
+                raise ValueError(f"RingDetection.{name}: one bound per point ({len(points)}), got {n}")
+        if len(self.disc_crb_px) != len(self.disc_px):
+            raise ValueError(f"RingDetection.disc_crb_px: one bound per disc point ({len(self.disc_px)}), "
+                             f"got {len(self.disc_crb_px)}")
 
     def __bool__(self) -> bool:
         return self.ok
+
+    @property
+    def has_point_bounds(self) -> bool:
+        """Whether each ring edge point carries its own Cramér–Rao bound."""
+        return len(self.inner_crb_px) == len(self.inner_px) > 0 and len(self.outer_crb_px) == len(self.outer_px) > 0
 
     @property
     def edges_px(self) -> tuple[FloatArray, FloatArray]:

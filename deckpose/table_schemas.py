@@ -223,20 +223,26 @@ RING_DETECTION_COLUMNS: tuple[Column, ...] = (
     _C("bow_v_px", "float64", "px", "the bow mark's image on the ring's mid line, distorted row"),
     _C("bow_sigma_px", "float64", "px", "standard deviation of the bow mark's position along the ring"),
     _C("edge_contrast_dn", "float64", "DN", "median step across the edges (paint minus deck, channel sum)"),
-    _C("noise_dn", "float64", "DN", "robust noise of the channel-sum image next to the edges"),
-    _C("blur_px", "float64", "px", "Gaussian-equivalent sigma of the edges' profile"),
-    _C("edge_crb_px", "float64", "px", "Cramér-Rao bound of one edge point (one sample per pixel of edge) "
-       "from the contrast, noise and blur"),
+    _C("noise_dn", "float64", "DN", "robust noise of the channel-sum image on the deck beside the inner edge "
+       "(residuals of the edge model fit)"),
+    _C("blur_px", "float64", "px", "Gaussian blur sigma of the edges beyond the pixel's own square (model fit)"),
+    _C("edge_crb_px", "float64", "px", "median Cramér-Rao bound of an edge point (one image row or column "
+       "across the edge; deck level and slope, paint level unknown)"),
     _C("seconds", "float64", "s", "CPU time of the ring detection (this thread)"),
 )
 
 #: ``estimates/ring-edges--painted-ring.bound.parquet``: one row per frame, the painted ring's bound.
 PAINTED_RING_BOUND_COLUMNS: tuple[Column, ...] = (
     _C("frame_id", "int64", "", "frame id", nullable=False),
-    *(_C(f"bound_{p}_{u}", "float64", u, f"{p}: bound's standard deviation from the image-derived edge "
-         "Cramér-Rao bound (contrast, noise, blur; white noise), same Jacobian as the estimate (null: no estimate)")
+    *(_C(f"bound_{p}_{u}", "float64", u, f"{p}: bound's standard deviation, each edge point at its own "
+         "Cramér-Rao bound (model fit of its pixels, white noise, the deck's level and slope and the paint's level "
+         "unknown), same Jacobian as the estimate (null: no estimate)")
       for p, u in (("roll", "deg"), ("pitch", "deg"), ("yaw", "deg"), ("surge", "m"), ("sway", "m"),
                    ("height", "m"))),
+    *(_C(f"bound_known_levels_{p}_{u}", "float64", u, f"{p}: the same bound were the deck's and paint's levels "
+         "beside each edge point known (white noise, position only; null: no estimate)")
+      for p, u in (("roll", "deg"), ("pitch", "deg"), ("yaw", "deg"), ("height", "m"))),
+    _C("used_disc", "bool", "", "whether the centre disc's edge was in the fit"),
     _C("chi2_per_point", "float64", "", "chi-square of the optimum over its residuals (whitened by the measured "
        "edge noise)"),
     _C("seconds", "float64", "s", "CPU time of the estimation (this thread)"),

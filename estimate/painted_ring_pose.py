@@ -10,18 +10,23 @@
    residual is ``(rho - r_edge) / |grad rho|``, its distance from the projected edge circle in
    pixels to first order (``grad rho`` in metres per pixel, taken at the linearisation pose);
    the bow mark adds the mean deck angle of its two ends (0 at the bow) over its sigma.
-   Each edge's residuals are whitened by its measured point noise, the RMS distance of its
-   points from their ellipse times the square root of their correlation factor along the
-   edge (:attr:`deckpose.ring_detection.RingDetection.residual_scale`). The candidate of least
-   chi-square wins; when the other fits as well (chi-square within :data:`AMBIGUITY_CHI2`) at
-   a pose more than 5 sigmas away, the estimate is not ok ("ambiguous").
-3. **Covariance and bound.** The covariance is ``(J^T J)^-1`` of the whitened Jacobian at the
+   Each point's residual is whitened by its sigma: its own Cramér–Rao bound
+   (:attr:`RingDetection.inner_crb_px <deckpose.ring_detection.RingDetection>`, the model fit
+   of its pixels) times its edge's measured excess, the RMS of the points' distances from
+   their ellipse over their bounds times the square root of their correlation factor along
+   the edge. (Detections without per-point bounds use each edge's RMS distance, as before.)
+   The centre disc's edge, when detected, adds its points the same way (circle of
+   ``centre_radius_m``). The candidate of least chi-square wins; when the other fits as well
+   (chi-square within :data:`AMBIGUITY_CHI2`) at a pose more than 5 sigmas away, the
+   estimate is not ok ("ambiguous").
+3. **Covariance and bounds.** The covariance is ``(J^T J)^-1`` of the whitened Jacobian at the
    optimum: the measured noise. The bound is the same Jacobian with each edge point's sigma
-   replaced by the image-derived Cramér–Rao bound of one edge point,
-   ``edge_crb_px / sqrt(spacing_px)`` (:mod:`deckpose.detect.ring_edges`: contrast, noise and
-   blur measured in the frame), the bow rows unchanged: the bound of any unbiased estimator
-   from the same edges if the pixel noise were white; deck texture that is not white raises
-   the measured noise above it.
+   replaced by its Cramér–Rao bound (the bow row unchanged): the bound of any unbiased
+   estimator from the same pixels under white noise of the measured level, the deck's local
+   level and slope and the paint's level beside each point unknown (nuisance parameters).
+   ``bound_known_levels`` has those levels known (the position-only white-noise bound, below
+   it). Deck texture whose errors are correlated along the edge raises the measured noise,
+   and the covariance, above the bound.
 """
 
 from __future__ import annotations
@@ -36,7 +41,7 @@ from numpy.typing import NDArray
 from scipy.optimize import least_squares
 
 from deckpose.camera import CameraModel
-from deckpose.painted_ring import PaintedRing
+from deckpose.painted_ring import CentreMark, PaintedRing
 from deckpose.records import PoseEstimate
 from deckpose.ring_detection import RingDetection
 
@@ -50,6 +55,8 @@ METHOD = "painted-ring"
 AMBIGUITY_CHI2 = 25.0
 #: Edge points the refinement needs per edge.
 MIN_POINTS = 20
+#: Centre-disc edge points the fit needs to use the disc.
+MIN_DISC_POINTS = 12
 
 
 @dataclass(frozen=True)
@@ -64,11 +71,18 @@ class PaintedRingPose:
         Covariance bound from the image-derived edge noise, same Jacobian (None when not ok).
     chi2_per_point : float
         Chi-square of the optimum over the number of residuals.
+    bound_known_levels : (6, 6) array of float or None
+        The bound were the deck's and paint's levels beside each edge point known (white
+        noise only): below ``bound``, which has them as nuisance parameters.
+    used_disc : bool
+        Whether the centre disc's edge was in the fit.
     """
 
     estimate: PoseEstimate
     bound: FloatArray | None = None
     chi2_per_point: float = math.nan
+    bound_known_levels: FloatArray | None = None
+    used_disc: bool = False
 
 
 def _normalised(camera: CameraModel, points_px: FloatArray) -> FloatArray:
@@ -102,18 +116,54 @@ def _grad_norm(camera: CameraModel, params: FloatArray, R_wc: FloatArray, points
     return np.hypot(du, dv)
 
 
-def _residuals(p: FloatArray, R_wc: FloatArray, rays: list[FloatArray], end_rays: FloatArray, ring: PaintedRing,
-               scales: list[FloatArray], sigma: FloatArray, sig_phi: float) -> FloatArray:
+def _residuals(p: FloatArray, R_wc: FloatArray, edges: list[_Edge], end_rays: FloatArray, sig_phi: float
+               ) -> FloatArray:
     """Whitened residuals: each edge point's pixel distance from its edge circle, then the bow angle."""
     res = []
-    for k, r_edge in enumerate(ring.edge_radii_m):
-        xy = _deck_xy(p, R_wc, rays[k])
-        res.append((np.hypot(xy[:, 0], xy[:, 1]) - r_edge) / scales[k] / sigma[k])
-    e = _deck_xy(p, R_wc, end_rays)
-    ang = np.arctan2(e[:, 1], e[:, 0])
+    for e in edges:
+        xy = _deck_xy(p, R_wc, e.rays)
+        res.append((np.hypot(xy[:, 0], xy[:, 1]) - e.radius_m) / e.m_per_px / e.sigma_px)
+    e_xy = _deck_xy(p, R_wc, end_rays)
+    ang = np.arctan2(e_xy[:, 1], e_xy[:, 0])
     phi = math.atan2(float(np.sin(ang).sum()), float(np.cos(ang).sum()))  # mean angle of the two ends
     res.append(np.array([phi / sig_phi]))
     return np.nan_to_num(np.concatenate(res), nan=1e6)
+
+
+@dataclass(frozen=True)
+class _Edge:
+    """One edge circle's points for the fit: rays, radius, pixel scale and per-point sigmas."""
+
+    points_px: FloatArray
+    rays: FloatArray
+    radius_m: float
+    sigma_px: FloatArray      # (N,) the points' sigma (measured scatter)
+    bound_px: FloatArray      # (N,) their Cramér–Rao bound
+    m_per_px: FloatArray      # (N,) |grad rho| at the linearisation pose
+
+    def at(self, m_per_px: FloatArray) -> _Edge:
+        return _Edge(self.points_px, self.rays, self.radius_m, self.sigma_px, self.bound_px, m_per_px)
+
+
+def _edges(det: RingDetection, camera: CameraModel, ring: PaintedRing) -> list[_Edge]:
+    """The edges the fit uses: the ring's two, and the centre disc's when detected."""
+    out = []
+    ones = [np.ones(len(p)) for p in det.edges_px]
+    if det.has_point_bounds:
+        crbs = [det.inner_crb_px, det.outer_crb_px]
+        sig = [c * det.crb_ratio[k] * math.sqrt(det.residual_scale[k]) for k, c in enumerate(crbs)]
+        bnd = crbs
+    else:  # points without their own bounds: the edge's RMS and the image-derived bound per point
+        sig = [o * det.rms_px[k] * math.sqrt(det.residual_scale[k]) for k, o in enumerate(ones)]
+        bnd = [o * det.edge_crb_px / math.sqrt(det.spacing_px[k]) for k, o in enumerate(ones)]
+    for k, r in enumerate(ring.edge_radii_m):
+        pts = det.edges_px[k]
+        out.append(_Edge(pts, _normalised(camera, pts), r, sig[k], bnd[k], ones[k]))
+    if (ring.centre_mark is CentreMark.DISC and len(det.disc_px) >= MIN_DISC_POINTS
+            and math.isfinite(det.disc_sigma_scale)):
+        out.append(_Edge(det.disc_px, _normalised(camera, det.disc_px), ring.centre_radius_m,
+                         det.disc_crb_px * det.disc_sigma_scale, det.disc_crb_px, np.ones(len(det.disc_px))))
+    return out
 
 
 def _candidates(det: RingDetection, camera: CameraModel, ring: PaintedRing, R_wc: FloatArray) -> list[FloatArray]:
@@ -159,32 +209,29 @@ def estimate_painted_ring(det: RingDetection, camera: CameraModel, ring: Painted
     if min(len(det.inner_px), len(det.outer_px)) < MIN_POINTS:
         return failed(f"too few edge points (needs {MIN_POINTS} per edge)")
     R_wc = np.asarray(R_world_from_cam, dtype=float)
-    rays = [_normalised(camera, p) for p in det.edges_px]
+    edges = _edges(det, camera, ring)
     end_rays = _normalised(camera, det.bow_ends_px)
-    sigma = det.rms_px * np.sqrt(det.residual_scale)
-    if not np.all(sigma > 0):
+    if not all(np.all(e.sigma_px > 0) for e in edges):
         return failed("edge points without scatter: no noise to weigh them by")
 
-    def solve(x0: FloatArray) -> tuple[FloatArray, FloatArray, float, list[FloatArray], float]:
+    def solve(x0: FloatArray) -> tuple[FloatArray, FloatArray, float, list[_Edge]]:
         x = x0
-        scales: list[FloatArray] = []
-        sig_phi = math.nan
+        fit_edges = edges
         J, cost = np.zeros((0, 6)), math.inf
         for _ in range(2):  # the pixel scales at the start, then at the first optimum
-            scales = [_grad_norm(camera, x, R_wc, p, "rho") for p in det.edges_px]
+            fit_edges = [e.at(_grad_norm(camera, x, R_wc, e.points_px, "rho")) for e in edges]
             g_phi = _grad_norm(camera, x, R_wc, det.bow_ends_px, "phi")
             sig_phi = float(det.bow_sigma_px * np.mean(g_phi) / math.sqrt(2.0))
-            sol = least_squares(_residuals, x, method="lm", x_scale="jac",
-                                args=(R_wc, rays, end_rays, ring, scales, sigma, sig_phi))
+            sol = least_squares(_residuals, x, method="lm", x_scale="jac", args=(R_wc, fit_edges, end_rays, sig_phi))
             x, J, cost = np.asarray(sol.x, np.float64), np.asarray(sol.jac, np.float64), float(sol.cost)
-        return x, J, 2.0 * cost, scales, sig_phi
+        return x, J, 2.0 * cost, fit_edges
 
     cands = _candidates(det, camera, ring, R_wc)
     if not cands:
         return failed("the outer edge's conic is not the image of a circle in front of the camera")
     sols = sorted((solve(c) for c in cands), key=lambda s: s[2])
-    x, J, chi2, _, _ = sols[0]
-    n_res = len(det.inner_px) + len(det.outer_px) + 1
+    x, J, chi2, _ = sols[0]
+    n_res = sum(len(e.points_px) for e in edges) + 1
     try:
         cov = np.asarray(np.linalg.inv(J.T @ J), dtype=np.float64)
     except np.linalg.LinAlgError:
@@ -195,16 +242,23 @@ def estimate_painted_ring(det: RingDetection, camera: CameraModel, ring: Painted
         d[:3] = (d[:3] + math.pi) % (2 * math.pi) - math.pi
         if np.any(np.abs(d) > 5 * sig):
             return failed(f"ambiguous: both deck planes fit the edges (chi2 {chi2:.0f} and {sols[1][2]:.0f})")
-    # the bound: the same Jacobian, edge rows at the image-derived CRB of a point
-    crb = det.edge_crb_px / np.sqrt(det.spacing_px)
-    if not np.all(np.isfinite(crb) & (crb > 0)):
-        bound = None
-    else:
-        w = np.concatenate([np.full(len(det.inner_px), sigma[0] / crb[0]), np.full(len(det.outer_px), sigma[1] / crb[1]),
-                            [1.0]])
-        Jb = J * w[:, None]
-        bound = np.asarray(np.linalg.inv(Jb.T @ Jb), dtype=np.float64)
+    # the bounds: the same Jacobian, each edge row at its point's bound (the bow row unchanged)
+    ratio = np.concatenate([e.sigma_px / e.bound_px for e in edges] + [np.ones(1)])
+    bound = _bound(J, ratio)
+    known = det.known_levels_ratio
+    bound_known = _bound(J, ratio / np.concatenate([np.full(n_res - 1, known), [1.0]])) if math.isfinite(known) else None
     est = PoseEstimate(METHOD, True, roll_rad=float(x[0]), pitch_rad=float(x[1]), yaw_rad=float(x[2]),
                        surge_m=float(x[3]), sway_m=float(x[4]), height_m=float(x[5]), covariance=cov,
                        frame_id=det.frame_id)
-    return PaintedRingPose(est, bound, chi2 / n_res)
+    return PaintedRingPose(est, bound, chi2 / n_res, bound_known, len(edges) > 2)
+
+
+def _bound(J: FloatArray, ratio: FloatArray) -> FloatArray | None:
+    """``(J^T J)^-1`` with each whitened row scaled by ``ratio`` (its sigma over its bound), or None."""
+    if not np.all(np.isfinite(ratio) & (ratio > 0)):
+        return None
+    Jb = J * ratio[:, None]
+    try:
+        return np.asarray(np.linalg.inv(Jb.T @ Jb), dtype=np.float64)
+    except np.linalg.LinAlgError:
+        return None
