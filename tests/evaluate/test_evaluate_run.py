@@ -87,7 +87,8 @@ def test_evaluate_writes_tables_and_mcap_with_every_topic(run):
     expected = {"/camera/image": "foxglove.CompressedImage", "/camera/calibration": "foxglove.CameraCalibration",
                 "/annotations/truth": "foxglove.ImageAnnotations", "/annotations/fake": "foxglove.ImageAnnotations",
                 "/tf": "foxglove.FrameTransforms", "/scene": "foxglove.SceneUpdate",
-                "/errors/fake--thesis": "deckpose.FrameErrors"}
+                "/errors/fake--thesis": "deckpose.FrameErrors", "/estimates/fake--thesis": "deckpose.FrameEstimate",
+                "/truth/deck": "deckpose.DeckTruth"}
     assert set(topics) == set(expected)
     for t, name in expected.items():
         assert len(topics[t]) == 12 and all(s == name for s, _, _ in topics[t])
