@@ -101,3 +101,9 @@ def wrap_angle_rad(angle_rad: ArrayLike) -> FloatArray:
     a = np.asarray(angle_rad, dtype=float)
     return (a + np.pi) % (2.0 * np.pi) - np.pi
 
+
+def wrap_angle_deg(angle_deg: ArrayLike) -> FloatArray:
+    """Wrap angles to [-180, 180) degrees."""
+    a = np.asarray(angle_deg, dtype=float)
+    return (a + 180.0) % 360.0 - 180.0
+

@@ -39,7 +39,7 @@ from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.projection import project_layout
 from deckpose.records import Detections, PoseEstimate
-from deckpose.rotation import zyx_from_thesis
+from deckpose.rotation import wrap_angle_deg, zyx_from_thesis
 
 __all__ = ["OFFSET_CHI2", "flag_off_centre"]
 
@@ -54,9 +54,6 @@ def _zyx_deg(res, idx: np.ndarray) -> np.ndarray:
     t = np.radians(np.column_stack([res.roll_deg[idx], res.pitch_deg[idx], res.yaw_deg[idx]]))
     return np.degrees(np.array([zyx_from_thesis(*row) for row in t]).reshape(-1, 3))
 
-
-def _wrap_deg(a: np.ndarray) -> np.ndarray:
-    return (a + 180.0) % 360.0 - 180.0
 
 
 def flag_off_centre(
@@ -118,8 +115,8 @@ def flag_off_centre(
             continue  # the thesis method fails near this pose: no bias to measure
         ang = _zyx_deg(res, np.arange(len(stack)))
         truth = np.degrees([ref.roll_rad, ref.pitch_rad, ref.yaw_rad])
-        bias = _wrap_deg(ang[0] - truth)
-        J = _wrap_deg(ang[1:] - ang[0]).T / STEP_PX  # (3, 2n): d angle / d (X', Y') per point
+        bias = wrap_angle_deg(ang[0] - truth)
+        J = wrap_angle_deg(ang[1:] - ang[0]).T / STEP_PX  # (3, 2n): d angle / d (X', Y') per point
         J[:, 1::2] *= -1.0  # back to d / d v
         cov_px = pixel_covariances(det, options.sigma_px, options.use_detection_covariance)
         ids = det.beacon_ids

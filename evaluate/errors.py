@@ -11,12 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from deckpose.rotation import wrap_angle_deg
+
 #: Error columns of the per-frame error table, in report order.
 POSE_ERRORS = ("roll_err_deg", "pitch_err_deg", "yaw_err_deg", "height_err_m", "surge_err_m", "sway_err_m")
 
-
-def _wrap_deg(a: np.ndarray) -> np.ndarray:
-    return (a + 180.0) % 360.0 - 180.0
 
 
 def centroid_errors(beacons: pd.DataFrame, detections: pd.DataFrame) -> pd.DataFrame:
@@ -84,7 +83,7 @@ def frame_errors(frames: pd.DataFrame, estimates: pd.DataFrame) -> pd.DataFrame:
     out["ok"] = e["ok"].astype(bool)
     out["reason"] = e["reason"].fillna("").astype(str)
     for name in ("roll", "pitch", "yaw"):
-        out[f"{name}_err_deg"] = _wrap_deg(e[f"{name}_deg"].to_numpy(float) - t[f"{name}_deg"].to_numpy(float))
+        out[f"{name}_err_deg"] = wrap_angle_deg(e[f"{name}_deg"].to_numpy(float) - t[f"{name}_deg"].to_numpy(float))
     true_height = t["cam_z_m"].to_numpy(float) - t["heave_m"].to_numpy(float)
     out["true_height_m"] = true_height
     out["height_err_m"] = e["height_m"].to_numpy(float) - true_height
@@ -92,7 +91,7 @@ def frame_errors(frames: pd.DataFrame, estimates: pd.DataFrame) -> pd.DataFrame:
     out["sway_err_m"] = e["sway_m"].to_numpy(float) - (t["sway_m"] - t["cam_y_m"]).to_numpy(float)
     if "thesis_roll_deg" in e.columns and e["thesis_roll_deg"].notna().any():  # (null for other methods)
         for q in ("roll", "pitch", "yaw"):
-            out[f"thesis_{q}_err_deg"] = _wrap_deg(e[f"thesis_{q}_deg"].to_numpy(float) - t[f"thesis_{q}_deg"].to_numpy(float))
+            out[f"thesis_{q}_err_deg"] = wrap_angle_deg(e[f"thesis_{q}_deg"].to_numpy(float) - t[f"thesis_{q}_deg"].to_numpy(float))
     for c in e.columns:
         if c.startswith("sigma_"):
             out[c] = e[c]

@@ -14,6 +14,7 @@ import numpy as np
 import pandas as pd
 from deckpose.evaluate.errors import frame_errors
 
+from deckpose.rotation import wrap_angle_deg
 from deckpose.tracking.due_predictions import predictions_due
 
 __all__ = ["HEIGHT_BANDS_M", "filtered_by_height", "markdown_table", "predicted_roll_errors", "prediction_errors",
@@ -135,7 +136,7 @@ def prediction_errors(frames: pd.DataFrame, estimates: pd.DataFrame, tracks: pd.
             pe = g[q].to_numpy(float) - t
             he = held.loc[made, q].to_numpy(float) - t
             if q != "height_m":
-                pe, he = (pe + 180.0) % 360.0 - 180.0, (he + 180.0) % 360.0 - 180.0
+                pe, he = wrap_angle_deg(pe), wrap_angle_deg(he)
             pred_rms, held_rms = _rms(pe[keep]), _rms(he[keep])
             row[f"{q}_rms_predicted"], row[f"{q}_rms_held"] = pred_rms, held_rms
             row[f"{q}_ratio"] = pred_rms / held_rms if held_rms > 0 else float("nan")
@@ -156,7 +157,7 @@ def predicted_roll_errors(frames: pd.DataFrame, tracks: pd.DataFrame, prediction
     """
     due = predictions_due(tracks, predictions[predictions["horizon_s"] == horizon_s])
     truth = frames.set_index("frame_id").loc[due["frame_id"]]
-    err = (due["roll_deg"].to_numpy(float) - truth["roll_deg"].to_numpy(float) + 180.0) % 360.0 - 180.0
+    err = wrap_angle_deg(due["roll_deg"].to_numpy(float) - truth["roll_deg"].to_numpy(float))
     out = pd.DataFrame({"frame_id": due["frame_id"].to_numpy(), "t_s": truth["t_s"].to_numpy(float),
                         "roll_err_deg": err}).sort_values("t_s", kind="stable").reset_index(drop=True)
     out.attrs["horizon_s"] = float(horizon_s)
