@@ -314,11 +314,16 @@ class DeckRenderer:
             cam = pr.IntrinsicsCamera(*gl_intrinsics(camera, r0, tile_h), znear=0.2, zfar=far)
             node = s.add(cam, pose=T_cam)
             s.main_camera_node = node
+            renderer = self._renderer(W, tile_h)
+            rows = out[r0:r1]
+            renderer._renderer.deckpose_read_into = rows  # read back straight into the frame
             try:
-                color, _ = self._renderer(W, tile_h).render(s, flags=flags)
+                color, _ = renderer.render(s, flags=flags)
             finally:
                 s.remove_node(node)
-            out[r0:r1] = color[: r1 - r0]
+                renderer._renderer.deckpose_read_into = None
+            if color is not rows:  # a platform without framebuffers reads through pyrender
+                rows[:] = color[: r1 - r0]
         if self.spec.light_pools_cd > 0 and lighting is not Lighting.DAY:
             if lighting not in self._pool_gain:
                 self._pool_gain[lighting] = pool_gain(self.layout, self.half_m, self.spec.light_pools_cd,
@@ -458,6 +463,11 @@ def _read_colour_only(self: Any, scene: Any, flags: int) -> tuple[np.ndarray, No
     Replaces ``Renderer._read_main_framebuffer`` on our one renderer: resolves the
     multisampled colour buffer and reads RGB bytes only, skipping pyrender's
     float depth read-back and linearisation (a third of the time of a 64 MP frame).
+
+    Where ``self.deckpose_read_into`` is a C-contiguous ``(h, width, 3)`` uint8 array (rows
+    of the frame being drawn, ``h`` at most the framebuffer's height), the top ``h`` image
+    rows are read straight into it and flipped there (OpenGL's rows run bottom-up): no
+    frame-sized array is allocated and none is copied. Otherwise a new array is returned.
     """
     from OpenGL import GL
 
@@ -467,6 +477,17 @@ def _read_colour_only(self: Any, scene: Any, flags: int) -> tuple[np.ndarray, No
     GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_LINEAR)
     GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
     GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+    target = getattr(self, "deckpose_read_into", None)
+    if target is not None:
+        h = target.shape[0]
+        if target.shape != (h, width, 3) or target.dtype != np.uint8 or not target.flags.c_contiguous \
+                or h > height:
+            raise ValueError(f"read-back target {target.shape} {target.dtype} does not fit a {width}x{height} "
+                             "RGB framebuffer")
+        # the image's top h rows are the framebuffer's last h rows (bottom-up)
+        GL.glReadPixels(0, height - h, width, h, GL.GL_RGB, GL.GL_UNSIGNED_BYTE, target)
+        cv2.flip(target, 0, dst=target)  # in place: rows swapped pairwise
+        return target, None
     # bytes, or an array: PyOpenGL has no types, and pyright's guess from its source adds int
     buf: Any = GL.glReadPixels(0, 0, width, height, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
     colour = np.frombuffer(buf, dtype=np.uint8).reshape((height, width, 3))

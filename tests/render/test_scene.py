@@ -60,6 +60,36 @@ def test_tiled_render_equals_single_pass(egl_renderer_factory, monkeypatch: pyte
     assert diff.mean() < 0.05 and diff.max() <= 3
 
 
+def test_read_back_into_the_frame_equals_pyrenders_read(egl_renderer_factory) -> None:
+    """Read back straight into rows of a preallocated frame (flipped in place) gives the top rows
+    of the image the plain read returns, byte for byte; a tile shorter than the framebuffer too."""
+    import pyrender
+
+    renderer = egl_renderer_factory(tiny_config())
+    cam = CameraModel(200, 150, [[240.0, 0, 101.3], [0, 235.0, 73.1], [0, 0, 1]])
+    mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=[0.9, 0.5, 0.2, 1.0])
+    pos = np.array([[-2, -1, 0], [3, -2, 0], [1, 3, 0]], np.float32)  # an asymmetric triangle
+    sc = pyrender.Scene(bg_color=[0.1, 0.2, 0.3, 1])
+    sc.add(pyrender.Mesh([pyrender.Primitive(positions=pos, indices=np.array([[0, 1, 2]], np.uint32),
+                                             material=mat)]))
+    sc.add(pyrender.IntrinsicsCamera(*scene_mod.gl_intrinsics(cam, 0, cam.height_px), znear=0.1, zfar=100),
+           pose=scene_mod.gl_camera_pose(CameraPose.nadir(10.0)))
+    r = renderer.offscreen(cam.width_px, cam.height_px)
+    flags = pyrender.RenderFlags.FLAT | pyrender.RenderFlags.SKIP_CULL_FACES
+    plain, _ = r.render(sc, flags=flags)
+    assert plain.std() > 0  # the triangle is in view
+    frame = np.zeros((400, cam.width_px, 3), np.uint8)
+    for rows in (frame[7:7 + cam.height_px], frame[200:200 + 111]):  # a whole tile, a short last tile
+        r._renderer.deckpose_read_into = rows
+        try:
+            got, _ = r.render(sc, flags=flags)
+        finally:
+            r._renderer.deckpose_read_into = None
+        assert got is rows
+        np.testing.assert_array_equal(rows, plain[: rows.shape[0]])
+    assert not frame[:7].any() and not frame[7 + cam.height_px:200].any()  # nothing outside the rows
+
+
 def test_lighting_presets_order_brightness(egl_renderer_factory) -> None:
     """Night is darker than dusk, dusk darker than day (deck and sea radiance)."""
     cfg = tiny_config()
