@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 import pytest
-from deckpose.detect.significance import TEXTURE_TILE_PX, box_means, row_median, texture_noise
+from deckpose.detect.background import row_median
+from deckpose.detect.significance import TEXTURE_TILE_PX, box_means, texture_noise
 
 
 @pytest.mark.parametrize("m", [1, 2, 3, 16, 17, 26, 256])
