@@ -86,11 +86,13 @@ def block_sum(image: np.ndarray, factor: int) -> np.ndarray:
         a = cv2.resize(a[: 2 * h, : 2 * w], (w, h), interpolation=cv2.INTER_AREA)
         f *= 2
     a = np.asarray(a)
+    # x f^2 in the same pass (a power of two: exact, so the same as scaling the sum after)
+    f2 = np.float32(factor * factor)
     if a.ndim == 3:
-        s = cv2.transform(a.astype(np.float32, copy=False), np.ones((1, 3), np.float32))
+        s = cv2.transform(a.astype(np.float32, copy=False), np.full((1, 3), f2, np.float32))
     else:
-        s = a.astype(np.float32)
-    return np.asarray(s, np.float32).reshape(a.shape[:2]) * float(factor * factor)
+        s = np.multiply(a, f2, dtype=np.float32)
+    return np.asarray(s, np.float32).reshape(a.shape[:2])
 
 
 def clipped_difference_noise(S: np.ndarray, samples: int = 60_000) -> float:
