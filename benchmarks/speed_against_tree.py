@@ -40,7 +40,7 @@ STAGES = ("render", "detect", "estimate", "evaluate")
 def link_tree(checkout: Path, into: Path) -> Path:
     """A tree of links laid out as installed (``deckpose/`` holding the stages); its root."""
     root = into / "tree"
-    (root / "deckpose").parent.mkdir(parents=True, exist_ok=True)
+    root.mkdir(parents=True, exist_ok=True)
     subprocess.run(["cp", "-rs", str(checkout.resolve() / "deckpose"), str(root / "deckpose")],
                    check=True)
     for d in STAGES:
