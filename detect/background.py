@@ -68,9 +68,27 @@ def saturation_level(image: np.ndarray) -> float:
 def mono(pixels: np.ndarray) -> np.ndarray:
     """Float64 mono signal of an (h, w) or (h, w, 3) block: the sum of its channels."""
     a = np.asarray(pixels)
+    if a.ndim == 3 and a.shape[2] == 3:
+        # the channels added in order, as a.sum(axis=2) adds three (a reduction over the
+        # short last axis costs several times more)
+        return a[..., 0].astype(np.float64) + a[..., 1] + a[..., 2]
     if a.ndim == 3:
         return a.sum(axis=2, dtype=np.float64)
     return a.astype(np.float64)
+
+
+def row_median(a: np.ndarray) -> np.ndarray:
+    """Median of each row of a finite (n, m) array, (n,): ``np.median(a, axis=1)``, exactly.
+
+    By a sort of the rows (the mean of the two middle values for even ``m``, as
+    ``np.median`` takes it): for short rows 5-10x faster than ``np.median``'s partition
+    (and a 1-D median of a few hundred values, ``row_median(a[None])[0]``, 5x).
+    """
+    m = a.shape[1]
+    s = np.sort(a, axis=1)
+    if m % 2:
+        return s[:, m // 2]
+    return (s[:, m // 2 - 1] + s[:, m // 2]) / 2
 
 
 def robust_stats(values: np.ndarray) -> tuple[float, float]:

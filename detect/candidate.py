@@ -110,9 +110,15 @@ class Candidate:
             np.arange(w)[None, :] - (w - 1) / 2
         ) * gu
 
+    def _flat(self) -> bool:
+        """Whether the background has no tilt (every bright spot's pedestal): no plane to remove."""
+        return self.background_grad[0] == 0.0 and self.background_grad[1] == 0.0
+
     def signal(self) -> np.ndarray:
         """Background-subtracted pixels, DN."""
-        s = self.pixels - self.background_dn - self.background_plane()
+        s = self.pixels - self.background_dn
+        if not self._flat():
+            s = s - self.background_plane()
         return np.maximum(s, 0.0) if self.clip_signal else s
 
     def above_floor(
@@ -132,9 +138,11 @@ class Candidate:
         near : (h, w) array of bool
             The pixels within ``radius_px`` of the spot.
         """
-        uu, vv = self.grid()
+        h, w = self.pixels.shape
+        uu = np.arange(w, dtype=float)[None, :] + self.u0  # broadcast: grid()'s values
+        vv = np.arange(h, dtype=float)[:, None] + self.v0
         near = np.hypot(uu - u_px, vv - v_px) <= radius_px
-        detilted = self.pixels - self.background_plane()
+        detilted = self.pixels if self._flat() else self.pixels - self.background_plane()
         return detilted - float(np.percentile(detilted[near], FLOOR_PERCENTILE)), near
 
     def variance(self, signal_dn: np.ndarray | None = None) -> np.ndarray:

