@@ -67,7 +67,8 @@ def painted_ring_of_run(run: RunPaths) -> PaintedRing:
 
 
 def bound_row(frame_id: int, bound: np.ndarray | None, chi2_per_point: float,
-              bound_known_levels: np.ndarray | None = None, used_disc: bool = False) -> dict[str, object]:
+              bound_known_levels: np.ndarray | None = None, used_disc: bool = False,
+              disc_check_chi2: float = math.nan) -> dict[str, object]:
     """The bound table's row of one frame (NaN without a bound)."""
     s = np.sqrt(np.diag(bound)) if bound is not None else np.full(6, math.nan)
     k = np.sqrt(np.diag(bound_known_levels)) if bound_known_levels is not None else np.full(6, math.nan)
@@ -75,11 +76,17 @@ def bound_row(frame_id: int, bound: np.ndarray | None, chi2_per_point: float,
             "bound_yaw_deg": math.degrees(s[2]), "bound_surge_m": s[3], "bound_sway_m": s[4],
             "bound_height_m": s[5], "bound_known_levels_roll_deg": math.degrees(k[0]),
             "bound_known_levels_pitch_deg": math.degrees(k[1]), "bound_known_levels_yaw_deg": math.degrees(k[2]),
-            "bound_known_levels_height_m": k[5], "used_disc": used_disc, "chi2_per_point": chi2_per_point}
+            "bound_known_levels_height_m": k[5], "used_disc": used_disc,
+            "disc_check_chi2": disc_check_chi2, "chi2_per_point": chi2_per_point}
 
 
-def painted_ring_run(run_dir: str | os.PathLike[str], *, progress: bool = False) -> PaintedRingRunResult:
+def painted_ring_run(run_dir: str | os.PathLike[str], *, progress: bool = False,
+                     centre_disc: bool = False) -> PaintedRingRunResult:
     """Detect the painted ring and estimate the pose in every frame of a run (module docstring).
+
+    ``centre_disc``: also fit the centre disc's edge (:class:`RingEdgeOptions` ``centre_disc``);
+    the estimate keeps it only where it agrees with the ring
+    (:func:`deckpose.estimate.painted_ring_pose.disc_consistency`).
 
     Raises
     ------
@@ -88,7 +95,7 @@ def painted_ring_run(run_dir: str | os.PathLike[str], *, progress: bool = False)
     """
     from tqdm import tqdm
 
-    from deckpose.detect.ring_edges import detect_ring_edges, ring_detection_row
+    from deckpose.detect.ring_edges import RingEdgeOptions, detect_ring_edges, ring_detection_row
     from deckpose.detect.sources import read_image
     from deckpose.estimate.painted_ring_pose import METHOD, estimate_painted_ring
     from deckpose.estimate.results_table import estimates_frame
@@ -111,13 +118,14 @@ def painted_ring_run(run_dir: str | os.PathLike[str], *, progress: bool = False)
 
             det = RingDetection(False, img, frame_id=fid)
         else:
-            det = detect_ring_edges(img, camera, ring, frame_id=fid)
+            det = detect_ring_edges(img, camera, ring, RingEdgeOptions(centre_disc=centre_disc), frame_id=fid)
         t1 = time.thread_time()
         res = estimate_painted_ring(det, camera, ring, R_wc)
         t2 = time.thread_time()
         det_rows.append(ring_detection_row(det, t1 - t0))
         ests.append(res.estimate)
-        bounds.append({**bound_row(fid, res.bound, res.chi2_per_point, res.bound_known_levels, res.used_disc),
+        bounds.append({**bound_row(fid, res.bound, res.chi2_per_point, res.bound_known_levels, res.used_disc,
+                                   res.disc_check_chi2),
                        "seconds": t2 - t1})
     run.detections_dir.mkdir(parents=True, exist_ok=True)
     run.estimates_dir.mkdir(parents=True, exist_ok=True)

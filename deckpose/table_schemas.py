@@ -243,6 +243,8 @@ PAINTED_RING_BOUND_COLUMNS: tuple[Column, ...] = (
          "beside each edge point known (white noise, position only; null: no estimate)")
       for p, u in (("roll", "deg"), ("pitch", "deg"), ("yaw", "deg"), ("height", "m"))),
     _C("used_disc", "bool", "", "whether the centre disc's edge was in the fit"),
+    _C("disc_check_chi2", "float64", "", "Hausman chi-square of the pose with the centre disc against the ring "
+       "alone (null: no disc detected); above the 1e-3 tail the disc is left out"),
     _C("chi2_per_point", "float64", "", "chi-square of the optimum over its residuals (whitened by the measured "
        "edge noise)"),
     _C("seconds", "float64", "s", "CPU time of the estimation (this thread)"),

@@ -39,13 +39,15 @@ from deckpose.estimate.circle_pose import circle_planes
 from deckpose.estimate.pose_model import params_from_relative, relative_from_params
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
+from scipy.stats import chi2 as chi2_dist
 
 from deckpose.camera import CameraModel
 from deckpose.painted_ring import CentreMark, PaintedRing
 from deckpose.records import PoseEstimate
 from deckpose.ring_detection import RingDetection
 
-__all__ = ["AMBIGUITY_CHI2", "METHOD", "PaintedRingPose", "estimate_painted_ring"]
+__all__ = ["AMBIGUITY_CHI2", "DISC_CHECK_ALPHA", "METHOD", "PaintedRingPose", "disc_consistency",
+           "estimate_painted_ring"]
 
 FloatArray = NDArray[np.float64]
 
@@ -57,6 +59,9 @@ AMBIGUITY_CHI2 = 25.0
 MIN_POINTS = 20
 #: Centre-disc edge points the fit needs to use the disc.
 MIN_DISC_POINTS = 12
+#: False-alarm rate of the disc's consistency test (:func:`disc_consistency`): a disc whose
+#: pose disagrees with the ring's beyond this chi-square tail is left out of the estimate.
+DISC_CHECK_ALPHA = 1e-3
 
 
 @dataclass(frozen=True)
@@ -76,6 +81,9 @@ class PaintedRingPose:
         noise only): below ``bound``, which has them as nuisance parameters.
     used_disc : bool
         Whether the centre disc's edge was in the fit.
+    disc_check_chi2 : float
+        :func:`disc_consistency`'s statistic when a disc was detected (NaN otherwise): above
+        the chi-square quantile of :data:`DISC_CHECK_ALPHA`, the disc is left out.
     """
 
     estimate: PoseEstimate
@@ -83,6 +91,7 @@ class PaintedRingPose:
     chi2_per_point: float = math.nan
     bound_known_levels: FloatArray | None = None
     used_disc: bool = False
+    disc_check_chi2: float = math.nan
 
 
 def _normalised(camera: CameraModel, points_px: FloatArray) -> FloatArray:
@@ -210,9 +219,60 @@ def estimate_painted_ring(det: RingDetection, camera: CameraModel, ring: Painted
         return failed(f"too few edge points (needs {MIN_POINTS} per edge)")
     R_wc = np.asarray(R_world_from_cam, dtype=float)
     edges = _edges(det, camera, ring)
-    end_rays = _normalised(camera, det.bow_ends_px)
     if not all(np.all(e.sigma_px > 0) for e in edges):
         return failed("edge points without scatter: no noise to weigh them by")
+    with_disc = _fit(det, camera, ring, R_wc, edges)
+    if len(edges) == 2 or not with_disc.estimate.ok:
+        return with_disc
+    ring_only = _fit(det, camera, ring, R_wc, edges[:2])
+    if not ring_only.estimate.ok:
+        return with_disc
+    stat, dof = disc_consistency(ring_only.estimate, with_disc.estimate)
+    if dof > 0 and stat > float(chi2_dist.ppf(1.0 - DISC_CHECK_ALPHA, dof)):
+        return PaintedRingPose(ring_only.estimate, ring_only.bound, ring_only.chi2_per_point,
+                               ring_only.bound_known_levels, False, stat)
+    return PaintedRingPose(with_disc.estimate, with_disc.bound, with_disc.chi2_per_point,
+                           with_disc.bound_known_levels, True, stat)
+
+
+def disc_consistency(ring_only: PoseEstimate, with_disc: PoseEstimate) -> tuple[float, int]:
+    """Hausman's test of the centre disc: does adding it move the pose more than its noise allows?
+
+    Were the disc's edge unbiased, the ring-only estimate and the estimate with the disc would
+    differ by noise of covariance ``S_ring - S_disc`` (the efficient one's difference from a
+    less efficient one is uncorrelated with it). The statistic is that difference's
+    chi-square, ``d^T (S_ring - S_disc)^+ d``, over the directions in which the disc lowers
+    the variance by at least 5 % (whitened by ``S_ring``; elsewhere the difference carries no
+    information about the disc), with as many degrees of freedom.
+
+    Returns
+    -------
+    stat : float
+    dof : int
+        0 when the disc adds no information (then ``stat`` is 0).
+    """
+    S_r, S_d = ring_only.covariance, with_disc.covariance
+    if S_r is None or S_d is None:
+        return 0.0, 0
+    d = np.array([with_disc.roll_rad - ring_only.roll_rad, with_disc.pitch_rad - ring_only.pitch_rad,
+                  with_disc.yaw_rad - ring_only.yaw_rad, with_disc.surge_m - ring_only.surge_m,
+                  with_disc.sway_m - ring_only.sway_m, with_disc.height_m - ring_only.height_m])
+    d[:3] = (d[:3] + math.pi) % (2 * math.pi) - math.pi
+    vals, vecs = np.linalg.eigh(S_r)
+    W = vecs @ np.diag(1.0 / np.sqrt(np.maximum(vals, 1e-300))) @ vecs.T  # S_r^(-1/2)
+    lam, U = np.linalg.eigh(np.eye(6) - W @ S_d @ W)
+    keep = lam >= 0.05
+    z = U[:, keep].T @ (W @ d)
+    return float(np.sum(z * z / lam[keep])), int(keep.sum())
+
+
+def _fit(det: RingDetection, camera: CameraModel, ring: PaintedRing, R_wc: FloatArray,
+         edges: list[_Edge]) -> PaintedRingPose:
+    """The refinement on ``edges`` (module docstring, steps 1-3)."""
+    def failed(reason: str) -> PaintedRingPose:
+        return PaintedRingPose(PoseEstimate.failed(METHOD, reason).for_frame(det.frame_id))
+
+    end_rays = _normalised(camera, det.bow_ends_px)
 
     def solve(x0: FloatArray) -> tuple[FloatArray, FloatArray, float, list[_Edge]]:
         x = x0
