@@ -128,8 +128,10 @@ def prior_pass(
             col = out[c].copy()
             col[at] = src[c].array
             out[c] = col
-    out["identified_by"] = out["frame_id"].map(lambda f: results[int(f)].identified_by.value).astype(object)
-    out["prior_age_s"] = out["frame_id"].map(lambda f: results[int(f)].prior_age_s).astype(float)
+    fids_out = out["frame_id"].to_numpy(np.int64)
+    out["identified_by"] = pd.Series([results[int(f)].identified_by.value for f in fids_out], index=out.index,
+                                     dtype=object)
+    out["prior_age_s"] = np.array([results[int(f)].prior_age_s for f in fids_out], float)
     return out
 
 
@@ -221,10 +223,11 @@ def estimate_run_with_prior(
 def _without_prior(estimates: pd.DataFrame, identified: dict[int, tuple[bool, str]]) -> pd.DataFrame:
     """``identified_by`` frame or none, and the unidentified frames that failed saying the prior is off."""
     out = estimates.copy()
-    alone = out["frame_id"].map(lambda f: identified[int(f)][0]).astype(bool) | out["ok"].astype(bool)
+    alone = (np.array([identified[int(f)][0] for f in out["frame_id"].to_numpy(np.int64)], bool)
+             | out["ok"].to_numpy(bool))
     out["identified_by"] = np.where(alone, IdentifiedBy.FRAME.value, IdentifiedBy.NONE.value).astype(object)
     out["prior_age_s"] = np.nan
-    miss = ~alone.to_numpy()
+    miss = ~alone
     out.loc[miss, "reason"] = [f"{r}; {NO_PRIOR_NOTE}" for r in out.loc[miss, "reason"]]
     return out
 
