@@ -2,9 +2,10 @@
 
 The frames are those ``deckpose render`` plans for ``configs/approach_tworing.yaml`` (sea state
 6, 80 m down to 2 m over 90 s at 10 Hz, the two-ring layout: 12 beacons at 10 m, the centre, 6
-at 1 m), with one change: the UAV holds its planned height above the *heaving, surging and
-swaying* deck centre (a landing UAV keeps station over the pad; the config's drift and wobble
-stay as its station-keeping error), so "2 m" is 2 m above the deck. Detections are
+at 1 m), where the UAV holds its planned height above the *heaving, surging and swaying* deck
+centre (``approach.follow_deck``; a config without it gets the same here: a landing UAV keeps
+station over the pad; the config's drift and wobble stay as its station-keeping error), so
+"2 m" is 2 m above the deck. Detections are
 SYNTHESISED, not rendered: each frame's beacons in the image and facing the camera are projected
 exactly (``deckpose.projection.project_layout``), given independent Gaussian noise of
 ``--sigma-px`` per axis (default 0.2 px, a centroid Cramér-Rao level for bright night spots; the
@@ -77,8 +78,10 @@ def frames_for(args: argparse.Namespace, camera_name: str, hide_bows: float
     rgb_all = layout.beacon_rgb_all()
     rows, seq, truth = [], [], []
     for f in plan_frames(cfg):
-        s, cp0 = f.ship, f.camera_pose
-        cp = CameraPose(cp0.R_world_from_cam, cp0.position_world_m + np.array([s.surge_m, s.sway_m, s.heave_m]))
+        s, cp = f.ship, f.camera_pose
+        if cfg.approach is None or not cfg.approach.follow_deck:  # the plan's heights over the deck at rest:
+            # hold them over the moving deck centre here, as approach.follow_deck does in the plan
+            cp = CameraPose(cp.R_world_from_cam, cp.position_world_m + np.array([s.surge_m, s.sway_m, s.heave_m]))
         proj = project_layout(layout, s, cp, cam)
         hidden = hide_rng.random() < hide_bows
         seen = proj.visible.copy()

@@ -148,6 +148,11 @@ ESTIMATE_COLUMNS: tuple[Column, ...] = (
     _C("posterior_effective_nodes", "float64", "", "+mean: effective number of posterior sample nodes "
        "(Kish); below 8 the ML pose is kept", extra="posterior_effective_nodes"),
     *_THESIS,
+    _C("identified_by", "string", "", "how the frame's beacon ids were found: frame (the frame alone, as "
+       "deckpose detect did), prior (matched to the beacons the last ok estimate of its time sequence predicts; "
+       "deckpose estimate --run without --no-prior), none; null for a table estimated outside a run folder"),
+    _C("prior_age_s", "float64", "s", "age of the prior estimate tried for identification (identified_by prior, "
+       "or none where it failed); null where no prior was tried"),
     _C(EXTRAS_JSON, "string", "", "a plugin estimator's extras that no column holds, as a JSON object "
        "(non-finite values null); null when none"),
 )

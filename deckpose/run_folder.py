@@ -282,6 +282,12 @@ def read_detections(run: RunPaths, detector: str) -> pd.DataFrame:
     return upgrade_legacy_columns(read_table(p, "detections"), "detections")
 
 
+def read_detect_frames(run: RunPaths, detector: str) -> pd.DataFrame | None:
+    """A detector's per-frame outcome (``DETECT_FRAME_COLUMNS``: ``ok``, ``reason``), None where not written."""
+    p = run.detect_frames(detector)
+    return read_table(p, "detect frames") if p.exists() else None
+
+
 def read_estimates(run: RunPaths, detector: str, method: str) -> pd.DataFrame:
     p = run.estimates(detector, method)
     _require(p, f"deckpose estimate --run {run.root} --detector {detector} --method {method}")

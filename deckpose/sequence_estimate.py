@@ -11,10 +11,16 @@ ok, reason and covariance. A frame identified neither way is not ok, and says wh
 
 The prior is the previous ok *estimate*, never the truth, and never a filtered state
 (a filter that had been fed a wrong estimate would carry it on).
+
+:func:`estimate_with_prior` is the walk over a sequence given each frame's own
+identification and estimate (as ``deckpose detect`` and the estimate stage made them:
+:func:`deckpose.sequence_run.estimate_run_with_prior`); :func:`estimate_sequence` makes
+those from the detections first.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import math
 from collections.abc import Sequence
@@ -25,7 +31,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
-from deckpose.detect.identify import IdentifyOptions, identify_beacons
+from deckpose.detect.identification import Identification, IdentifyOptions
+from deckpose.detect.identify import identify_beacons
 from deckpose.detect.prior_identify import PriorIdentifyOptions, identify_with_prior
 from deckpose.errors import ConfigError, check_shape
 from deckpose.estimate.batch import estimate_batch
@@ -34,7 +41,8 @@ from deckpose.estimate.registry import EstimateOptions
 from deckpose.layout import DeckLayout
 from deckpose.records import Detections, PoseEstimate
 
-__all__ = ["IdentifiedBy", "SequenceFrame", "SequenceOptions", "SequenceResult", "estimate_sequence"]
+__all__ = ["IdentifiedBy", "SequenceFrame", "SequenceOptions", "SequenceResult", "estimate_sequence",
+           "estimate_with_prior"]
 
 FloatArray = NDArray[np.float64]
 
@@ -130,7 +138,8 @@ class SequenceResult:
     beacon_ids : (N,) array of int64
         The ids given to the frame's detections (-1: none).
     prior_age_s : float
-        Age of the prior used (NaN when none was used).
+        Age of the prior tried, seconds: the one that identified the frame (``PRIOR``) or
+        the one that failed to (``NONE``); NaN where no prior was tried.
     """
 
     estimate: PoseEstimate
@@ -143,6 +152,12 @@ def _params(e: PoseEstimate) -> FloatArray:
     return np.array([e.roll_rad, e.pitch_rad, e.yaw_rad, e.surge_m, e.sway_m, e.height_m], float)
 
 
+def _check_time_order(frames: Sequence[SequenceFrame]) -> None:
+    stamps = [f.stamp_ns for f in frames]
+    if any(b < a for a, b in itertools.pairwise(stamps)):
+        raise ConfigError("estimate_sequence: frames must be in increasing stamp_ns; sort them by capture time")
+
+
 def estimate_sequence(
     frames: Sequence[SequenceFrame],
     camera: CameraModel,
@@ -152,6 +167,9 @@ def estimate_sequence(
     options: SequenceOptions = SequenceOptions(),
 ) -> list[SequenceResult]:
     """Identify and estimate frames in time order, each helped by the last ok estimate.
+
+    Each frame is identified alone (:func:`~deckpose.detect.identify.identify_beacons`)
+    and the identified ones estimated as one batch; then :func:`estimate_with_prior`.
 
     Parameters
     ----------
@@ -173,39 +191,101 @@ def estimate_sequence(
     ConfigError
         Frames out of time order.
     """
-    id_opts, prior_opts = options.identify, options.prior
-    stamps = [f.stamp_ns for f in frames]
-    if any(b < a for a, b in itertools.pairwise(stamps)):
-        raise ConfigError("estimate_sequence: frames must be in increasing stamp_ns; sort them by capture time")
+    _check_time_order(frames)
+    idents = [identify_beacons(f.points_px, layout, camera, rgb_flux=f.rgb_flux, options=options.identify)
+              for f in frames]
+    done = [k for k, i in enumerate(idents) if i.ok]
+    dets = [Detections(frames[k].points_px, idents[k].beacon_ids, frames[k].covariance_px2,
+                       frame_id=frames[k].frame_id) for k in done]
+    R = np.stack([frames[k].R_world_from_cam for k in done]) if done else np.zeros((0, 3, 3))
+    got = estimate_batch(options.method, dets, camera, layout, estimate_options, R_world_from_cam=R) if done else []
+    alone = [PoseEstimate(method=options.method, ok=False, reason=f"identification: {i.reason}",
+                          frame_id=f.frame_id) for f, i in zip(frames, idents, strict=True)]
+    for k, e in zip(done, got, strict=True):
+        alone[k] = e
+    return estimate_with_prior(frames, idents, alone, camera, layout, estimate_options, options=options)
+
+
+def estimate_with_prior(
+    frames: Sequence[SequenceFrame],
+    identifications: Sequence[Identification],
+    estimates: Sequence[PoseEstimate],
+    camera: CameraModel,
+    layout: DeckLayout,
+    estimate_options: EstimateOptions,
+    *,
+    options: SequenceOptions = SequenceOptions(),
+) -> list[SequenceResult]:
+    """Walk a time sequence, identifying by the last ok estimate the frames not identified alone.
+
+    A frame identified alone, or whose own estimate is ok, keeps its estimate
+    (``FRAME``). Any other frame, where an ok estimate at most
+    ``options.max_prior_age_s`` old exists, is identified by that estimate's pose seen
+    with the frame's camera attitude (:func:`~deckpose.detect.prior_identify.identify_with_prior`)
+    and estimated with ``options.method`` (``PRIOR``); its ok estimate is the next prior.
+    Where that fails the frame is ``NONE``: its reason is its identification's, and what
+    the prior did.
+
+    Parameters
+    ----------
+    frames : sequence of SequenceFrame
+        In increasing ``stamp_ns``, all of one camera.
+    identifications : sequence of Identification
+        Each frame's own (ok where its ids came from the frame alone).
+    estimates : sequence of PoseEstimate
+        Each frame's estimate from those ids (a failed one where there were none).
+    camera : CameraModel
+    layout : DeckLayout
+    estimate_options : EstimateOptions
+    options : SequenceOptions, keyword-only
+
+    Returns
+    -------
+    list of SequenceResult
+        One per frame, in order.
+
+    Raises
+    ------
+    ConfigError
+        Frames out of time order, or the three sequences of different lengths.
+    """
+    if not len(frames) == len(identifications) == len(estimates):
+        raise ConfigError(f"estimate_with_prior: {len(frames)} frames, {len(identifications)} identifications and "
+                          f"{len(estimates)} estimates; give one of each per frame")
+    _check_time_order(frames)
     out: list[SequenceResult] = []
     last: tuple[int, PoseEstimate] | None = None
-    for f in frames:
-        ident = identify_beacons(f.points_px, layout, camera, rgb_flux=f.rgb_flux, options=id_opts)
-        how, age, reason = IdentifiedBy.FRAME, math.nan, ""
-        if not ident.ok:
-            reason = f"identification: {ident.reason}"
-            how = IdentifiedBy.NONE
-            if last is not None:
-                age = (f.stamp_ns - last[0]) * 1e-9
-                if age <= options.max_prior_age_s:
-                    R, t = relative_from_params(_params(last[1]), f.R_world_from_cam)
-                    by_prior = identify_with_prior(f.points_px, layout, camera, R, t, options=prior_opts)
-                    if by_prior.ok:
-                        ident, how = by_prior, IdentifiedBy.PRIOR
-                    else:
-                        reason += f"; with the prior pose ({age:.2f} s old): {by_prior.reason}"
-                else:
-                    reason += f"; the last ok estimate is {age:.2f} s old (> {options.max_prior_age_s} s)"
-                    age = math.nan
-            else:
-                reason += "; no earlier ok estimate to identify by"
-        if how is IdentifiedBy.NONE:
-            est = PoseEstimate(method=options.method, ok=False, reason=reason, frame_id=f.frame_id)
-        else:
-            det = Detections(f.points_px, ident.beacon_ids, f.covariance_px2, frame_id=f.frame_id)
-            est = estimate_batch(options.method, [det], camera, layout, estimate_options,
-                                 R_world_from_cam=f.R_world_from_cam[None])[0]
-            if est.ok:
-                last = (f.stamp_ns, est)
-        out.append(SequenceResult(est, how, ident.beacon_ids, age if how is IdentifiedBy.PRIOR else math.nan))
+    for f, ident, alone in zip(frames, identifications, estimates, strict=True):
+        if ident.ok or alone.ok:
+            if alone.ok:
+                last = (f.stamp_ns, alone)
+            out.append(SequenceResult(alone, IdentifiedBy.FRAME, ident.beacon_ids))
+            continue
+        reason = f"identification: {ident.reason}"
+        if last is None:
+            out.append(SequenceResult(
+                dataclasses.replace(alone, reason=reason + "; no earlier ok estimate to identify by"),
+                IdentifiedBy.NONE, ident.beacon_ids))
+            continue
+        age = (f.stamp_ns - last[0]) * 1e-9
+        if age > options.max_prior_age_s:
+            out.append(SequenceResult(
+                dataclasses.replace(alone, reason=reason + f"; the last ok estimate is {age:.2f} s old "
+                                    f"(> {options.max_prior_age_s} s)"),
+                IdentifiedBy.NONE, ident.beacon_ids))
+            continue
+        R, t = relative_from_params(_params(last[1]), f.R_world_from_cam)
+        by_prior = identify_with_prior(f.points_px, layout, camera, R, t, options=options.prior)
+        if not by_prior.ok:
+            out.append(SequenceResult(
+                dataclasses.replace(alone, reason=reason + f"; with the prior pose ({age:.2f} s old): "
+                                    f"{by_prior.reason}"),
+                IdentifiedBy.NONE, ident.beacon_ids, age))
+            continue
+        det = Detections(f.points_px, by_prior.beacon_ids, f.covariance_px2, frame_id=f.frame_id)
+        est = estimate_batch(options.method, [det], camera, layout, estimate_options,
+                             R_world_from_cam=f.R_world_from_cam[None])[0]
+        if est.ok:
+            last = (f.stamp_ns, est)
+        out.append(SequenceResult(est, IdentifiedBy.PRIOR, by_prior.beacon_ids, age))
     return out

@@ -10,8 +10,11 @@
   (:mod:`~deckpose.detect.cog`), ``gauss`` (:mod:`~deckpose.detect.gauss`), ``log``
   (:mod:`~deckpose.detect.log_blobs`), ``opencv-blob``
   (:mod:`~deckpose.detect.opencv_blob`);
-* :mod:`~deckpose.detect.identify` — beacon ids (ellipse RANSAC, homography,
-  colour of the bow beacon; a second, inner ring);
+* :mod:`~deckpose.detect.identify` — beacon ids of a frame alone: one ring
+  (:mod:`~deckpose.detect.one_ring_identify`: :mod:`~deckpose.detect.ring_ellipse`
+  RANSAC, :mod:`~deckpose.detect.ring_homography`, colour of the bow beacon) or two
+  (:mod:`~deckpose.detect.two_ring_identify`), the record and options in
+  :mod:`~deckpose.detect.identification`;
 * :mod:`~deckpose.detect.prior_identify` — beacon ids from a prior pose (the
   previous frame's), for frames without a bow or a ring in view;
 * :mod:`~deckpose.detect.frame_detection` — one frame: detect + identify ->

@@ -21,7 +21,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from deckpose.detect.identify import Identification
+from deckpose.detect.identification import Identification
 from numpy.typing import NDArray
 from scipy.optimize import linear_sum_assignment
 

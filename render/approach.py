@@ -11,6 +11,16 @@ per camera and lighting::
       drift_period_s: 30
       wobble_deg: 2.0                # attitude wobble about nadir, amplitude in roll and pitch (0: none)
       wobble_period_s: 4
+      follow_deck: false             # true: heights over the moving deck centre (see below)
+
+With ``follow_deck: false`` (the default) the heights are over the deck at rest (world z):
+the heave of a rough sea then comes and goes under the camera, and sea-state-6 heave brings
+the deck centre to within about 1.2 m of a camera flown at 2 m. With ``follow_deck: true``
+the UAV holds its place over the moving deck centre, as a landing UAV does: the deck
+centre's surge, sway and heave at the frame time are added to the camera's position, so
+``heights_m`` is the camera's height over the deck centre (what the estimators report as
+``height_m``) and the drift is relative to the deck centre. The camera holds that position
+through the frame's exposure (the deck moves under it, as it does for the motion blur).
 
 Drift and wobble are deterministic sinusoids (x and y, roll and pitch at incommensurate
 periods), so the config alone fixes every camera pose. Frame ``k`` is at motion time
@@ -49,6 +59,7 @@ class ApproachSpec:
     drift_period_s: float = 30.0
     wobble_deg: float = 0.0
     wobble_period_s: float = 4.0
+    follow_deck: bool = False
 
     @property
     def duration_s(self) -> float:
@@ -79,11 +90,28 @@ def approach_times_s(spec: ApproachSpec) -> NDArray[np.float64]:
     return np.arange(n) / spec.rate_hz
 
 
-def approach_camera_pose(spec: ApproachSpec, t_s: float) -> CameraPose:
-    """The camera's pose ``t_s`` seconds into the approach (world frame: the level deck at rest).
+def approach_camera_pose(
+    spec: ApproachSpec, t_s: float, deck_centre_world_m: NDArray[np.float64] | None = None
+) -> CameraPose:
+    """The camera's pose ``t_s`` seconds into the approach (world frame).
 
     Height from the waypoints (linear), position ``drift_m`` sinusoids in x and y, attitude
     nadir tilted by ``wobble_deg`` sinusoids in roll and pitch (about the world's x and y).
+    With ``spec.follow_deck`` the position is relative to the deck centre.
+
+    Parameters
+    ----------
+    spec : ApproachSpec
+    t_s : float
+        Seconds from the approach's start.
+    deck_centre_world_m : (3,) array of float, optional
+        The deck centre's displacement (surge, sway, heave) at that time, metres; needed
+        with ``spec.follow_deck``, ignored without.
+
+    Raises
+    ------
+    ConfigError
+        ``spec.follow_deck`` without ``deck_centre_world_m``.
     """
     h = float(np.interp(t_s, spec.times_s, spec.heights_m))
     w = 2 * math.pi / spec.drift_period_s
@@ -94,4 +122,9 @@ def approach_camera_pose(spec: ApproachSpec, t_s: float) -> CameraPose:
     roll, pitch = a * math.sin(ww * t_s), a * math.sin(ww / _PITCH_PERIOD_RATIO * t_s + 0.5)
     nadir = CameraPose.nadir(h, x_m=x, y_m=y)
     R = R_from_zyx(roll, pitch, 0.0) @ nadir.R_world_from_cam
-    return CameraPose(R, nadir.position_world_m)
+    position = nadir.position_world_m
+    if spec.follow_deck:
+        if deck_centre_world_m is None:
+            raise ConfigError("approach.follow_deck: the camera's pose needs the deck centre's displacement")
+        position = position + np.asarray(deck_centre_world_m, float).reshape(3)
+    return CameraPose(R, position)

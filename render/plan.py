@@ -208,8 +208,9 @@ def _plan_approach(cfg: RenderConfig, spec: ApproachSpec, series: MotionSeries) 
 
     Frame ``k`` is at motion time ``t0 + k / rate_hz`` (``t0``: the series' sample
     ``motion.start``), its deck pose the series interpolated there, its camera pose
-    :func:`~deckpose.render.approach.approach_camera_pose`; ``height_m`` is the approach's
-    first height (the sequence's nominal height in the frames table).
+    :func:`~deckpose.render.approach.approach_camera_pose` (over the deck centre there with
+    ``follow_deck``); ``height_m`` is the approach's first height (the sequence's nominal
+    height in the frames table).
     """
     if cfg.motion.start >= len(series):
         raise ConfigError(f"motion: start={cfg.motion.start} leaves no samples of a {len(series)}-sample series")
@@ -229,7 +230,7 @@ def _plan_approach(cfg: RenderConfig, spec: ApproachSpec, series: MotionSeries) 
             for tau in times:
                 t = t0 + float(tau)
                 ship = _interp_pose(series, t)
-                camera = approach_camera_pose(spec, float(tau))
+                camera = approach_camera_pose(spec, float(tau), ship.t_world_from_deck)
                 blur_poses: tuple[ShipPose, ...] = ()
                 if blur:
                     k = cfg.motion.blur_steps

@@ -59,6 +59,12 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "ring's size in the image, the same pose when it is small; ml_* columns keep the ML pose, which "
                    "stays the pose (posterior_mean = 0) where the posterior cannot be sampled")
     p.add_argument("--sigma-px", type=float, default=1.0, help="pixel sigma when detections carry no covariance")
+    p.add_argument("--no-prior", action="store_true",
+                   help="with --run: do not identify the frames detection left unidentified (bow beacons out of "
+                   "view, too little of a ring) by the last ok estimate of their time sequence; the estimates "
+                   "table's identified_by column says how each frame was identified")
+    p.add_argument("--max-prior-age-s", type=float, default=0.5,
+                   help="with --run: oldest ok estimate used as a prior, seconds (default 0.5)")
     add_progress(p)
     p.add_argument("--strict", action="store_true",
                    help="exit 4 when any frame failed (default: 0 when some succeeded, 3 when none did)")
@@ -70,17 +76,21 @@ def run(args: argparse.Namespace) -> int:
 
     from deckpose.camera_info import read_camera_info
     from deckpose.errors import ConfigError
-    from deckpose.estimate.run import EstimateRunResult, estimate_run, estimate_table
+    from deckpose.estimate.run import EstimateRunResult, estimate_table
     from deckpose.layout import DeckLayout, read_layout
     from deckpose.output_folder import ensure_writable
+    from deckpose.sequence_run import estimate_run_with_prior
     from deckpose.tables import read_table, write_table
 
     spec = _method_spec(args)
     if args.run is not None:
         with frame_bar(f"estimate ({spec.label})", enabled=not args.no_progress) as bar:
-            res = estimate_run(args.run, spec, detector=getattr(args, "detector", None), sigma_px=args.sigma_px,
-                               radius_m=args.radius, progress=bar.update)
+            res = estimate_run_with_prior(args.run, spec, detector=getattr(args, "detector", None),
+                                          sigma_px=args.sigma_px, radius_m=args.radius, prior=not args.no_prior,
+                                          max_prior_age_s=args.max_prior_age_s, progress=bar.update)
     else:
+        if args.no_prior:
+            raise ConfigError("--no-prior applies to --run RUN (a table alone has no time sequence); drop it")
         if args.detections is None or args.camera is None or args.output is None:
             raise ConfigError("give DETECTIONS --camera CAMERA.yaml -o OUTPUT, or --run RUN --detector NAME")
         layout = read_layout(args.layout) if getattr(args, "layout", None) else DeckLayout()

@@ -1,7 +1,7 @@
 """``deckpose pipeline CONFIG RUN``: render -> detect -> estimate -> evaluate -> report in one command.
 
 Every stage is the same stage function as its own subcommand calls (``render_dataset``,
-``detect_run``, ``estimate_run``, ``evaluate_run``, ``write_report``). The render stage resumes
+``detect_run``, ``estimate_run_with_prior``, ``evaluate_run``, ``write_report``). The render stage resumes
 (frames already on disk are kept), so an interrupted pipeline picks up where it
 stopped when run again with the same arguments; the later stages are cheap and
 are rewritten. ``RUN/pipeline.json`` records the command, the machine and the
@@ -240,12 +240,12 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     from deckpose import __version__
     from deckpose.detect.run import detect_run
     from deckpose.estimate.registry import parse_method
-    from deckpose.estimate.run import estimate_run
     from deckpose.evaluate.report import write_report
     from deckpose.evaluate.run import evaluate_run, write_log
     from deckpose.render.dataset import render_dataset
     from deckpose.render.render_detection import RenderDetection
     from deckpose.run_folder import run_paths
+    from deckpose.sequence_run import estimate_run_with_prior
 
     check_names(options)
     if options.track and config.motion.source.value == "fixed":
@@ -303,7 +303,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
             for method in options.methods:
                 spec = parse_method(method)
                 with frame_bar(f"estimate ({spec.label})", enabled=options.progress) as b:
-                    est = estimate_run(run_dir, spec, detector=det, progress=b.update)
+                    est = estimate_run_with_prior(run_dir, spec, detector=det, progress=b.update)
                 print(est.summary())
                 if options.track:
                     from deckpose.tracking.config import TRACKERS, TrackConfig

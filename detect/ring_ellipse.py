@@ -1,0 +1,142 @@
+"""The ring's ellipse in the image: RANSAC over 5-point conics, and ring positions from angles on it.
+
+The largest set of detections on one ellipse is the ring (glints, reflections and the
+centre beacon lie off it). Ordered by angle in the ellipse's normalised frame, the
+angular gaps (in units of ``2 pi / n``) give relative ring positions, leaving room for
+missing beacons.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+from deckpose.detect import conic as cn
+from deckpose.detect.identification import IdentifyOptions
+from numpy.typing import NDArray
+
+__all__ = ["MIN_RANSAC_SAMPLES", "ransac_ellipse", "relative_positions", "ring_angles"]
+
+FloatArray = NDArray[np.float64]
+
+
+def _ellipse_inliers(
+    c: FloatArray, points: FloatArray, opts: IdentifyOptions
+) -> tuple[NDArray[np.bool_] | None, FloatArray, float]:
+    axes = cn.ellipse_semi_axes(c) if c[1] ** 2 - 4 * c[0] * c[2] < 0 else None
+    if axes is None:
+        return None, np.zeros(0), 0.0
+    if opts.max_axis_ratio is not None and not max(axes) <= opts.max_axis_ratio * min(axes):
+        return None, np.zeros(0), 0.0
+    tol = max(opts.inlier_tol_px, opts.inlier_tol_frac * 0.5 * sum(axes))
+    d = cn.sampson_distance(c, points)
+    return d < tol, d, tol
+
+
+#: Fewest RANSAC samples before the adaptive stop (which needs a 99.9 % chance of one
+#: all-inlier sample given the best inlier ratio so far).
+MIN_RANSAC_SAMPLES = 8
+
+
+def ransac_ellipse(
+    points: FloatArray, opts: IdentifyOptions, max_inliers: int
+) -> NDArray[np.bool_]:
+    """Largest set of points (at most ``max_inliers``) on one ellipse (boolean mask)."""
+    n = points.shape[0]
+    best = np.zeros(n, bool)
+    best_cost = math.inf
+    exhaustive = math.comb(n, 5) <= 100
+    if exhaustive:
+        samples: object = itertools.combinations(range(n), 5)
+    else:
+        rng = np.random.default_rng(opts.seed)
+        samples = (rng.choice(n, 5, replace=False) for _ in range(opts.max_ransac))
+    needed = opts.max_ransac
+    tried = 0
+    for s in samples:  # type: ignore[attr-defined]
+        c = cn.fit_conic(points[list(s)])
+        inl, d, tol = _ellipse_inliers(c, points, opts)
+        if inl is None or inl.sum() <= 5:
+            continue
+        # Local optimisation: refit on the inliers and count again, so a conic that
+        # only passes near points by the first-order distance does not win.
+        c = cn.fit_conic(points[inl])
+        inl, d, tol = _ellipse_inliers(c, points, opts)
+        if inl is None:
+            continue
+        k = int(inl.sum())
+        if k < 5 or k > max_inliers:
+            continue
+        cost = -k + float(np.sum(np.minimum(d, tol))) / (tol * (n + 1))
+        if cost < best_cost:
+            best, best_cost = inl, cost
+            # Adaptive stopping: samples needed to draw one all-inlier 5-set with 99.9 %.
+            w5 = (k / n) ** 5
+            needed = math.ceil(math.log(1e-3) / math.log1p(-w5)) if w5 < 1 else 1
+        tried += 1
+        if not exhaustive and tried >= max(needed, MIN_RANSAC_SAMPLES):
+            break
+    return best
+
+
+def ring_angles(pts: FloatArray, conic: FloatArray) -> FloatArray | None:
+    """Angle of each point in the ellipse's normalised (circular) frame, ccw as displayed.
+
+    Parameters
+    ----------
+    pts : (K, 2) array of float
+        Undistorted pixels.
+    conic : (6,) array of float
+        The ellipse's conic coefficients (:func:`deckpose.detect.conic.fit_conic`).
+
+    Returns
+    -------
+    (K,) array of float, radians, or None
+        None when the conic is no ellipse.
+    """
+    M = cn.ellipse_shape(conic)
+    if M is None:
+        return None
+    w, V = np.linalg.eigh(M)
+    L = V @ np.diag(np.sqrt(w)) @ V.T
+    d = (pts - cn.ellipse_centre(conic)) @ L.T
+    return np.arctan2(-d[:, 1], d[:, 0])  # v points down
+
+
+def _gap_misfit(ang: FloatArray, n: int) -> tuple[float, NDArray[np.int64], NDArray[np.int64]]:
+    """Worst non-integer part of the angular gaps (ring steps), the order, the rounded steps."""
+    order = np.argsort(ang)
+    gaps = np.diff(np.append(ang[order], ang[order[0]] + 2 * np.pi)) / (2 * np.pi / n)
+    steps = np.rint(gaps).astype(np.int64)
+    misfit = float(np.max(np.abs(gaps - steps)))
+    if np.any(steps < 1) or steps.sum() != n:
+        misfit = max(misfit, 0.5)
+    return misfit, order, steps
+
+
+def relative_positions(
+    ang: FloatArray, n: int, *, max_misfit: float = 0.3, max_drop: int = 3
+) -> tuple[NDArray[np.int64], NDArray[np.bool_]] | None:
+    """Ring positions (relative to the first kept point) from angles, dropping spurious points.
+
+    Gaps between consecutive angles must be whole ring steps (``2 pi / n``);
+    while they are not, the point whose removal fits best is dropped (a glint
+    that happens to lie on the ring ellipse), at most ``max_drop`` times.
+
+    Returns ``(rel, keep)``, ``rel`` valid where ``keep``; ``None`` if no fit.
+    """
+    keep = np.ones(ang.size, bool)
+    for _ in range(max_drop + 1):
+        idx = np.flatnonzero(keep)
+        misfit, order, steps = _gap_misfit(ang[idx], n)
+        if misfit <= max_misfit:
+            rel = np.full(ang.size, -1, np.int64)
+            rel[idx[order]] = np.concatenate([[0], np.cumsum(steps[:-1])])
+            return rel, keep
+        if idx.size <= 5:
+            return None
+        trials = [(_gap_misfit(np.delete(ang[idx], j), n)[0], j) for j in range(idx.size)]
+        keep[idx[min(trials)[1]]] = False
+    return None
+
