@@ -10,7 +10,13 @@ from scipy.integrate import quad
 from scipy.linalg import expm
 
 from deckpose.errors import ConfigError
-from deckpose.tracking.deck_motion_model import DeckMotionModel, discretise, prior, state_size, state_slices
+from deckpose.tracking.deck_motion_model import (
+    DeckMotionModel,
+    discretise,
+    prior,
+    state_size,
+    state_slices,
+)
 from deckpose.tracking.landing_window import (
     LandingLimits,
     landing_window_go,

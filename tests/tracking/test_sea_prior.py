@@ -22,7 +22,12 @@ from deckpose.tracking.deck_motion_model import (
     state_size,
 )
 from deckpose.tracking.filter_bound import optimal_filtered_variance
-from deckpose.tracking.sea_prior import SeaPrior, encounter_spectra, fit_bank_sigmas, oscillator_density
+from deckpose.tracking.sea_prior import (
+    SeaPrior,
+    encounter_spectra,
+    fit_bank_sigmas,
+    oscillator_density,
+)
 
 
 def _scipy_oscillator_density(omega, w0, zeta, sigma):
@@ -122,7 +127,8 @@ def test_a_config_told_the_sea_fits_the_bank_and_reads_back_the_same(tmp_path):
     assert len(m.roll_bank_sigmas_deg) == 6 and m.roll_sigma_deg == pytest.approx(math.hypot(*m.roll_bank_sigmas_deg))
     # the fitted bank's variance is of the sea's order (a Whittle fit of a bank whose tails are
     # heavier than the sea's keeps less than all of it), and its energy sits near the sea's periods
-    ref = predicted_variances(*(lambda r: (r.ship, r.sea))(parse_sea_run({"sea": {"sea_state": 6}})))
+    run = parse_sea_run({"sea": {"sea_state": 6}})
+    ref = predicted_variances(run.ship, run.sea)
     assert 0.3 < math.radians(m.roll_sigma_deg) / math.sqrt(ref.roll_rad2) < 1.2
     roll = np.asarray(m.roll_bank_sigmas_deg)
     assert model.periods_s[int(np.argmax(roll))] in (10.0, 12.0)
