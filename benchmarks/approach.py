@@ -276,9 +276,11 @@ def scored_limits(config: TrackConfig) -> tuple[LandingLimits, ...]:
     return (config.landing,
             LandingLimits(roll_deg=3.0, pitch_deg=2.0, heave_rate_m_per_s=1.0),
             LandingLimits(roll_deg=5.0, pitch_deg=3.0, heave_rate_m_per_s=1.0),
-            LandingLimits(roll_deg=5.0, pitch_deg=3.0, heave_rate_m_per_s=1.0, confidence=0.99),
+            LandingLimits(roll_deg=3.0, pitch_deg=2.0, heave_rate_m_per_s=1.5),
+            LandingLimits(roll_deg=5.0, pitch_deg=3.0, heave_rate_m_per_s=1.5),
+            LandingLimits(roll_deg=5.0, pitch_deg=3.0, heave_rate_m_per_s=1.5, confidence=0.99),
             LandingLimits(roll_deg=8.0, pitch_deg=4.0, heave_rate_m_per_s=1.5),
-            LandingLimits(roll_deg=5.0, pitch_deg=3.0, heave_rate_m_per_s=1.0, window_s=6.0))
+            LandingLimits(roll_deg=5.0, pitch_deg=3.0, heave_rate_m_per_s=1.5, window_s=6.0))
 
 
 def sea_spectra(args: argparse.Namespace) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -453,7 +455,7 @@ def main() -> None:
               ("Filtered/per-frame RMS above 20 m (bound: the least any causal filter can reach on the sea's spectrum "
                "with these estimates' noise), filtered errors in their own sigmas (RMS z, count beyond 5), prediction "
                "against holding the last estimate, and the landing window (roll < 5 deg, pitch < 3 deg, heave rate "
-               "< 1 m/s for 3 s at 0.95)."), "",
+               "< 1.5 m/s for 3 s at 0.95)."), "",
               ("| sea (render config) | tracker config | noise / sea seed | roll ratio (bound) | pitch ratio (bound) | "
                "filtered roll / pitch RMS z (> 5) | pred / hold 1 s roll, pitch | 2 s roll, pitch | "
                "landing: calm, go, false go, found |"),
@@ -481,7 +483,7 @@ def summary_row(args: argparse.Namespace, config: TrackConfig, tracker: str, res
     r1, r2 = (pr[pr["horizon_s"] == h].iloc[0] for h in (1.0, 2.0))
     key = next(i for i, lim in enumerate(scored_limits(config))
                if (lim.roll_deg, lim.pitch_deg, lim.heave_rate_m_per_s, lim.window_s, lim.confidence)
-               == (5.0, 3.0, 1.0, 3.0, 0.95))
+               == (5.0, 3.0, 1.5, 3.0, 0.95))
     lr = land.iloc[key]
     sea = args.sea
     return {"sea": f"SS{sea.get('sea_state', '?')} ({args.config})", "tracker": tracker,
