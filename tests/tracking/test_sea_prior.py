@@ -130,6 +130,10 @@ def test_a_config_told_the_sea_fits_the_bank_and_reads_back_the_same(tmp_path):
     run = parse_sea_run({"sea": {"sea_state": 6}})
     ref = predicted_variances(run.ship, run.sea)
     assert 0.3 < math.radians(m.roll_sigma_deg) / math.sqrt(ref.roll_rad2) < 1.2
+    # the heave bank keeps the sea's variance (SeaPrior.keep_variance); the encounter spectra
+    # integrate to motion's own quadrature within ~0.5 % (test above), so 1 %
+    assert m.heave_sigma_m == pytest.approx(math.sqrt(ref.heave_m2), rel=0.01)
+    assert math.hypot(*m.heave_bank_sigmas_m) == pytest.approx(m.heave_sigma_m, rel=1e-12)
     roll = np.asarray(m.roll_bank_sigmas_deg)
     assert model.periods_s[int(np.argmax(roll))] in (10.0, 12.0)
     assert roll[-1] < 0.01 * roll.max()                   # nothing at 30 s
@@ -146,6 +150,7 @@ def test_a_config_told_the_sea_fits_the_bank_and_reads_back_the_same(tmp_path):
     ("sea: {sea_state: 12}\n", "sea"),
     ("sea: {sea_state: 6, floor_rel: 2}\n", "floor_rel"),
     ("sea: {sea_state: 6, ship: dinghy}\n", "dinghy"),
+    ("sea: {sea_state: 6, keep_variance: [yaw]}\n", "keep_variance"),
     ("model: {periods_s: [8, 11], roll_bank_sigmas_deg: [1]}\n", "roll_bank_sigmas_deg"),
 ])
 def test_bad_sea_configs_are_one_line_errors(tmp_path, text, match):
