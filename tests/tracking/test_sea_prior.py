@@ -159,3 +159,16 @@ def test_bad_sea_configs_are_one_line_errors(tmp_path, text, match):
     with pytest.raises(ConfigError, match=match) as e:
         load_track_config(path)
     assert "\n" not in str(e.value)
+
+
+@pytest.mark.parametrize("name,state", [("sea_state_6.yaml", 6), ("sea_state_4.yaml", 4)])
+def test_the_committed_sea_configs_fit_their_sea(name, state):
+    from pathlib import Path
+
+    cfg = load_track_config(Path(__file__).resolve().parents[2] / "configs" / "track" / name)
+    assert cfg.sea is not None and cfg.sea.sea_state == state
+    m = cfg.model
+    assert len(m.roll_bank_sigmas_deg) == len(m.periods_s) == 24
+    run = parse_sea_run({"sea": {"sea_state": state, "heading_deg": 135.0, "speed_kn": 15.0}})
+    ref = predicted_variances(run.ship, run.sea)
+    assert m.heave_sigma_m == pytest.approx(math.sqrt(ref.heave_m2), rel=0.01)   # keep_variance: heave
