@@ -145,7 +145,7 @@ def window_calm_probability(x: NDArray[np.float64], P: NDArray[np.float64], mode
         raise ShapeError(f"x, P: expected shapes (N, n) and (N, n, n), got {x.shape} and {P.shape}")
     M, S = window_covariance(model, window_horizons_s(limits))
     d = M.shape[0]
-    u = qmc.Sobol(d, scramble=True, seed=QMC_SEED).random(QMC_POINTS)
+    u = qmc.Sobol(d, scramble=True, rng=QMC_SEED).random(QMC_POINTS)
     z = norm.ppf(u)                                                  # (Q, d) standard normal points
     lim = np.tile(_limits_rad(limits), d // 3)
     out = np.empty(x.shape[0])
