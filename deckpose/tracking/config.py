@@ -14,6 +14,11 @@ Schema (every key optional; defaults in the records)::
       window_s: 3.0
       step_s: 0.25
       confidence: 0.95
+    sea:                      # SeaPrior, optional: fit the bank's sigmas to this sea's response spectra
+      sea_state: 6
+      heading_deg: 135
+      speed_kn: 15
+      ship: ffg7
     gate_probability: 0.9999  # chi-square gate on each estimate (6 dof); 1 = no gate
     reacquire_after: 10       # gated estimates in a row before the next is applied ungated
     horizons_s: [0.5, 1, 2, 5]
@@ -30,6 +35,7 @@ from typing import Any
 from deckpose.errors import ConfigError
 from deckpose.tracking.deck_motion_model import DeckMotionModel
 from deckpose.tracking.landing_window import LandingLimits
+from deckpose.tracking.sea_prior import SeaPrior, model_for_sea
 from deckpose.typed_config import check_range, from_mapping, load_yaml
 
 __all__ = ["TRACKERS", "TrackConfig", "load_track_config", "track_config_to_mapping"]
@@ -45,7 +51,13 @@ class TrackConfig:
     Attributes
     ----------
     model : DeckMotionModel
+        With ``sea`` given and no per-oscillator sigmas in it, its roll, pitch and heave
+        oscillators' sigmas are fitted to that sea (:func:`~deckpose.tracking.sea_prior.model_for_sea`)
+        when the config is made; the resolved config records the fitted sigmas.
     landing : LandingLimits
+    sea : SeaPrior or None
+        The sea the ship is in, as the operator knows it (not a realisation of it); None: the
+        model's sigmas as given (equal shares of each channel's sigma by default).
     gate_probability : float
         Probability mass of the chi-square gate on each estimate (6 dof), in (0, 1]; 1 = no gate.
     reacquire_after : int
@@ -56,6 +68,7 @@ class TrackConfig:
 
     model: DeckMotionModel = DeckMotionModel()
     landing: LandingLimits = LandingLimits()
+    sea: SeaPrior | None = None
     gate_probability: float = 0.9999
     reacquire_after: int = 10
     horizons_s: tuple[float, ...] = (0.5, 1.0, 2.0, 5.0)
@@ -65,6 +78,9 @@ class TrackConfig:
         check_range(self.reacquire_after, "reacquire_after", low=1)
         if not self.horizons_s or any(not (math.isfinite(h) and 0 < h <= 600) for h in self.horizons_s):
             raise ConfigError(f"horizons_s: give a list of horizons in (0, 600] seconds, got {list(self.horizons_s)}")
+        m = self.model
+        if self.sea is not None and not (m.roll_bank_sigmas_deg or m.pitch_bank_sigmas_deg or m.heave_bank_sigmas_m):
+            object.__setattr__(self, "model", model_for_sea(m, self.sea))
 
 
 def load_track_config(path: str | os.PathLike[str] | None) -> TrackConfig:

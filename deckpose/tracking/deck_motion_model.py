@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 
 from deckpose.errors import ConfigError
 
-__all__ = ["DeckMotionModel", "Discretisation", "discretise", "measurement_matrix", "ncv_discretisation",
+__all__ = ["DeckMotionModel", "Discretisation", "bank_sigmas", "channel_oscillators", "discretise", "measurement_matrix", "ncv_discretisation",
            "oscillator_discretisation", "output_matrix", "prior", "state_size", "state_slices"]
 
 #: Channels of :func:`output_matrix`: what prediction and the landing window use.
@@ -55,7 +55,14 @@ class DeckMotionModel:
         Damping ratio of every oscillator, in (0, 1).
     roll_sigma_deg, pitch_sigma_deg, heave_sigma_m : float
         Stationary standard deviation of the channel's oscillating part (the bank's
-        oscillators share its variance equally), degrees and metres.
+        oscillators share its variance equally unless the channel's ``*_bank_sigmas_*``
+        are given), degrees and metres.
+    roll_bank_sigmas_deg, pitch_bank_sigmas_deg, heave_bank_sigmas_m : tuple of float
+        Stationary standard deviation of each oscillator of the channel, one per period of
+        ``periods_s`` (>= 0; 0 leaves that oscillator still), degrees and metres: the
+        channel's spectrum as a sum of oscillator spectra (for example fitted to a sea state's
+        response spectrum, :mod:`deckpose.tracking.sea_prior`). Empty (the default): equal
+        shares of the channel sigma above.
     offset_rate_deg_per_sqrt_s : float
         Random-walk intensity of the roll and pitch offsets, deg / sqrt(s).
     offset_sigma_deg : float
@@ -73,6 +80,9 @@ class DeckMotionModel:
     roll_sigma_deg: float = 4.0
     pitch_sigma_deg: float = 1.5
     heave_sigma_m: float = 1.0
+    roll_bank_sigmas_deg: tuple[float, ...] = ()
+    pitch_bank_sigmas_deg: tuple[float, ...] = ()
+    heave_bank_sigmas_m: tuple[float, ...] = ()
     offset_rate_deg_per_sqrt_s: float = 0.02
     offset_sigma_deg: float = 2.0
     yaw_accel_deg_per_s2: float = 0.2
@@ -98,6 +108,11 @@ class DeckMotionModel:
             v = getattr(self, name)
             if not (math.isfinite(v) and v > 0):
                 raise ConfigError(f"{name}: must be a positive number, got {v:g}")
+        for name in ("roll_bank_sigmas_deg", "pitch_bank_sigmas_deg", "heave_bank_sigmas_m"):
+            v = getattr(self, name)
+            if v and (len(v) != len(self.periods_s) or any(not (math.isfinite(x) and x >= 0) for x in v)):
+                raise ConfigError(f"{name}: give one sigma >= 0 per period of periods_s ({len(self.periods_s)}), "
+                                  f"or none for equal shares; got {list(v)}")
         for name in ("offset_rate_deg_per_sqrt_s", "yaw_accel_deg_per_s2", "surge_accel_m_per_s2",
                      "sway_accel_m_per_s2", "height_accel_m_per_s2"):
             v = getattr(self, name)
@@ -126,9 +141,11 @@ class Discretisation:
 
 
 def state_size(model: DeckMotionModel) -> int:
-    """Length of the state vector: ``2 (1 + 2K) + 2K + 8`` for K oscillators."""
-    k = model.n_oscillators
-    return 2 * (1 + 2 * k) + 2 * k + 8
+    """Length of the state vector: ``(1 + 2 K_roll) + (1 + 2 K_pitch) + 2 K_heave + 8``.
+
+    ``K_c`` counts the channel's oscillators with a sigma above zero (:func:`channel_oscillators`).
+    """
+    return state_slices(model)["uav_height"].stop
 
 
 def state_slices(model: DeckMotionModel) -> dict[str, slice]:
@@ -136,15 +153,27 @@ def state_slices(model: DeckMotionModel) -> dict[str, slice]:
 
     Keys ``roll``, ``pitch`` (offset first, then the oscillators' ``(p, v)`` pairs),
     ``heave`` (oscillator pairs), ``yaw``, ``surge``, ``sway``, ``uav_height`` (position, rate).
+    Only oscillators with a sigma above zero have a pair (:func:`channel_oscillators`).
     """
-    k = model.n_oscillators
+    k = {name: len(om) for name, (om, _) in channel_oscillators(model).items()}
     out: dict[str, slice] = {}
     i = 0
-    for name, size in (("roll", 1 + 2 * k), ("pitch", 1 + 2 * k), ("heave", 2 * k), ("yaw", 2), ("surge", 2),
-                       ("sway", 2), ("uav_height", 2)):
+    for name, size in (("roll", 1 + 2 * k["roll"]), ("pitch", 1 + 2 * k["pitch"]), ("heave", 2 * k["heave"]),
+                       ("yaw", 2), ("surge", 2), ("sway", 2), ("uav_height", 2)):
         out[name] = slice(i, i + size)
         i += size
     return out
+
+
+def channel_oscillators(model: DeckMotionModel) -> dict[str, tuple[NDArray[np.float64], NDArray[np.float64]]]:
+    """The oscillators in the state, per channel: ``(omega_rad_s (K_c,), sigma (K_c,))``.
+
+    Keys ``roll``, ``pitch`` (sigma in rad), ``heave`` (m): the bank's oscillators whose sigma
+    (:func:`bank_sigmas`) is above zero, in the order of ``periods_s``; one still at zero
+    contributes nothing and is left out of the state.
+    """
+    omegas = _omegas(model)
+    return {name: (omegas[sig > 0], sig[sig > 0]) for name, sig in bank_sigmas(model).items()}
 
 
 def oscillator_discretisation(omega_rad_s: NDArray[np.float64], damping_ratio: float, sigma: NDArray[np.float64],
@@ -204,28 +233,32 @@ def _omegas(model: DeckMotionModel) -> NDArray[np.float64]:
     return 2.0 * np.pi / np.asarray(model.periods_s, float)
 
 
-def _bank_sigmas(model: DeckMotionModel) -> dict[str, NDArray[np.float64]]:
+def bank_sigmas(model: DeckMotionModel) -> dict[str, NDArray[np.float64]]:
+    """Stationary sigma of each oscillator, per channel (``roll``, ``pitch`` rad; ``heave`` m), each (K,)."""
     k = model.n_oscillators
     share = 1.0 / math.sqrt(k)
-    return {"roll": np.full(k, math.radians(model.roll_sigma_deg) * share),
-            "pitch": np.full(k, math.radians(model.pitch_sigma_deg) * share),
-            "heave": np.full(k, model.heave_sigma_m * share)}
+    out: dict[str, NDArray[np.float64]] = {}
+    for name, per_osc, total, scale in (
+            ("roll", model.roll_bank_sigmas_deg, model.roll_sigma_deg, math.pi / 180.0),
+            ("pitch", model.pitch_bank_sigmas_deg, model.pitch_sigma_deg, math.pi / 180.0),
+            ("heave", model.heave_bank_sigmas_m, model.heave_sigma_m, 1.0)):
+        out[name] = (np.asarray(per_osc, float) if per_osc else np.full(k, total * share)) * scale
+    return out
 
 
 def _discretise(model: DeckMotionModel, dt_s: float) -> Discretisation:
     n = state_size(model)
     sl = state_slices(model)
     F, Q = np.zeros((n, n)), np.zeros((n, n))
-    omegas = _omegas(model)
     offset_q = math.radians(model.offset_rate_deg_per_sqrt_s) ** 2 * dt_s
-    for name, sig in _bank_sigmas(model).items():
+    for name, (omegas, sig) in channel_oscillators(model).items():
         Fo, Qo = oscillator_discretisation(omegas, model.damping_ratio, sig, dt_s)
         start = sl[name].start
         if name != "heave":  # the random-walk offset
             F[start, start] = 1.0
             Q[start, start] = offset_q
             start += 1
-        for j in range(model.n_oscillators):
+        for j in range(len(omegas)):
             b = slice(start + 2 * j, start + 2 * j + 2)
             F[b, b], Q[b, b] = Fo[j], Qo[j]
     for name, q in (("yaw", math.radians(model.yaw_accel_deg_per_s2)), ("surge", model.surge_accel_m_per_s2),
@@ -300,14 +333,13 @@ def prior(model: DeckMotionModel) -> tuple[NDArray[np.float64], NDArray[np.float
     n = state_size(model)
     sl = state_slices(model)
     var = np.zeros(n)
-    omegas = _omegas(model)
-    for name, sig in _bank_sigmas(model).items():
+    for name, (omegas, sig) in channel_oscillators(model).items():
         start = sl[name].start
         if name != "heave":
             var[start] = math.radians(model.offset_sigma_deg) ** 2
             start += 1
-        var[start:start + 2 * model.n_oscillators:2] = sig ** 2
-        var[start + 1:start + 2 * model.n_oscillators:2] = (omegas * sig) ** 2
+        var[start:start + 2 * len(omegas):2] = sig ** 2
+        var[start + 1:start + 2 * len(omegas):2] = (omegas * sig) ** 2
     var[sl["yaw"]] = (math.radians(model.yaw_sigma_deg) ** 2, math.radians(model.yaw_rate_sigma_deg_per_s) ** 2)
     for name in ("surge", "sway", "uav_height"):
         var[sl[name]] = (model.position_sigma_m ** 2, model.rate_sigma_m_per_s ** 2)

@@ -65,8 +65,10 @@ def kalman_update(x: NDArray[np.float64], P: NDArray[np.float64], z: NDArray[np.
                   angle_rows: tuple[int, ...] = ()) -> Update:
     """Condition the state on ``z = H x + v``, ``v ~ N(0, R)``, unless it fails the gate.
 
-    The covariance is updated in Joseph form, ``(I - K H) P (I - K H)^T + K R K^T``,
-    which stays symmetric and positive semi-definite in floating point.
+    The covariance is updated in Joseph form, ``(I - K H) P (I - K H)^T + K R K^T``, valid for
+    any gain (so rounding in ``K`` does not bias it), written out as
+    ``P - K (P H^T)^T - (P H^T) K^T + K S K^T``: the same matrix in ``O(n^2 m)`` operations
+    instead of the ``O(n^3)`` of the two ``n x n`` products, and symmetrised.
 
     Parameters
     ----------
@@ -107,6 +109,6 @@ def kalman_update(x: NDArray[np.float64], P: NDArray[np.float64], z: NDArray[np.
         return Update(x, P, nis, False)
     # K = P H^T S^-1 through the Cholesky factor (S = c c^T)
     K = np.linalg.solve(c.T, np.linalg.solve(c, PHt.T)).T
-    IKH = np.eye(n) - K @ H
-    P1 = IKH @ P @ IKH.T + K @ R @ K.T
+    KPHt = K @ PHt.T
+    P1 = P - KPHt - KPHt.T + K @ S @ K.T
     return Update(x + K @ nu, 0.5 * (P1 + P1.T), nis, True)

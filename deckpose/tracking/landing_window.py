@@ -1,13 +1,16 @@
 """The landing-window indicator: is the deck predicted calm enough for the next T seconds?
 
-"Go" at a frame when, at every time of a grid over the next ``window_s`` seconds, the
-predicted |roll|, |pitch| and |heave rate| stay below their limits by a margin of ``k``
-of their predicted standard deviations, ``k`` chosen so that the whole window stays
-within the limits with probability at least ``confidence`` under the predicted Gaussians:
-each of the ``3 G`` checks (three channels, ``G`` grid times) fails with probability at most
-``2 (1 - Phi(k))``, so by Boole's inequality (no assumption on their correlation)
-``k = Phi^-1(1 - (1 - confidence) / (6 G))`` bounds the window's failure by
-``1 - confidence`` (:func:`margin_sigmas`). Scored against the truth by
+"Go" at a frame when the probability, under the filter's prediction, that |roll|, |pitch|
+and |heave rate| all stay below their limits at every time of a grid over the next
+``window_s`` seconds is at least ``confidence`` (:func:`window_calm_probability`). The
+prediction over the window is one joint Gaussian (three channels x the grid's times, with
+their correlations across time: the deck's motion a quarter second apart is nearly the
+same); the probability of that box is integrated by randomised quasi-Monte Carlo: a scrambled Sobol
+sequence of :data:`QMC_POINTS` points drawn once with the fixed seed :data:`QMC_SEED` (a fixed
+integration rule, so the indicator is deterministic; unscrambled Sobol points were biased by
+~1.5 % here). (The bound this replaced treated the window's 3 x 13 checks as unrelated,
+Boole's inequality, and asked each for a 3.2-sigma margin at 95 %: far more than the joint
+probability needs, as the checks are strongly correlated.) Scored against the truth by
 :func:`truth_window_calm`: the same test on the true motion.
 """
 
@@ -18,13 +21,22 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import norm
+from scipy.stats import norm, qmc
 
 from deckpose.errors import ConfigError, ShapeError
-from deckpose.tracking.deck_motion_model import DeckMotionModel
-from deckpose.tracking.prediction import predict_outputs
+from deckpose.tracking.deck_motion_model import DeckMotionModel, discretise, output_matrix
 
-__all__ = ["LandingLimits", "landing_window_go", "margin_sigmas", "truth_window_calm", "window_horizons_s"]
+__all__ = ["QMC_POINTS", "QMC_SEED", "LandingLimits", "landing_window_go", "truth_window_calm", "window_calm_probability",
+           "window_covariance", "window_horizons_s"]
+
+#: Quasi-Monte Carlo points of the window probability (a power of two): its error is a few
+#: tenths of a percent at the probabilities a landing decision is made at.
+QMC_POINTS = 2 ** 12
+#: Seed of the scrambling of the Sobol points: fixes the integration rule, not a random draw.
+QMC_SEED = 21
+#: Rows of :func:`~deckpose.tracking.deck_motion_model.output_matrix` the window checks:
+#: roll, pitch, heave rate.
+WINDOW_OUTPUTS = (0, 1, 3)
 
 
 @dataclass(frozen=True)
@@ -43,7 +55,7 @@ class LandingLimits:
         Spacing of the grid the window is checked on, seconds.
     confidence : float
         Least probability, under the prediction, that the deck stays within the limits over
-        the whole window for a "go" (in (0, 1)).
+        the whole window (at every time of the step grid) for a "go" (in (0, 1)).
     """
 
     roll_deg: float = 3.0
@@ -71,21 +83,86 @@ def window_horizons_s(limits: LandingLimits) -> NDArray[np.float64]:
     return np.asarray(limits.step_s * np.arange(n + 1), dtype=np.float64)
 
 
-def margin_sigmas(limits: LandingLimits) -> float:
-    """``k``: predicted sigmas between each predicted value and its limit for a "go" (module docstring)."""
-    n_checks = 3 * len(window_horizons_s(limits))
-    return float(norm.isf((1.0 - limits.confidence) / (2 * n_checks)))
+def window_covariance(model: DeckMotionModel, horizons_s: NDArray[np.float64]) -> tuple[NDArray[np.float64],
+                                                                                    NDArray[np.float64]]:
+    """The linear map from a state to the window's outputs, and the process noise's share of their covariance.
+
+    The outputs are roll, pitch and heave rate at each horizon, grid-major (``3 G`` values for
+    ``G`` horizons). From a state ``N(x, P)`` they are ``N(M x, M P M^T + S)``: ``M`` stacks
+    ``C F(h_i)`` and ``S`` holds the process noise from now to each horizon, correlated across
+    horizons: for ``h_i <= h_j``, ``Cov = C Q(h_i) F(h_j - h_i)^T C^T``.
+
+    Parameters
+    ----------
+    model : DeckMotionModel
+    horizons_s : (G,) array of float
+        Increasing horizons, seconds (>= 0).
+
+    Returns
+    -------
+    M : (3 G, n) array of float
+    S : (3 G, 3 G) array of float
+    """
+    hs = np.asarray(horizons_s, float)
+    C = output_matrix(model)[list(WINDOW_OUTPUTS)]
+    g = hs.size
+    discs = [discretise(model, float(h)) for h in hs]
+    M = np.concatenate([C @ d.F for d in discs])
+    S = np.zeros((3 * g, 3 * g))
+    for i in range(g):
+        CQ = C @ discs[i].Q
+        for j in range(i, g):
+            block = CQ @ discretise(model, float(hs[j] - hs[i])).F.T @ C.T
+            S[3 * i:3 * i + 3, 3 * j:3 * j + 3] = block
+            S[3 * j:3 * j + 3, 3 * i:3 * i + 3] = block.T
+    return M, S
 
 
-def _calm(roll: NDArray[np.float64], pitch: NDArray[np.float64], heave_rate: NDArray[np.float64],
-          limits: LandingLimits) -> NDArray[np.bool_]:
-    return ((np.abs(roll) < math.radians(limits.roll_deg)) & (np.abs(pitch) < math.radians(limits.pitch_deg))
-            & (np.abs(heave_rate) < limits.heave_rate_m_per_s))
+def _limits_rad(limits: LandingLimits) -> NDArray[np.float64]:
+    return np.array([math.radians(limits.roll_deg), math.radians(limits.pitch_deg), limits.heave_rate_m_per_s])
+
+
+def window_calm_probability(x: NDArray[np.float64], P: NDArray[np.float64], model: DeckMotionModel,
+                            limits: LandingLimits) -> NDArray[np.float64]:
+    """Probability, under the prediction, that the deck stays within the limits over the window.
+
+    Parameters
+    ----------
+    x : (N, n) array of float
+    P : (N, n, n) array of float
+    model : DeckMotionModel
+    limits : LandingLimits
+
+    Returns
+    -------
+    (N,) array of float
+        The joint probability that |roll|, |pitch| and |heave rate| stay below their limits at
+        every time of :func:`window_horizons_s` (randomised quasi-Monte Carlo, :data:`QMC_POINTS` points).
+    """
+    x = np.asarray(x, float)
+    P = np.asarray(P, float)
+    if x.ndim != 2 or P.shape != (x.shape[0], x.shape[1], x.shape[1]):
+        raise ShapeError(f"x, P: expected shapes (N, n) and (N, n, n), got {x.shape} and {P.shape}")
+    M, S = window_covariance(model, window_horizons_s(limits))
+    d = M.shape[0]
+    u = qmc.Sobol(d, scramble=True, rng=QMC_SEED).random(QMC_POINTS)
+    z = norm.ppf(u)                                                  # (Q, d) standard normal points
+    lim = np.tile(_limits_rad(limits), d // 3)
+    out = np.empty(x.shape[0])
+    mean = x @ M.T
+    for i in range(x.shape[0]):
+        cov = M @ P[i] @ M.T + S
+        cov = 0.5 * (cov + cov.T)
+        jitter = 1e-12 * float(np.max(np.diag(cov)))
+        L = np.linalg.cholesky(cov + jitter * np.eye(d))
+        y = mean[i] + z @ L.T
+        out[i] = float(np.mean(np.all(np.abs(y) < lim, axis=1)))
+    return out
 
 
 def landing_window_go(x: NDArray[np.float64], P: NDArray[np.float64], model: DeckMotionModel,
                       limits: LandingLimits) -> NDArray[np.bool_]:
-    """The indicator for a batch of filter states.
+    """The indicator for a batch of filter states: "go" where :func:`window_calm_probability` >= confidence.
 
     Parameters
     ----------
@@ -97,15 +174,14 @@ def landing_window_go(x: NDArray[np.float64], P: NDArray[np.float64], model: Dec
     Returns
     -------
     (N,) array of bool
-        True ("go") where every predicted |roll|, |pitch| and |heave rate| plus
-        :func:`margin_sigmas` sigmas stays below its limit over the window.
     """
-    mean, cov = predict_outputs(x, P, model, window_horizons_s(limits))
-    sig = np.sqrt(np.maximum(np.diagonal(cov, axis1=2, axis2=3), 0.0))
-    k = margin_sigmas(limits)
-    bound = np.abs(mean) + k * sig                               # (N, H, 5)
-    calm = _calm(bound[..., 0], bound[..., 1], bound[..., 3], limits)
-    return np.all(calm, axis=1)
+    return np.asarray(window_calm_probability(x, P, model, limits) >= limits.confidence, dtype=bool)
+
+
+def _calm(roll: NDArray[np.float64], pitch: NDArray[np.float64], heave_rate: NDArray[np.float64],
+          limits: LandingLimits) -> NDArray[np.bool_]:
+    return ((np.abs(roll) < math.radians(limits.roll_deg)) & (np.abs(pitch) < math.radians(limits.pitch_deg))
+            & (np.abs(heave_rate) < limits.heave_rate_m_per_s))
 
 
 def truth_window_calm(t_s: NDArray[np.float64], roll_rad: NDArray[np.float64], pitch_rad: NDArray[np.float64],
