@@ -142,7 +142,10 @@ def prediction_errors(frames: pd.DataFrame, estimates: pd.DataFrame, tracks: pd.
             row[f"{q}_ratio"] = pred_rms / held_rms if held_rms > 0 else float("nan")
             row[f"{q}_z_rms"] = _rms((pe / g[f"sigma_{q}"].to_numpy(float))[keep])
         rows.append(row)
-    return pd.DataFrame(rows)
+    # a track shorter than every horizon has no prediction due: no rows, the same columns
+    columns = ["horizon_s", "scored", *(f"{q}_{k}" for q in ("roll_deg", "pitch_deg", "height_m")
+                                        for k in ("rms_predicted", "rms_held", "ratio", "z_rms"))]
+    return pd.DataFrame(rows, columns=columns)
 
 
 def predicted_roll_errors(frames: pd.DataFrame, tracks: pd.DataFrame, predictions: pd.DataFrame,

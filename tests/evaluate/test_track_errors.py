@@ -101,3 +101,16 @@ def test_the_report_of_a_tracked_run_has_a_tracking_section(tracked_run, tmp_pat
     assert "(figures/track_fake--thesis--wave-bank.png)" in md
     assert (root / "report" / "figures" / "track_fake--thesis--wave-bank.png").stat().st_size > 10_000
     assert "| horizon_s | scored |" in md
+
+
+def test_a_track_shorter_than_every_horizon_has_no_prediction_rows_and_still_plots(tmp_path):
+    from deckpose.evaluate.report_figures import plot_track_errors
+
+    frames, est, tracks, preds = _run()
+    short = [f[f["frame_id"] < 3].reset_index(drop=True) for f in (frames, est, tracks)]
+    late = preds[(preds["frame_id"] < 3) & (preds["horizon_s"] == 2.0)]  # due 4 frames later: none is
+    pred = prediction_errors(*short, late)
+    assert len(pred) == 0 and {"horizon_s", "scored", "roll_deg_ratio"} <= set(pred.columns)
+    errs = track_frame_errors(short[0], short[1], short[2])
+    plot_track_errors(errs, predicted_roll_errors(short[0], short[2], late, 2.0), pred, "short", tmp_path / "t.png")
+    assert (tmp_path / "t.png").stat().st_size > 1000
