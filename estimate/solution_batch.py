@@ -14,7 +14,6 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
-from deckpose.estimate.least_squares import Fit, fit_of_row
 from deckpose.estimate.least_squares_batch import (
     FitBatch,
     FrameObservations,
@@ -271,26 +270,6 @@ def finish_batch(
     return out
 
 
-def candidates_of_one(cands: BatchCandidates) -> tuple[list[Fit], dict[str, float]]:
-    """The solutions a batch of one frame lists, and its extras, as the robust search takes them.
-
-    Parameters
-    ----------
-    cands : BatchCandidates
-        Of one frame (``F = 1``).
-
-    Returns
-    -------
-    fits : list of Fit
-        The valid slots, in order.
-    extras : dict of str to float
-        The extras the frame carries, in order.
-    """
-    fits = [fit_of_row(f, 0) for f, v in zip(cands.fits, cands.valid[0].tolist()) if v]
-    extras = {e.name: float(e.values[0]) for e in cands.extras if e.present is None or e.present[0]}
-    return fits, extras
-
-
 #: Solutions of a method for the frames of one beacon set.
 CandidatesFn = Callable[[FrameObservations], BatchCandidates]
 
@@ -299,7 +278,7 @@ def settle_batch(
     method: str, candidates: CandidatesFn, detections: Sequence[Detections], camera: CameraModel,
     layout: DeckLayout, options: EstimateOptions, R_world_from_cam: FloatArray, *, refined: bool,
 ) -> list[PoseEstimate | None]:
-    """``method``'s records for the frames the batch settles; None where the frame must be decided alone.
+    """``method``'s records for the frames the batch settles; None where the single-frame path must decide.
 
     Parameters
     ----------
