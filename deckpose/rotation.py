@@ -62,7 +62,7 @@ def zyx_from_R(R: ArrayLike) -> tuple[FloatArray, FloatArray, FloatArray]:
         Rotation matrices.
     """
     M = np.asarray(R, dtype=float)
-    pitch = -np.arcsin(np.clip(M[..., 2, 0], -1.0, 1.0))
+    pitch = -np.arcsin(np.minimum(np.maximum(M[..., 2, 0], -1.0), 1.0))  # (np.clip, without its overhead)
     roll = np.arctan2(M[..., 2, 1], M[..., 2, 2])
     yaw = np.arctan2(M[..., 1, 0], M[..., 0, 0])
     return roll, pitch, yaw

@@ -19,18 +19,18 @@ path, so every result is the one :func:`run_estimator` gives, to rounding.
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable
+from functools import partial
 
 import numpy as np
 from deckpose.estimate import registry
 from deckpose.estimate.conic_batch import conic_candidates_batch
-from deckpose.estimate.observations_batch import group_observations, stack_detections
 from deckpose.estimate.pnp_batch import pnp_candidates_batch
 from deckpose.estimate.pose_checks import check_poses
 from deckpose.estimate.posterior_mean import apply_posterior_mean
 from deckpose.estimate.refine import refine_estimate, refine_estimates_batch
 from deckpose.estimate.registry import EstimateOptions
-from deckpose.estimate.solution_batch import finish_batch
+from deckpose.estimate.solution_batch import settle_batch
 from deckpose.estimate.thesis import estimate_thesis_frames
 from deckpose.estimate.thesis_assumptions import flag_off_centre
 from numpy.typing import NDArray
@@ -88,31 +88,6 @@ def _frame_options(options: EstimateOptions, R: np.ndarray) -> EstimateOptions:
     return dataclasses.replace(options, R_world_from_cam=R)
 
 
-def _least_squares_batch(
-    name: str, dets: Sequence[Detections], camera: CameraModel, layout: DeckLayout,
-    options: EstimateOptions, R_wc: np.ndarray,
-) -> list[PoseEstimate | None]:
-    """``conic`` or ``pnp`` on stacked frames; None where the single-frame path must decide."""
-    out: list[PoseEstimate | None] = [None] * len(dets)
-    groups = group_observations(stack_detections(dets), camera, layout, R_wc, sigma_px=options.sigma_px,
-                                use_detection_covariance=options.use_detection_covariance)
-    for g in groups:
-        with np.errstate(all="ignore"):
-            if name == "conic":
-                cands = conic_candidates_batch(g.observations, layout, options)
-            else:
-                cands = pnp_candidates_batch(g.observations)
-            if not len(cands.fits):
-                continue
-            ests = finish_batch(name, cands, g.observations, g.n_ignored,
-                                ambiguity_chi2=options.ambiguity_chi2, outlier_chi2=options.outlier_chi2,
-                                max_reprojection_rms_px=options.max_reprojection_rms_px,
-                                refined=options.refine if name == "conic" else True)
-        for f, e in zip(g.frames.tolist(), ests):
-            out[f] = e
-    return out
-
-
 def estimate_batch(
     name: str,
     detections: Iterable[Detections],
@@ -150,7 +125,8 @@ def estimate_batch(
     dets = list(detections)
     F = len(dets)
     if R_world_from_cam is None:
-        R_wc = np.broadcast_to(np.asarray(options.R_world_from_cam, dtype=float), (F, 3, 3))
+        R_opt = np.asarray(options.R_world_from_cam, dtype=float)
+        R_wc = R_opt[None] if F == 1 else np.broadcast_to(R_opt, (F, 3, 3))
     else:
         R_wc = np.asarray(R_world_from_cam, dtype=float)
         if R_wc.shape != (F, 3, 3):
@@ -161,8 +137,11 @@ def estimate_batch(
     for lo in range(0, F, CHUNK_FRAMES):
         chunk, R_chunk = dets[lo:lo + CHUNK_FRAMES], np.ascontiguousarray(R_wc[lo:lo + CHUNK_FRAMES])
         got: list[PoseEstimate | None]
-        if name in ("conic", "pnp"):
-            got = _least_squares_batch(name, chunk, camera, layout, options, R_chunk)
+        if name == "conic":
+            got = settle_batch(name, partial(conic_candidates_batch, layout=layout, options=options), chunk,
+                               camera, layout, options, R_chunk, refined=options.refine)
+        elif name == "pnp":
+            got = settle_batch(name, pnp_candidates_batch, chunk, camera, layout, options, R_chunk, refined=True)
         elif name == "thesis":
             got = list(estimate_thesis_frames(chunk, camera, layout, R_chunk))
         else:

@@ -15,9 +15,12 @@ own observations, whitening and camera attitude. Leading axis ``F`` = frames.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Literal, overload
 
+import cv2
 import numpy as np
 from numpy.typing import NDArray
 
@@ -37,6 +40,12 @@ DAMPING_DOWN, DAMPING_FLOOR = 0.1, 1e-12
 DAMPING_UP, DAMPING_CEILING = 10.0, 1e8
 #: Levenberg–Marquardt iterations at most (default).
 MAX_ITERATIONS = 30
+#: Up to this many rotations a loop of ``cv2.Rodrigues`` costs less than the closed form's ufuncs.
+RODRIGUES_LOOP_MAX = 8
+
+
+#: Sign of the translation parameters in the camera-frame offset: (surge, sway, -height).
+_TRANSLATION_SIGN = np.array([1.0, 1.0, -1.0])
 
 
 @dataclass(frozen=True)
@@ -71,6 +80,16 @@ class FrameObservations:
 
     def __len__(self) -> int:
         return int(self.xy.shape[0])
+
+    @cached_property
+    def R_cam_from_world(self) -> FloatArray:
+        """``R_world_from_cam`` transposed, (F, 3, 3) (computed once: every iteration needs it)."""
+        return np.swapaxes(self.R_world_from_cam, 1, 2)
+
+    @cached_property
+    def translation_jacobian(self) -> FloatArray:
+        """d(camera-frame point)/d(surge, sway, height), (F, 1, 3, 3): the same for every point."""
+        return (self.R_cam_from_world * _TRANSLATION_SIGN)[:, None]
 
     def take(self, rows: NDArray[np.int64]) -> FrameObservations:
         """The frames ``rows`` (index array)."""
@@ -110,11 +129,11 @@ class FitBatch:
         n = self.residuals_px.shape[1]
         if n == 0:
             return np.full(self.chi2.shape, np.nan)
-        return np.sqrt(np.sum(self.residuals_px**2, axis=(1, 2)) / n)
+        return np.sqrt((self.residuals_px**2).sum(axis=(1, 2)) / n)
 
     def point_chi2(self) -> FloatArray:
         """Squared Mahalanobis residual of each point, (F, M)."""
-        return np.sum(self.whitened**2, axis=2)
+        return (self.whitened**2).sum(axis=2)
 
     def covariance(self) -> tuple[FloatArray, BoolArray]:
         """``(J^T Sigma^-1 J)^-1`` of each frame and whether it exists (positive definite, finite)."""
@@ -122,7 +141,7 @@ class FitBatch:
 
 
 def _rows_ok(a: FloatArray) -> BoolArray:
-    return np.all(np.isfinite(a), axis=tuple(range(1, a.ndim)))
+    return np.all(np.isfinite(a.reshape(a.shape[0], math.prod(a.shape[1:]))), axis=1)
 
 
 def covariance_from_information(H: FloatArray) -> tuple[FloatArray, BoolArray]:
@@ -282,16 +301,14 @@ def rotation_and_derivatives_batch(angles_rad: FloatArray) -> FloatArray:
     return (_trig_monomials(angles_rad) @ _ROTATION_TABLE).reshape(-1, 4, 3, 3)
 
 
-#: Sign of the translation parameters in the camera-frame offset: (surge, sway, -height).
-_TRANSLATION_SIGN = np.array([1.0, 1.0, -1.0])
+def _camera_points(params: FloatArray, points_deck_m: FloatArray, R_cw: FloatArray,
+                   d_translation: FloatArray | None) -> tuple[FloatArray, FloatArray | None]:
+    """Camera-frame points (F, M, 3) and, given ``d_translation`` (F, 1, 3, 3), their derivatives (F, M, 3, 6).
 
-
-def _camera_points(params: FloatArray, points_deck_m: FloatArray, R_world_from_cam: FloatArray,
-                   jacobian: bool) -> tuple[FloatArray, FloatArray | None]:
-    """Camera-frame points (F, M, 3) and, with ``jacobian``, their derivatives (F, M, 3, 6)."""
-    R_cw = np.swapaxes(R_world_from_cam, 1, 2)
+    ``R_cw`` (F, 3, 3) is ``R_cam_from_world``.
+    """
     d = R_cw @ (params[:, 3:] * _TRANSLATION_SIGN)[:, :, None]  # (F, 3, 1)
-    if not jacobian:
+    if d_translation is None:
         Rs = R_cw @ rotation_batch(params[:, :3])
         return np.swapaxes(Rs @ points_deck_m.T + d, 1, 2), None
     Rs = R_cw[:, None] @ rotation_and_derivatives_batch(params[:, :3])  # (F, 4, 3, 3)
@@ -302,7 +319,7 @@ def _camera_points(params: FloatArray, points_deck_m: FloatArray, R_world_from_c
     Pc = Q[:, :, :, 0] + d[:, None, :, 0]
     dP = np.empty((F, M, 3, 6))
     dP[:, :, :, :3] = Q[:, :, :, 1:]
-    dP[:, :, :, 3:] = (R_cw * _TRANSLATION_SIGN)[:, None]
+    dP[:, :, :, 3:] = d_translation
     return Pc, dP
 
 
@@ -324,7 +341,14 @@ def project_normalised_batch(
     J : (F, M, 2, 6) array of float or None
     depth_m : (F, M) array of float
     """
-    Pc, dP = _camera_points(params, points_deck_m, R_world_from_cam, jacobian)
+    R_cw = np.swapaxes(R_world_from_cam, 1, 2)
+    return _project(params, points_deck_m, R_cw, (R_cw * _TRANSLATION_SIGN)[:, None] if jacobian else None)
+
+
+def _project(params: FloatArray, points_deck_m: FloatArray, R_cw: FloatArray, d_translation: FloatArray | None
+             ) -> tuple[FloatArray, FloatArray | None, FloatArray]:
+    """:func:`project_normalised_batch` from ``R_cam_from_world`` and, for the Jacobian, the translation block."""
+    Pc, dP = _camera_points(params, points_deck_m, R_cw, d_translation)
     Z = Pc[:, :, 2]
     invZ = 1.0 / Z[:, :, None]
     xy = Pc[:, :, :2] * invZ
@@ -347,7 +371,8 @@ def _whitened(params: FloatArray, obs: FrameObservations, jacobian: Literal[Fals
 def _whitened(params: FloatArray, obs: FrameObservations, jacobian: bool = True
               ) -> tuple[FloatArray, FloatArray | None, BoolArray, FloatArray]:
     """Whitened residuals (F, M, 2), whitened Jacobian (F, M, 2, 6), all-in-front (F,), raw residuals (F, M, 2)."""
-    xy, J, Z = project_normalised_batch(params, obs.points_deck_m, obs.R_world_from_cam, jacobian=jacobian)
+    xy, J, Z = _project(params, obs.points_deck_m, obs.R_cam_from_world,
+                        obs.translation_jacobian if jacobian else None)
     front = np.all(Z > 0, axis=1)
     res = xy - obs.xy
     r = (obs.sqrt_info @ res[:, :, :, None])[:, :, :, 0]
@@ -359,7 +384,7 @@ def _whitened(params: FloatArray, obs: FrameObservations, jacobian: bool = True
 def chi2_batch(params: FloatArray, obs: FrameObservations) -> FloatArray:
     """Sum of squared whitened residuals per frame (inf where a point is behind the camera)."""
     r, _, front, _ = _whitened(params, obs, jacobian=False)
-    c = np.sum(r * r, axis=(1, 2))
+    c = (r * r).sum(axis=(1, 2))
     return np.where(front & np.isfinite(c), c, np.inf)
 
 
@@ -377,15 +402,12 @@ def evaluate_fit_batch(params: FloatArray, obs: FrameObservations,
     """The fit quantities at ``params`` (F, 6) without iterating."""
     r, Jw, front, res = _whitened(params, obs)
     H, g = _normal_equations(r, Jw)
-    chi2 = np.where(front, np.sum(r * r, axis=(1, 2)), np.inf)
+    chi2 = np.where(front, (r * r).sum(axis=(1, 2)), np.inf)
     res_px = (obs.px_from_norm @ res[:, :, :, None])[:, :, :, 0]
     F = params.shape[0]
     return FitBatch(np.array(params, dtype=float), chi2, H, r, res_px, g,
                     np.zeros(F, dtype=np.int64) if iterations is None else iterations,
                     np.ones(F, dtype=bool) if converged is None else converged)
-
-
-_DIAGONAL = (np.arange(6), np.arange(6))
 
 
 def levenberg_marquardt_batch(params0: FloatArray, obs: FrameObservations, *,
@@ -419,8 +441,9 @@ def levenberg_marquardt_batch(params0: FloatArray, obs: FrameObservations, *,
                 sub, r_a, J_a, lam_a, cost_a = obs.take(active), r[active], Jw[active], lam[active], cost[active]
                 it[active] += 1
             H, g = _normal_equations(r_a, J_a)
-            dH = H[:, _DIAGONAL[0], _DIAGONAL[1]]
-            H[:, _DIAGONAL[0], _DIAGONAL[1]] += lam_a[:, None] * dH
+            H_flat = H.reshape(-1, 36)  # (a view: H is a fresh product) the diagonal is every 7th entry
+            dH = H_flat[:, ::7].copy()
+            H_flat[:, ::7] += lam_a[:, None] * dH
             neg_step, solved = solve_batch(H, g)
             p_new = (p if everyone else p[active]) - neg_step
             r_new, J_new, front_new, res_new = _whitened(p_new, sub)
@@ -454,7 +477,7 @@ def levenberg_marquardt_batch(params0: FloatArray, obs: FrameObservations, *,
     # frame's were computed at its ``p``, where all points lie in front unless the start failed)
     H, g = _normal_equations(r, Jw)
     res_px = (obs.px_from_norm @ res[:, :, :, None])[:, :, :, 0]
-    fit = FitBatch(p, np.where(start_ok, np.sum(r * r, axis=(1, 2)), np.inf), H, r, res_px, g, it, converged)
+    fit = FitBatch(p, np.where(start_ok, (r * r).sum(axis=(1, 2)), np.inf), H, r, res_px, g, it, converged)
     if not start_ok.all():
         bad = ~start_ok
         chi2 = fit.chi2.copy()
@@ -493,15 +516,21 @@ def rotation_vectors(R: FloatArray) -> FloatArray:
     """Rodrigues vectors (F, 3) of rotation matrices (F, 3, 3), as ``cv2.Rodrigues`` gives them.
 
     Rotations within 1e-5 (in ``sin``) of 0 or pi, where the closed form loses
-    precision, are handed to ``cv2.Rodrigues`` one by one.
+    precision, are handed to ``cv2.Rodrigues`` one by one, and so are up to
+    :data:`RODRIGUES_LOOP_MAX` rotations (a lone frame's), where the loop costs less
+    than the closed form's ufuncs. NaN where a matrix is not finite.
     """
-    import cv2
-
+    if R.shape[0] <= RODRIGUES_LOOP_MAX:
+        out = np.full((R.shape[0], 3), np.nan)
+        for i in range(R.shape[0]):
+            if np.isfinite(R[i]).all():
+                out[i] = cv2.Rodrigues(np.ascontiguousarray(R[i]))[0].ravel()
+        return out
     flat = R.reshape(-1, 9)
     # the skew part (R - R^T) / 2 as a vector: entries (2,1)-(1,2), (0,2)-(2,0), (1,0)-(0,1)
     v = flat[:, [7, 2, 3]] - flat[:, [5, 6, 1]]
-    s = np.sqrt(np.sum(v * v, axis=1) * 0.25)
-    c = np.clip((flat[:, 0] + flat[:, 4] + flat[:, 8] - 1.0) * 0.5, -1.0, 1.0)
+    s = np.sqrt((v * v).sum(axis=1) * 0.25)
+    c = np.minimum(np.maximum((flat[:, 0] + flat[:, 4] + flat[:, 8] - 1.0) * 0.5, -1.0), 1.0)
     theta = np.arccos(c)
     special = ~(s >= 1e-5)
     with np.errstate(divide="ignore", invalid="ignore"):

@@ -75,6 +75,10 @@ class StackedDetections:
 
 def stack_detections(detections: Sequence[Detections]) -> StackedDetections:
     """Concatenate the frames' detections (no copies of the records' own arrays are kept)."""
+    if len(detections) == 1:  # a lone frame: its arrays are the stack
+        d = detections[0]
+        return StackedDetections(np.array([len(d)], dtype=np.int64), np.zeros(1, dtype=np.int64),
+                                 d.points_px, d.beacon_ids, d.covariance_px2)
     counts = np.fromiter((len(d) for d in detections), dtype=np.int64, count=len(detections))
     starts = np.zeros_like(counts)
     np.cumsum(counts[:-1], out=starts[1:])
@@ -141,33 +145,43 @@ def group_observations(
         in a group with ``M = 0``).
     """
     F = stacked.counts.size
-    frame_of = stacked.frame_of
     ids_all = stacked.beacon_ids
     pts_all = stacked.points_px
     raw = stacked.covariance_px2
     distorted = camera.has_distortion
-    own = use_detection_covariance & ~_per_frame_all(np.all(raw == _EYE2, axis=(1, 2)), frame_of, F)
-    has_any = stacked.counts > 0
-    own &= has_any
-    any_own = bool(own.any())
-    cov = raw if own.all() else np.where(own[frame_of, None, None], raw, _EYE2 * sigma_px**2)
-    # One isotropic sigma for the whole frame (the single-frame fast path).
-    iso = np.zeros(F, dtype=bool)
-    sigma_iso = np.full(F, np.nan)
-    has = np.flatnonzero(has_any)
-    if has.size and not any_own and 0.0 < sigma_px**2 < np.inf:  # every frame at sigma_px**2 * I
-        iso[has] = True
-        sigma_iso[has] = np.sqrt(sigma_px**2)
-    elif has.size:
-        c0 = cov[stacked.starts[has]]
-        with np.errstate(invalid="ignore"):
-            first_iso = ((c0[:, 0, 1] == 0.0) & (c0[:, 1, 0] == 0.0) & (c0[:, 0, 0] == c0[:, 1, 1])
-                         & (c0[:, 0, 0] > 0) & np.isfinite(c0[:, 0, 0]))
-        c0_full = np.zeros((F, 2, 2))
-        c0_full[has] = c0
-        same = _per_frame_all(np.all(cov == c0_full[frame_of], axis=(1, 2)), frame_of, F)
-        iso[has] = first_iso & same[has]
-        sigma_iso[iso] = np.sqrt(c0_full[iso, 0, 0])
+    if F == 1:  # a lone frame: its own covariances or not, isotropic or not, without per-frame reductions
+        frame_of = np.zeros(ids_all.size, dtype=np.int64)
+        own1 = bool(use_detection_covariance and ids_all.size and not np.all(raw == _EYE2))
+        cov = raw if own1 else np.broadcast_to(_EYE2 * sigma_px**2, raw.shape)
+        c0 = cov[0] if ids_all.size else _EYE2
+        iso1 = bool(ids_all.size and c0[0, 1] == 0.0 and c0[1, 0] == 0.0 and c0[0, 0] == c0[1, 1]
+                    and 0.0 < c0[0, 0] < np.inf and (not own1 or np.all(cov == c0)))
+        iso = np.array([iso1])
+        sigma_iso = np.array([np.sqrt(c0[0, 0]) if iso1 else np.nan])
+    else:
+        frame_of = stacked.frame_of
+        own = use_detection_covariance & ~_per_frame_all(np.all(raw == _EYE2, axis=(1, 2)), frame_of, F)
+        has_any = stacked.counts > 0
+        own &= has_any
+        any_own = bool(own.any())
+        cov = raw if own.all() else np.where(own[frame_of, None, None], raw, _EYE2 * sigma_px**2)
+        # One isotropic sigma for the whole frame (the single-frame fast path).
+        iso = np.zeros(F, dtype=bool)
+        sigma_iso = np.full(F, np.nan)
+        has = np.flatnonzero(has_any)
+        if has.size and not any_own and 0.0 < sigma_px**2 < np.inf:  # every frame at sigma_px**2 * I
+            iso[has] = True
+            sigma_iso[has] = np.sqrt(sigma_px**2)
+        elif has.size:
+            c0 = cov[stacked.starts[has]]
+            with np.errstate(invalid="ignore"):
+                first_iso = ((c0[:, 0, 1] == 0.0) & (c0[:, 1, 0] == 0.0) & (c0[:, 0, 0] == c0[:, 1, 1])
+                             & (c0[:, 0, 0] > 0) & np.isfinite(c0[:, 0, 0]))
+            c0_full = np.zeros((F, 2, 2))
+            c0_full[has] = c0
+            same = _per_frame_all(np.all(cov == c0_full[frame_of], axis=(1, 2)), frame_of, F)
+            iso[has] = first_iso & same[has]
+            sigma_iso[iso] = np.sqrt(c0_full[iso, 0, 0])
     keep = (ids_all >= 0) & (ids_all < layout.n_beacons) & np.isfinite(pts_all).all(axis=1)
     iso_point = iso[frame_of]
     if not iso_point.all():  # a frame with its own covariances: each must be a valid one
@@ -222,9 +236,17 @@ def group_observations(
             index, fidx, xy, D, L = index[sel], fidx[sel], xy[sel], np.asarray(D)[sel], L[sel]
             general = general[sel]
             n = index.size
-    used = np.bincount(fidx, minlength=F)
     ids = ids_all[index]
     pos = layout_positions_m(layout)
+    D = np.ascontiguousarray(D)
+    if F == 1:  # a lone frame is its own group: no grouping, its arrays are the stack
+        if ids.size and not general[0]:
+            Lg, Dg = L[None, :1], D[None, :1]
+        else:
+            Lg, Dg = L[None], D[None]
+        obs = FrameObservations(ids, pos[ids], xy[None], Lg, Dg, R_world_from_cam)
+        return [ObservationGroup(np.zeros(1, dtype=np.int64), obs, stacked.counts - ids.size)]
+    used = np.bincount(fidx, minlength=F)
     first = np.zeros_like(used)
     np.cumsum(used[:-1], out=first[1:])
     groups: dict[bytes, list[int]] = {}
@@ -232,7 +254,6 @@ def group_observations(
         key = ids[first[f]:first[f] + used[f]].tobytes()
         groups.setdefault(key, []).append(f)
     out = []
-    D = np.ascontiguousarray(D)
     for key, members in groups.items():
         fr = np.array(members, dtype=np.int64)
         g_ids = np.frombuffer(key, dtype=np.int64).copy()
@@ -246,3 +267,4 @@ def group_observations(
         obs = FrameObservations(g_ids, pos[g_ids], xy[rows], Lg, Dg, R_world_from_cam[fr])
         out.append(ObservationGroup(fr, obs, stacked.counts[fr] - used[fr]))
     return out
+

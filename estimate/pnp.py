@@ -50,18 +50,19 @@ def poses_close(a: np.ndarray, b: np.ndarray, tol: float) -> np.ndarray:
 
     Parameters
     ----------
-    a, b : (F, 6) array of float
-        Pose parameters; the translation tolerance scales with ``1 + |a's height|``.
+    a, b : (..., 6) array of float
+        Pose parameters (broadcast against each other); the translation tolerance
+        scales with ``1 + |a's height|``.
     tol : float
 
     Returns
     -------
-    (F,) array of bool
+    (...) array of bool
         False where a value is NaN.
     """
     d = np.abs(a - b)
-    d[:, :3] = np.abs(wrap_angle_rad(d[:, :3]))  # (comparisons with NaN raise no warning)
-    return np.all(d[:, :3] < tol, axis=1) & np.all(d[:, 3:] < tol * (1 + np.abs(a[:, 5:6])), axis=1)
+    d[..., :3] = np.abs(wrap_angle_rad(d[..., :3]))  # (comparisons with NaN raise no warning)
+    return np.logical_and((d[..., :3] < tol).all(axis=-1), (d[..., 3:] < tol * (1 + np.abs(a[..., 5:6]))).all(axis=-1))
 
 
 def _same(a: np.ndarray, b: np.ndarray) -> bool:

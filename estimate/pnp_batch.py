@@ -8,9 +8,12 @@ the order :func:`estimate.pnp.pnp_candidates` uses.
 
 from __future__ import annotations
 
+import math
+
 import cv2
 import numpy as np
 from deckpose.estimate.least_squares_batch import (
+    RODRIGUES_LOOP_MAX,
     FitBatch,
     FrameObservations,
     chi2_batch,
@@ -36,8 +39,17 @@ def rotation_matrices(rvec: FloatArray) -> FloatArray:
     """Rotation matrices (F, 3, 3) of Rodrigues vectors (F, 3), as ``cv2.Rodrigues`` gives them.
 
     ``R = cos(t) I + (1 - cos(t)) k k^T + sin(t) [k]x`` with ``t = |rvec|``, ``k = rvec / t``
-    (the identity for ``t = 0``), written out: a few ufuncs on (F,) columns, no per-call objects.
+    (the identity for ``t = 0``), written out: a few ufuncs on (F,) columns, no per-call objects;
+    up to :data:`RODRIGUES_LOOP_MAX` vectors (a lone frame's three starts) by ``cv2.Rodrigues``
+    itself. NaN where a vector is not finite.
     """
+    n = rvec.shape[0]
+    if n <= RODRIGUES_LOOP_MAX:
+        R = np.full((n, 3, 3), np.nan)
+        for i, v in enumerate(rvec.tolist()):
+            if math.isfinite(v[0] + v[1] + v[2]):
+                R[i] = cv2.Rodrigues(np.array(v))[0]
+        return R
     x, y, z = rvec[:, 0], rvec[:, 1], rvec[:, 2]
     t = np.sqrt(x * x + y * y + z * z)
     zero = t == 0
@@ -46,7 +58,7 @@ def rotation_matrices(rvec: FloatArray) -> FloatArray:
     kx, ky, kz = x * inv, y * inv, z * inv
     c, s = np.cos(t), np.sin(t)
     c1 = 1.0 - c
-    R = np.empty((rvec.shape[0], 3, 3))
+    R = np.empty((n, 3, 3))
     R[:, 0, 0] = c + c1 * kx * kx
     R[:, 0, 1] = c1 * kx * ky - s * kz
     R[:, 0, 2] = c1 * kx * kz + s * ky
@@ -60,7 +72,7 @@ def rotation_matrices(rvec: FloatArray) -> FloatArray:
 
 
 def _opencv_starts(obs: FrameObservations) -> tuple[FloatArray, BoolArray, FloatArray, BoolArray]:
-    """IPPE's two and SQPnP's solution per frame: rvecs/tvecs (F, 3 slots, 6), present, IPPE errors."""
+    """IPPE's two and SQPnP's solution per frame: rvecs/tvecs (F, 3 slots, 6), present, IPPE errors, failed."""
     F = len(obs)
     obj = np.ascontiguousarray(obs.points_deck_m, dtype=np.float64)
     rt = np.full((F, 3, 6), np.nan)  # slots: SQPnP, IPPE 1, IPPE 2
@@ -76,10 +88,11 @@ def _opencv_starts(obs: FrameObservations) -> tuple[FloatArray, BoolArray, Float
         except cv2.error:
             failed[i] = True
             continue
-        for j in range(min(int(n), 2)):
-            rt[i, 1 + j, :3] = rvecs[j].ravel()
-            rt[i, 1 + j, 3:] = tvecs[j].ravel()
-            present[i, 1 + j] = True
+        k = min(int(n), 2)
+        if k:
+            rt[i, 1:1 + k, :3] = np.concatenate(rvecs[:k], axis=1).T
+            rt[i, 1:1 + k, 3:] = np.concatenate(tvecs[:k], axis=1).T
+            present[i, 1:1 + k] = True
         if n >= 2:
             errs[i] = np.asarray(e, dtype=float).ravel()[:2]
         if ok:
@@ -111,12 +124,11 @@ def pnp_candidates_batch(obs: FrameObservations) -> BatchCandidates:
               Extra("ippe_alt_height_m", starts[:, 2, 5], n_ippe2))
     # SQPnP joins (in front) unless it repeats an IPPE solution; then non-finite starts drop out.
     # (both IPPE slots against SQPnP's in one call: rows (F, 2) flattened)
-    same = poses_close(np.repeat(starts[:, 0], 2, axis=0), starts[:, 1:].reshape(-1, 6),
-                       SAME_TOL).reshape(F, 2)
-    dup = np.any(present[:, 1:] & same, axis=1)
+    same = poses_close(starts[:, :1], starts[:, 1:], SAME_TOL)  # (F, 2)
+    dup = (present[:, 1:] & same).any(axis=1)
     valid = present.copy()
     valid[:, 0] &= ~dup
-    valid &= np.all(np.isfinite(starts), axis=2)
+    valid &= np.isfinite(starts).all(axis=2)
     # Evaluate every valid start, order them by chi2 (stable), refine the best.
     rows_s, slot_s = np.nonzero(valid)
     chi_raw = np.full((F, 3), np.inf)
@@ -133,8 +145,7 @@ def pnp_candidates_batch(obs: FrameObservations) -> BatchCandidates:
     alt_raw = starts[ar[:, None], alt_slots]  # (F, 2, 6)
     with np.errstate(invalid="ignore"):
         competing = ((n_valid[:, None] > np.array([1, 2]))
-                     & ~poses_close(alt_raw.reshape(-1, 6), np.repeat(fit0.params, 2, axis=0),
-                                    BASIN_TOL).reshape(F, 2)
+                     & ~poses_close(alt_raw, fit0.params[:, None], BASIN_TOL)
                      & (chi_raw[ar[:, None], alt_slots] < (fit0.chi2 + ALT_MARGIN_CHI2)[:, None]))
     for pos in (1, 2):
         compete = competing[:, pos - 1]

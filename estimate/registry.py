@@ -13,6 +13,7 @@ failures (too few beacons, degenerate geometry) come back as a falsy
 
 from __future__ import annotations
 
+import functools
 import importlib
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -133,7 +134,9 @@ def register(name: str) -> Callable[[EstimatorFn], EstimatorFn]:
     return deco
 
 
+@functools.cache
 def _load_builtins() -> None:
+    """Import the built-in estimators' modules, once (a lone frame pays for every look-up)."""
     for mod in _BUILTIN_MODULES:
         importlib.import_module(mod)
 

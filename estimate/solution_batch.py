@@ -10,6 +10,7 @@ ambiguity, or says why it failed).
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,10 +22,14 @@ from deckpose.estimate.least_squares_batch import (
     rotation_vectors,
     solve_batch,
 )
+from deckpose.estimate.observations_batch import group_observations, stack_detections
+from deckpose.estimate.registry import EstimateOptions
 from deckpose.estimate.solution import ambiguity_resolved, covariance_scale, pose_constrained
 from numpy.typing import NDArray
 
-from deckpose.records import POSE_PARAMS, PoseEstimate
+from deckpose.camera import CameraModel
+from deckpose.layout import DeckLayout
+from deckpose.records import POSE_PARAMS, Detections, PoseEstimate
 from deckpose.rotation import wrap_angle_rad
 
 FloatArray = NDArray[np.float64]
@@ -148,24 +153,33 @@ def pick_batch(cands: BatchCandidates, *, ambiguity_chi2: float) -> PickBatch:
     best_p = cands.fits[0].params if K == 1 else _take(params, kb)
     cov, cov_ok = covariance_from_information(_select(cands.fits, "information", kb))
     unresolved = np.zeros(F, dtype=bool)
-    alt_p, dchi2, maha = np.full((F, 6), np.nan), np.full(F, np.nan), np.full(F, np.nan)
-    if K >= 2:
-        has_alt = n_good >= 2
-        ka = order[:, 1]
-        alt_p = _take(params, ka)
-        dchi2 = _take(chi2, ka) - _take(chi2, kb)
-        delta = alt_p - best_p
-        delta[:, :3] = wrap_angle_rad(delta[:, :3])
-        rows = np.flatnonzero(has_alt & cov_ok)
-        maha = np.full(F, np.inf)
-        if rows.size:
-            x, solved = solve_batch(cov[rows], delta[rows])
-            maha[rows] = np.sqrt(np.sum(delta[rows] * x, axis=1))
-            unresolved[rows[~solved]] = True
-        with np.errstate(invalid="ignore"):
-            resolved = ambiguity_resolved(dchi2, maha, ambiguity_chi2)
-        unresolved |= has_alt & ~resolved
+    if K < 2:  # no runner-up
+        return PickBatch(kb, n_good, best_p, cov, cov_ok, np.full((F, 6), np.nan), np.full(F, np.nan),
+                         np.full(F, np.nan), unresolved)
+    has_alt = n_good >= 2
+    ka = order[:, 1]
+    alt_p = _take(params, ka)
+    dchi2 = _take(chi2, ka) - _take(chi2, kb)
+    delta = alt_p - best_p
+    delta[:, :3] = wrap_angle_rad(delta[:, :3])
+    rows = np.flatnonzero(has_alt & cov_ok)
+    maha = np.full(F, np.inf)
+    if rows.size:
+        x, solved = solve_batch(cov[rows], delta[rows])
+        maha[rows] = np.sqrt(np.sum(delta[rows] * x, axis=1))
+        unresolved[rows[~solved]] = True
+    with np.errstate(invalid="ignore"):
+        resolved = ambiguity_resolved(dchi2, maha, ambiguity_chi2)
+    unresolved |= has_alt & ~resolved
     return PickBatch(kb, n_good, best_p, cov, cov_ok, alt_p, dchi2, maha, unresolved)
+
+
+#: The ambiguity's extras, in the order of the record (:func:`estimate.solution.pick_candidate`).
+_AMBIGUITY_EXTRAS = ("ambiguity_delta_chi2", "ambiguity_mahalanobis", "alt_roll_rad", "alt_pitch_rad",
+                     "alt_yaw_rad", "alt_height_m")
+#: The extras after the method's own, in the order of the record (:func:`estimate.solution.make_estimate`).
+_TAIL_EXTRAS = (("reprojection_rms_px", "chi2", "dof") + tuple("sigma_" + n for n in POSE_PARAMS)
+                + tuple(name for ax in "xyz" for name in (f"rvec_cam_from_deck_{ax}", f"t_cam_from_deck_{ax}_m")))
 
 
 def finish_batch(
@@ -198,17 +212,17 @@ def finish_batch(
     whitened = _select(cands.fits, "whitened", kb)
     res_px = _select(cands.fits, "residuals_px", kb)
     with np.errstate(invalid="ignore"):
-        pc = np.sum(whitened**2, axis=2)
-        max_pc = np.max(pc, axis=1)
+        pc = (whitened**2).sum(axis=2)
+        max_pc = pc.max(axis=1)
         # solution.make_estimate widens the covariance when the residuals exceed it alike
         scale = covariance_scale(pc)
-        rms = np.sqrt(np.sum(res_px**2, axis=(1, 2)) / res_px.shape[1])
+        rms = np.sqrt((res_px**2).sum(axis=(1, 2)) / res_px.shape[1])
         fallback |= ~(max_pc <= outlier_chi2)
         fallback |= ~np.isfinite(rms) | (rms > max_reprojection_rms_px)
     cov = cov * scale[:, None, None]
-    R_cd, t_cd = relative_from_params_batch(np.nan_to_num(best_p), obs.R_world_from_cam)
+    R_cd, t_cd = relative_from_params_batch(np.where(np.isfinite(best_p), best_p, 0.0), obs.R_world_from_cam)
     rvec = rotation_vectors(R_cd)
-    sig = np.sqrt(np.diagonal(cov, axis1=1, axis2=2))
+    sig = np.sqrt(cov.reshape(F, 36)[:, ::7])  # the diagonals (``cov`` is a fresh product)
     fallback |= ~pose_constrained(best_p, sig)  # the single-frame path flags them not ok
     M = obs.xy.shape[1]
     n_points = float(M)
@@ -217,20 +231,17 @@ def finish_batch(
     dof = float(2 * M - 6)
     pre = [(e.name, e.values.tolist(), None if e.present is None else e.present.tolist())
            for e in cands.extras]
-    ambiguity = ("ambiguity_delta_chi2", "ambiguity_mahalanobis", "alt_roll_rad", "alt_pitch_rad",
-                 "alt_yaw_rad", "alt_height_m")
-    amb_cols = [dchi2.tolist(), maha.tolist(), alt_p[:, 0].tolist(), alt_p[:, 1].tolist(),
-                alt_p[:, 2].tolist(), alt_p[:, 5].tolist()]
-    tail_names = ["reprojection_rms_px", "chi2", "dof"] + ["sigma_" + n for n in POSE_PARAMS]
-    for ax in "xyz":
-        tail_names += [f"rvec_cam_from_deck_{ax}", f"t_cam_from_deck_{ax}_m"]
+    ambiguity = _AMBIGUITY_EXTRAS
+    alt_list = has_alt.tolist()
+    amb_cols = ([dchi2.tolist(), maha.tolist(), alt_p[:, 0].tolist(), alt_p[:, 1].tolist(),
+                 alt_p[:, 2].tolist(), alt_p[:, 5].tolist()] if any(alt_list) else [])
+    tail_names = _TAIL_EXTRAS
     tail_cols = [rms.tolist(), best_chi2.tolist(), [dof] * F] + [sig[:, j].tolist() for j in range(6)]
     for j in range(3):
         tail_cols += [rvec[:, j].tolist(), t_cd[:, j].tolist()]
     p_list = best_p.tolist()
     n_ign = n_ignored.tolist()
     n_sol = n_good.astype(float).tolist()
-    alt_list = has_alt.tolist()
     fb = fallback.tolist()
     scale_list = scale.tolist()
     out: list[PoseEstimate | None] = []
@@ -256,4 +267,48 @@ def finish_batch(
         out.append(PoseEstimate(
             method=method, ok=True, roll_rad=p[0], pitch_rad=p[1], yaw_rad=p[2], height_m=p[5],
             surge_m=p[3], sway_m=p[4], covariance=cov[i], inliers=ids, extras=ex))
+    return out
+
+
+#: Solutions of a method for the frames of one beacon set.
+CandidatesFn = Callable[[FrameObservations], BatchCandidates]
+
+
+def settle_batch(
+    method: str, candidates: CandidatesFn, detections: Sequence[Detections], camera: CameraModel,
+    layout: DeckLayout, options: EstimateOptions, R_world_from_cam: FloatArray, *, refined: bool,
+) -> list[PoseEstimate | None]:
+    """``method``'s records for the frames the batch settles; None where the single-frame path must decide.
+
+    Parameters
+    ----------
+    method : str
+    candidates : callable
+        ``candidates(observations)``: the method's solutions for the frames of one beacon set.
+    detections : sequence of F Detections
+    camera, layout, options
+    R_world_from_cam : (F, 3, 3) array of float
+    refined : bool, keyword-only
+        The records' ``refined`` extra.
+
+    Returns
+    -------
+    list of F PoseEstimate or None
+    """
+    out: list[PoseEstimate | None] = [None] * len(detections)
+    groups = group_observations(stack_detections(detections), camera, layout, R_world_from_cam,
+                                sigma_px=options.sigma_px,
+                                use_detection_covariance=options.use_detection_covariance)
+    for g in groups:
+        with np.errstate(all="ignore"):
+            cands = candidates(g.observations)
+            if not len(cands.fits):
+                continue
+            ests = finish_batch(method, cands, g.observations, g.n_ignored,
+                                ambiguity_chi2=options.ambiguity_chi2, outlier_chi2=options.outlier_chi2,
+                                max_reprojection_rms_px=options.max_reprojection_rms_px, refined=refined)
+        if len(groups) == 1 and g.frames.size == len(detections):
+            return ests  # one beacon set (a lone frame, or every beacon seen): the frames in order
+        for f, e in zip(g.frames.tolist(), ests):
+            out[f] = e
     return out

@@ -222,13 +222,20 @@ def test_estimate_many_is_the_batch_and_checks_attitudes():
 @pytest.mark.parametrize("refine", [False, True])
 def test_clean_frames_stay_in_the_batch(method, refine):
     """The single-frame path is only the fallback: clean frames, even at 2 px and 80 m, are batched."""
-    from deckpose.estimate.batch import _least_squares_batch
+    from functools import partial
+
+    from deckpose.estimate.conic_batch import conic_candidates_batch
+    from deckpose.estimate.pnp_batch import pnp_candidates_batch
+    from deckpose.estimate.solution_batch import settle_batch
 
     camera = preset("4mp")
     frames = _random_frames(np.random.default_rng(9), 200, camera, 2.0, heights=(70.0, 80.0))
     opts = EstimateOptions(sigma_px=2.0, refine=refine)
     R = np.broadcast_to(opts.R_world_from_cam, (len(frames), 3, 3))
-    got = _least_squares_batch(method, frames, camera, LAYOUT, opts, np.ascontiguousarray(R))
+    candidates = (partial(conic_candidates_batch, layout=LAYOUT, options=opts) if method == "conic"
+                  else pnp_candidates_batch)
+    got = settle_batch(method, candidates, frames, camera, LAYOUT, opts, np.ascontiguousarray(R),
+                       refined=refine if method == "conic" else True)
     assert sum(e is None for e in got) <= 4
 
 
