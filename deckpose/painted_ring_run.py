@@ -28,14 +28,14 @@ import pandas as pd
 
 from deckpose.errors import InputDataError
 from deckpose.painted_ring import PaintedRing, painted_ring_from_dict
-from deckpose.run_folder import RunPaths, read_cameras, read_frames
+from deckpose.run_folder import RING_DETECTOR, RunPaths, read_cameras, read_frames
 from deckpose.table_schemas import PAINTED_RING_BOUND_COLUMNS, RING_DETECTION_COLUMNS, typed_frame
 from deckpose.tables import write_table
 
 __all__ = ["DETECTOR", "PaintedRingRunResult", "bound_row", "painted_ring_of_run", "painted_ring_run", "read_bounds"]
 
 #: The ring-edge detector's name in the run folder.
-DETECTOR = "ring-edges"
+DETECTOR = RING_DETECTOR
 
 
 @dataclass(frozen=True)

@@ -50,6 +50,9 @@ DATASET_FORMAT = "deckpose-dataset/1"
 DETECTIONS_FORMAT = "deckpose-detections/1"
 #: Between the detector and the method in an estimates file name (``cog--pnp.parquet``).
 SEPARATOR = "--"
+#: The painted ring's edge detector (``deckpose painted-ring``): its detections table is one row
+#: per frame (fitted ellipses), not beacons, so :meth:`RunPaths.detectors` leaves it out.
+RING_DETECTOR = "ring-edges"
 #: The folders of the cameras' ROS camera_info files and of the frames' images.
 CAMERAS_DIR, IMAGES_DIR, PREVIEWS_DIR = "cameras", "images", "previews"
 
@@ -187,7 +190,7 @@ class RunPaths:
         # a hidden name is a writer's temporary file (atomic_io), never a stage output
         return sorted(p.stem for p in d.glob("*.parquet")
                       if not p.name.endswith(".frames.parquet") and not p.name.startswith(".")
-                      ) if d.is_dir() else []
+                      and p.stem != RING_DETECTOR) if d.is_dir() else []
 
     def estimate_pairs(self) -> list[tuple[str, str]]:
         """``(detector, method)`` pairs with estimates in this run."""
@@ -196,7 +199,7 @@ class RunPaths:
             return []
         pairs = []
         for p in sorted(d.glob(f"*{SEPARATOR}*.parquet")):
-            if p.name.startswith("."):  # a writer's temporary file
+            if p.name.startswith(".") or "." in p.stem:  # a writer's temporary file; a side table (.bound)
                 continue
             det, _, method = p.stem.partition(SEPARATOR)
             pairs.append((det, method))

@@ -88,12 +88,14 @@ def plot_error_vs_resolution(table: pd.DataFrame, sizes_px: dict[str, tuple[int,
         sub = t[(t.detector == det) & (t.method == method)]
         for row, (q, label) in enumerate(quantities):
             ax = axes[row, col]
+            positive = False  # a log axis needs a positive value (one frame has a sigma of 0)
             for h in heights:
                 g = sub[sub.table_height_m == h].sort_values("megapixels")
                 if g.empty:
                     continue
                 n = g.n_frames.to_numpy(float) * (1.0 - g.failure_rate.to_numpy(float))
                 y = g[f"sigma_{q}"].to_numpy(float)
+                positive |= bool(np.any(np.isfinite(y) & (y > 0)))
                 se = y / np.sqrt(2.0 * np.maximum(n - 1.0, 1.0))
                 ax.errorbar(g.megapixels, y, yerr=se, fmt="-", color=colour[h], lw=1.2, capsize=2,
                             label=f"{h:g} m")
@@ -109,7 +111,7 @@ def plot_error_vs_resolution(table: pd.DataFrame, sizes_px: dict[str, tuple[int,
                         ax.annotate(f"{n_:.0f}", (x_, y_), xytext=(3, 3), textcoords="offset points",
                                     fontsize=6, color=colour[h])
             ax.set_xscale("log")
-            ax.set_yscale("log")
+            ax.set_yscale("log" if positive else "linear")
             mps = sorted(t.megapixels.unique())
             ax.set_xticks(mps, [f"{m:.2g}" for m in mps], minor=False)
             ax.set_xticks([], minor=True)

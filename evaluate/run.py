@@ -7,7 +7,7 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import pandas as pd
-from deckpose.evaluate.errors import run_errors
+from deckpose.evaluate.errors import frame_errors, run_errors
 from deckpose.evaluate.resolution_tables import resolution_markdown, resolution_table
 
 from deckpose import run_folder as rl
@@ -62,8 +62,14 @@ def compute_errors(run: rl.RunPaths) -> pd.DataFrame:
     parts = []
     crb_by_detector: dict[str, pd.DataFrame] = {}
     for det, method in pairs:
-        d = rl.read_detections(run, det)
         e = rl.read_estimates(run, det, method)
+        if det == rl.RING_DETECTOR:  # painted-ring: one row of fitted ellipses per frame, no beacon centroids
+            rl.check_frames_match(frames, e, f"estimates of {det}+{method}", f"deckpose painted-ring {run.root}")
+            errs = frame_errors(frames, e)
+            errs.insert(1, "detector", det)
+            parts.append(errs)
+            continue
+        d = rl.read_detections(run, det)
         rl.check_frames_match(frames, d, f"detections of {det}", f"deckpose detect {run.root} --detector {det}")
         rl.check_frames_match(frames, e, f"estimates of {det}+{method}",
                               f"deckpose estimate --run {run.root} --detector {det} --method {method}")

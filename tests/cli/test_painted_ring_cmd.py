@@ -40,3 +40,10 @@ def test_painted_ring_run_writes_its_tables(tmp_path, capsys):
     assert abs(yaw_err) < 5 * est["sigma_yaw_deg"].iloc[0]
     assert (det["inner_n_points"] > 100).all() and (det["outer_n_points"] > 100).all()
     assert frames["frame_id"].tolist() == est["frame_id"].tolist()
+    # evaluate and report read the ring's estimates as any other's (the .bound side table and
+    # the per-frame ring detections are not beacon tables: they once crashed evaluate)
+    assert main(["evaluate", str(run)]) == 0
+    errors = pd.read_parquet(run / "evaluation" / "errors.parquet")
+    assert set(errors["method"]) == {"painted-ring"} and len(errors) == 1
+    assert abs(errors["yaw_err_deg"].iloc[0] - yaw_err) < 1e-9
+    assert main(["report", str(run)]) == 0
