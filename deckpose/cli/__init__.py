@@ -74,7 +74,7 @@ def os_error_line(exc: OSError) -> tuple[str, int]:
         return ((f"the disk is full (writing{name}); free some space and run the same command again "
                 "(finished files are kept, none is left half-written)"), exit_codes.UNEXPECTED)
     if exc.errno in (errno.EROFS, errno.EACCES, errno.EPERM):
-        return (f"cannot write{name}: {exc.strerror}; choose a folder you can write to (-o DIR)",
+        return (f"cannot write{name}: {exc.strerror}; choose a folder you can write to (or make it writable)",
                 exit_codes.USAGE)
     return ((f"{type(exc).__name__}: {exc.strerror or exc}{name} (run 'deckpose --debug ...' for the "
             "traceback)"), exit_codes.UNEXPECTED)
@@ -103,6 +103,16 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"deckpose {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # the reader of our output went away (``deckpose ... | head``): stop quietly, as a Unix
+        # tool does, and keep Python from complaining when it flushes stdout at exit
+        import os
+
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):  # a stdout without a file descriptor
+            pass
+        return 141  # 128 + SIGPIPE
     except OSError as exc:
         if getattr(args, "debug", False):
             raise

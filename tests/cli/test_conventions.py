@@ -69,3 +69,20 @@ def test_a_missing_run_folder_is_named_as_such(tmp_path, capsys, command):
     err = capsys.readouterr().err
     assert f"run folder {missing} does not exist" in err and "deckpose render" in err
     assert len(err.strip().splitlines()) == 1
+
+
+def test_a_closed_pipe_ends_the_command_quietly(monkeypatch, capsys):
+    # `deckpose crb | head -1`: the reader goes away and the next write raises BrokenPipeError;
+    # the command stops with 128 + SIGPIPE and prints nothing (once "error: BrokenPipeError")
+    import sys
+
+    class ClosedPipe:
+        def write(self, text: str) -> int:
+            raise BrokenPipeError(32, "Broken pipe")
+
+        def flush(self) -> None:
+            pass
+
+    monkeypatch.setattr(sys, "stdout", ClosedPipe())
+    assert main(["crb"]) == 141
+    assert capsys.readouterr().err == ""
