@@ -74,6 +74,7 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.render.config import approach_demo_config, default_config
 
     t0 = time.perf_counter()
+    thesis_config = ThesisTablesConfig(repetitions=args.repetitions, seed=args.seed)  # checked before any work
     out = Path(args.output)
     run_dir = out / "run"
     _drop_stale_demo(run_dir, default_config())
@@ -101,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
         config_label="the embedded approach (configs/approach_small.yaml)",
         step=lambda n, t, text: print(f"      approach {n}/{t}: {text}", flush=True))
     _step(total, total, f"thesis tables 4.2-4.15, {args.repetitions} x 495 images per cell")
-    config = ThesisTablesConfig(repetitions=args.repetitions, seed=args.seed)
+    config = thesis_config
     bar = tqdm(total=len(cell_specs()), desc="thesis tables", unit="cell", disable=True if args.no_progress else None)
     md = run_thesis_tables(config, out, lambda done, _total: bar.update(done - bar.n))
     bar.close()

@@ -30,3 +30,12 @@ def test_demo_runs_the_whole_pipeline(tmp_path, capsys):
         topics = {c.topic for c in make_reader(fh).get_summary().channels.values()}
     assert {"/tracks/cog--pnp--wave-bank", "/predictions/cog--pnp--wave-bank/1s"} <= topics
     assert str(approach / "log.mcap") in printed
+
+
+def test_bad_repetitions_are_refused_before_any_work(tmp_path, capsys):
+    from deckpose.cli import main
+
+    assert main(["demo", "--repetitions", "0", "-o", str(tmp_path / "demo")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "repetitions must be at least 1" in err and "\n" not in err
+    assert not (tmp_path / "demo").exists()  # nothing rendered, nothing written
