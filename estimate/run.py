@@ -9,6 +9,7 @@ estimate_batch` one camera at a time, which chunks them by its ``CHUNK_FRAMES``
 from __future__ import annotations
 
 import dataclasses
+import shlex
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -20,7 +21,7 @@ from deckpose.estimate.registry import EstimateOptions, MethodSpec
 from deckpose.estimate.results_table import estimates_frame
 
 from deckpose.camera import CameraModel
-from deckpose.errors import ConfigError
+from deckpose.errors import ConfigError, InputDataError
 from deckpose.layout import DeckLayout
 from deckpose.records import Detections, PoseEstimate
 
@@ -159,8 +160,11 @@ def estimate_run(
     claim_output(run.root, what="estimate")
     if detector is None:
         detectors = run.detectors()
+        if not detectors:
+            raise InputDataError(f"{run.root} has no detections yet; make them with: "
+                                 f"deckpose detect {shlex.quote(str(run.root))} --detector cog")
         if len(detectors) != 1:
-            raise ConfigError(f"--run needs --detector (this run has detections of: {detectors or 'none'})")
+            raise ConfigError(f"--run needs --detector: this run has detections of {', '.join(detectors)}")
         detector = detectors[0]
     layout = rl.read_layout(run)
     if radius_m is not None:

@@ -399,3 +399,17 @@ def test_messages_name_the_real_problem(setup, tmp_path, capsys):
     assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(tmp / "o.csv"),
                  "--radius", "1e-300"]) == 2
     assert "--radius 1e-300" in capsys.readouterr().err
+
+
+def test_a_run_without_detections_says_to_detect(tmp_path, capsys):
+    # it said "--run needs --detector (this run has detections of: none)"
+    from deckpose.render.config import config_from_dict
+    from deckpose.render.dataset import render_dataset
+
+    doc = {"name": "nodet", "seed": 1, "cameras": [{"preset": "4mp-square", "size": [320, 240]}],
+           "heights_m": [30.0], "lighting": ["night"], "motion": {"source": "fixed", "attitudes_deg": [[0, 0, 0]]},
+           "scene": {"shading": "flat", "texture_px": 256}}
+    run = render_dataset(config_from_dict(doc), tmp_path / "my run", workers=0, progress=False)
+    assert main(["estimate", "--run", str(run), "--method", "pnp"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "no detections yet" in err and f"deckpose detect '{run}' --detector cog" in err and "\n" not in err
