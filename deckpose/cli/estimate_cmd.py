@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     import dataclasses
 
     from deckpose.camera_info import read_camera_info
-    from deckpose.errors import ConfigError
+    from deckpose.errors import ConfigError, InputDataError
     from deckpose.estimate.run import EstimateRunResult, estimate_table
     from deckpose.layout import DeckLayout, read_layout
     from deckpose.output_folder import ensure_writable
@@ -106,6 +106,9 @@ def run(args: argparse.Namespace) -> int:
         out = Path(args.output)
         ensure_writable(out.parent)  # before the work, not after it
         table = read_table(args.detections, "detections")
+        if table.empty:
+            raise InputDataError(f"{args.detections} holds no detections (a header without rows); give a table "
+                                 "with one row per detected beacon: frame_id, beacon_id, u_px, v_px")
         with frame_bar(f"estimate ({spec.label})", enabled=not args.no_progress) as bar:
             df = estimate_table(table, camera, layout, spec, sigma_px=args.sigma_px,
                                 source=str(args.detections), progress=bar.update)

@@ -413,3 +413,10 @@ def test_a_run_without_detections_says_to_detect(tmp_path, capsys):
     assert main(["estimate", "--run", str(run), "--method", "pnp"]) == 2
     err = capsys.readouterr().err.strip()
     assert "no detections yet" in err and f"deckpose detect '{run}' --detector cog" in err and "\n" not in err
+
+
+def test_a_header_without_rows_is_refused(setup, capsys):
+    # it printed "0 frames, 0 ok, 0 failed" and exited 0
+    tmp, cam_path, df, _ = setup
+    err = _run_bad(tmp, cam_path, df.iloc[:0], capsys)
+    assert "holds no detections" in err and err.count("\n") == 1
