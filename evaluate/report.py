@@ -84,7 +84,7 @@ def thesis_comparison(table: pd.DataFrame, sizes_px: dict[str, tuple[int, int]] 
         n += 1
     if not n:
         sizes = "" if not sizes_px else " (this run's cameras: " + ", ".join(
-            f"{n} {w}x{h}" for n, (w, h) in sorted(sizes_px.items())) + ")"
+            n if n == f"{w}x{h}" else f"{n} {w}x{h}" for n, (w, h) in sorted(sizes_px.items())) + ")"
         known = ", ".join(f"{r[:-2]} MP {w}x{h}" for r, (w, h) in THESIS_RESOLUTIONS.items())
         return [f"No cell of this run has a thesis resolution ({known}) at a thesis height "
                 "(20/30/40/50/80 m)" + sizes

@@ -134,6 +134,9 @@ def test_thesis_comparison_needs_the_thesis_resolution():
     lines = thesis_comparison(table, {"4mp-thesis": (2312, 1734), "4mp-640x480": (640, 480)})
     rows = [ln for ln in lines if ln.startswith("| cog+pnp")]
     assert len(rows) == 1 and rows[0].startswith("| cog+pnp | 4mp | 20 |")
+    # no thesis cell: the run's cameras are listed once each (a camera named by its size, once)
+    none = thesis_comparison(table.assign(camera=["640x480", "cam2"]), {"640x480": (640, 480), "cam2": (960, 540)})
+    assert len(none) == 1 and "(this run's cameras: 640x480, cam2 960x540)" in none[0]
 
 
 def test_missing_stage_names_the_command(tmp_path, capsys):
