@@ -71,10 +71,14 @@ def camera_from_dict(doc: object, source: str = "camera_info") -> CameraModel:
     for key in ("image_width", "image_height", "camera_matrix"):
         if key not in doc:
             raise CameraFileError(f"{source}: required field {key!r} is missing")
-    try:
-        width, height = int(doc["image_width"]), int(doc["image_height"])
-    except (TypeError, ValueError) as exc:
-        raise CameraFileError(f"{source}: image_width/image_height must be integers") from exc
+    sizes = []
+    for key in ("image_width", "image_height"):
+        v = doc[key]
+        # an integer, as camera_calibration writes it; not a string ("640"), a bool, or 640.5
+        if isinstance(v, bool) or not (isinstance(v, int) or (isinstance(v, float) and v.is_integer())):
+            raise CameraFileError(f"{source}: {key} must be an integer number of pixels, got {v!r}")
+        sizes.append(int(v))
+    width, height = sizes
     K = _matrix(doc, "camera_matrix", 3, 3, source)
     raw_model = doc.get("distortion_model", "plumb_bob")
     model = str(raw_model if raw_model is not None else "").strip().lower()

@@ -147,3 +147,15 @@ def test_plumb_bob_with_four_coefficients_loads_with_a_warning(tmp_path, caplog)
         cam = read_camera_info(path)
     _same_camera(cam, K, DIST[:4])  # OpenCV's own reading of four: k1, k2, p1, p2
     assert any("4 coefficients" in r.getMessage() and "fisheye" in r.getMessage() for r in caplog.records)
+
+
+@pytest.mark.parametrize("width", ['"640"', "640.5", "true", "[640]"])
+def test_an_image_size_that_is_not_an_integer_is_refused(tmp_path, width):
+    # a quoted "640" was read as 640 without a word; 640.5 would have been cut to 640
+    path = tmp_path / "cam.yaml"
+    path.write_text(f"image_width: {width}\nimage_height: 480\n"
+                    "camera_matrix: {rows: 3, cols: 3, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}\n")
+    with pytest.raises(CameraFileError, match="image_width must be an integer number of pixels"):
+        read_camera_info(path)
+    path.write_text(path.read_text().replace(f"image_width: {width}", "image_width: 640"))
+    assert read_camera_info(path).width_px == 640
