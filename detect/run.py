@@ -120,6 +120,9 @@ def detect_run(
     from deckpose.output_folder import claim_output
 
     registry.get(detector)  # fail early on an unknown name
+    if not Path(source).exists():
+        raise InputDataError(f"{source} does not exist; give a dataset folder (deckpose render) or a folder of "
+                             "images with --camera CAMERA.yaml")
     if is_dataset(source):
         frameset = open_dataset(source)
         if frameset.manifest.get("images_kept") is False:

@@ -79,6 +79,9 @@ def run(args: argparse.Namespace) -> int:
                                       sensor_block(cfg))
     from deckpose.output_folder import claim_output
 
+    if workers(args) < 0:  # before the output folder is claimed (created)
+        raise ConfigError(f"--workers must be >= 0, got {workers(args)}")
+
     # room for at least the largest frame (uncompressed), checked before anything is written
     biggest = max(c.width_px * c.height_px for c in cfg.cameras_by_name().values())
     claim_output(out, need_bytes=biggest * 3 * (2 if cfg.sensor.bit_depth > 8 else 1), what="render")

@@ -86,3 +86,17 @@ def test_a_closed_pipe_ends_the_command_quietly(monkeypatch, capsys):
     monkeypatch.setattr(sys, "stdout", ClosedPipe())
     assert main(["crb"]) == 141
     assert capsys.readouterr().err == ""
+
+
+def test_bad_workers_leave_no_folder_and_a_missing_source_is_named(tmp_path, capsys):
+    # `render ... --workers -1` refused but left an empty output folder behind;
+    # `detect nothere` said "not a deckpose dataset (no manifest.json)"
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[2]
+    out = tmp_path / "w"
+    assert main(["render", str(repo / "configs" / "smoke.yaml"), str(out), "--workers", "-1"]) == 2
+    assert "--workers must be >= 0" in capsys.readouterr().err and not out.exists()
+    assert main(["detect", str(tmp_path / "nothere")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "does not exist" in err and "\n" not in err
