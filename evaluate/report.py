@@ -176,7 +176,9 @@ def track_sections(run: rl.RunPaths, frames: pd.DataFrame, fig_dir: Path) -> lis
                    f"errors beyond 5 of their own sigmas (roll, pitch, height): {int((z > 5).sum())} of "
                    f"{int(np.isfinite(z).sum())}."), "",
                   f"![tracking {stem}](figures/{fig})", "",
-                  "Filtered against per-frame error (RMS) by true height:", "",
+                  ("Filtered against per-frame error (RMS) by true height, both on the frames with an ok estimate; "
+                   "`*_rms_filtered_all` is the filtered RMS on every frame (where no estimate is ok, the "
+                   "filter's prediction):"), "",
                   *markdown_table(filtered_by_height(errs)), "",
                   ("Predictions against holding the last ok estimate as long (RMS at the frame each was made for; "
                    "z: RMS of the error in the prediction's own sigmas):"), "",

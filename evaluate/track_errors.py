@@ -80,7 +80,9 @@ def filtered_by_height(errors: pd.DataFrame) -> pd.DataFrame:
     -------
     DataFrame
         Per band with frames: ``height_band_m``, ``frames``, ``estimates_ok`` (share of frames with an
-        ok estimate), and for roll, pitch and height the RMS per frame, filtered, and their ratio.
+        ok estimate), and for roll, pitch and height the RMS per frame and filtered on the same
+        frames (those with an ok estimate), their ratio, and the filtered RMS on every frame of the
+        band (``<q>_rms_filtered_all``: frames without an estimate are the filter's predictions).
     """
     bands = pd.cut(errors["true_height_m"], list(HEIGHT_BANDS_M), right=False)
     rows = []
@@ -88,9 +90,12 @@ def filtered_by_height(errors: pd.DataFrame) -> pd.DataFrame:
         row: dict[str, object] = {"height_band_m": f"{band.left:g}-{band.right:g}", "frames": len(g),
                                   "estimates_ok": float(g["roll_err_deg_estimate"].notna().mean())}
         for q in ("roll_err_deg", "pitch_err_deg", "height_err_m"):
-            per, filt = _rms(g[f"{q}_estimate"].to_numpy()), _rms(g[f"{q}_filtered"].to_numpy())
+            scored = g[f"{q}_estimate"].notna().to_numpy()  # one set of frames for both
+            per = _rms(g[f"{q}_estimate"].to_numpy()[scored])
+            filt = _rms(g[f"{q}_filtered"].to_numpy()[scored])
             row[f"{q}_rms_estimate"], row[f"{q}_rms_filtered"] = per, filt
             row[f"{q}_ratio"] = filt / per if per > 0 else float("nan")
+            row[f"{q}_rms_filtered_all"] = _rms(g[f"{q}_filtered"].to_numpy())
         rows.append(row)
     return pd.DataFrame(rows)
 

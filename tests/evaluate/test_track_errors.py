@@ -67,6 +67,14 @@ def test_filtered_and_per_frame_errors_and_their_ratio_by_height():
     np.testing.assert_allclose(by_h["roll_err_deg_ratio"], 0.5, atol=1e-9)
     np.testing.assert_allclose(by_h["height_err_m_ratio"], 2.0, atol=1e-9)
     assert by_h.loc["40-60", "estimates_ok"] == pytest.approx(19 / 20)
+    # the ratio compares both on the frames with an ok estimate: a filter far off where it only
+    # predicts (frame 7, no estimate) shows in the all-frames column, not in the ratio
+    errs.loc[errs["frame_id"] == 7, "roll_err_deg_filtered"] = 2.0
+    by_h = filtered_by_height(errs).set_index("height_band_m")
+    np.testing.assert_allclose(by_h["roll_err_deg_ratio"], 0.5, atol=1e-9)
+    band = "40-60" if 7 in errs.loc[errs["true_height_m"] >= 40, "frame_id"].to_numpy() else "20-40"
+    want = np.sqrt((19 * 0.05 ** 2 + 2.0 ** 2) / 20)
+    assert by_h.loc[band, "roll_err_deg_rms_filtered_all"] == pytest.approx(want, rel=1e-9)
 
 
 def test_predictions_against_holding_the_last_ok_estimate():
