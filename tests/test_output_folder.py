@@ -99,7 +99,7 @@ def test_file_system_errors_are_one_line_with_the_fix():
     line, code = os_error_line(OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), "/d/x.parquet"))
     assert code == 1 and "the disk is full (writing /d/x.parquet)" in line and "same command" in line
     line, code = os_error_line(PermissionError(errno.EACCES, "Permission denied", "/d"))
-    assert code == 2 and "cannot write /d: Permission denied" in line and "-o DIR" in line
+    assert code == 2 and "cannot write /d: Permission denied" in line and "choose a folder you can write to" in line and "-o DIR" not in line
 
 
 def test_a_full_disk_in_estimate_is_one_line(tmp_path, monkeypatch, capsys):
