@@ -2,7 +2,7 @@
 
 :func:`estimate_run_with_prior` is what ``deckpose estimate --run`` and ``deckpose
 pipeline`` call. It estimates every frame from the ids ``deckpose detect`` gave
-(:func:`deckpose.estimate.run.estimate_run`, unchanged), then walks each time sequence
+(as :func:`deckpose.estimate.run.estimate_run` does, on the inputs it reads), then walks each time sequence
 of the run (a camera x camera height x lighting group in capture-time order,
 :func:`deckpose.tracking.run.sequence_ids`: one approach, or one cell of a render grid)
 in time order: a frame whose detection identified no ring (its bow beacons out of view,
@@ -34,7 +34,12 @@ from deckpose.capture_time import log_stamps
 from deckpose.detect.identification import Identification
 from deckpose.estimate.registry import MethodSpec
 from deckpose.estimate.results_table import estimates_frame, estimates_from_frame
-from deckpose.estimate.run import EstimateRunResult, estimate_run, method_options
+from deckpose.estimate.run import (
+    EstimateRunResult,
+    estimate_inputs,
+    method_options,
+    read_estimate_inputs,
+)
 from deckpose.layout import DeckLayout
 from deckpose.records import Detections
 from deckpose.sequence_estimate import (
@@ -194,30 +199,21 @@ def estimate_run_with_prior(
     InputDataError
         A missing dataset or detections table, or detections of other frames.
     """
-    from deckpose.detections_io import detections_from_frame
     from deckpose.tables import write_table
 
     options = SequenceOptions(max_prior_age_s=max_prior_age_s)  # validates before the work
-    run = rl.run_paths(run_dir)
-    if detector is None and len(run.detectors()) == 1:
-        detector = run.detectors()[0]
-    res = estimate_run(run_dir, spec, detector=detector, sigma_px=sigma_px, radius_m=radius_m, progress=progress)
-    assert detector is not None, "estimate_run resolved the detector or raised"
-    layout = rl.read_layout(run)
-    if radius_m is not None:
-        layout = dataclasses.replace(layout, radius_m=float(radius_m))
-    frames = rl.read_frames(run)
-    dets = detections_from_frame(rl.read_detections(run, detector), layout, str(run.detections(detector)))
+    run, detector, layout, frames, cameras, dets = read_estimate_inputs(run_dir, detector=detector,
+                                                                      radius_m=radius_m)
+    df = estimate_inputs(frames, dets, cameras, layout, spec, sigma_px=sigma_px, progress=progress)
     ids = [int(f) for f in frames["frame_id"]]
     identified = _identified(rl.read_detect_frames(run, detector), dets, ids)
     if prior:
-        cameras = rl.read_cameras(run, sorted(frames["camera"].unique()))
-        df = prior_pass(frames, dets, identified, res.table, cameras, layout, spec, sigma_px=sigma_px,
-                        options=options)
+        df = prior_pass(frames, dets, identified, df, cameras, layout, spec, sigma_px=sigma_px, options=options)
     else:
-        df = _without_prior(res.table, identified)
-    write_table(df, res.path, "estimates")
-    return EstimateRunResult(res.path, df)
+        df = _without_prior(df, identified)
+    out = run.estimates(detector, spec.label)
+    write_table(df, out, "estimates")  # once: the stage's table with how each frame was identified
+    return EstimateRunResult(out, df)
 
 
 def _without_prior(estimates: pd.DataFrame, identified: dict[int, tuple[bool, str]]) -> pd.DataFrame:

@@ -13,6 +13,7 @@ import shlex
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -25,7 +26,11 @@ from deckpose.errors import ConfigError, InputDataError
 from deckpose.layout import DeckLayout
 from deckpose.records import Detections, PoseEstimate
 
-__all__ = ["EstimateRunResult", "estimate_run", "estimate_table", "method_options"]
+if TYPE_CHECKING:
+    from deckpose.run_folder import RunPaths
+
+__all__ = ["EstimateRunResult", "estimate_inputs", "estimate_run", "estimate_table", "method_options",
+           "read_estimate_inputs"]
 
 #: ``progress(n)``: ``n`` more frames are done (what it returns is ignored).
 Progress = Callable[[int], object]
@@ -150,10 +155,30 @@ def estimate_run(
     InputDataError
         A missing dataset or detections table, or detections of other frames.
     """
+    from deckpose.tables import write_table
+
+    run, detector, layout, frames, cameras, dets = read_estimate_inputs(run_dir, detector=detector,
+                                                                      radius_m=radius_m)
+    df = estimate_inputs(frames, dets, cameras, layout, spec, sigma_px=sigma_px, progress=progress)
+    out = run.estimates(detector, spec.label)
+    write_table(df, out, "estimates")
+    return EstimateRunResult(out, df)
+
+
+def read_estimate_inputs(run_dir: str | Path, *, detector: str | None = None, radius_m: float | None = None
+                         ) -> tuple[RunPaths, str, DeckLayout, pd.DataFrame, dict[str, CameraModel],
+                                    dict[int, Detections]]:
+    """What the estimate stage reads from a run folder, checked (see :func:`estimate_run`).
+
+    Returns
+    -------
+    run, detector, layout, frames, cameras, detections
+        The run's paths, the detector (resolved when ``None``), the layout (with ``radius_m``),
+        the frames table, the cameras by name and each frame's detections by frame id.
+    """
     from deckpose import run_folder as rl
     from deckpose.detections_io import detections_from_frame
     from deckpose.output_folder import claim_output
-    from deckpose.tables import write_table
 
     run = rl.run_paths(run_dir)
     rl.require_dataset(run)  # a missing folder says so, not "no detections"
@@ -175,6 +200,15 @@ def estimate_run(
     rl.check_frames_match(frames, det_df, f"detections of {detector}",
                           f"deckpose detect {run.root} --detector {detector}")
     dets = detections_from_frame(det_df, layout, str(run.detections(detector)))
+    return run, detector, layout, frames, cameras, dets
+
+
+def estimate_inputs(frames: pd.DataFrame, dets: dict[int, Detections], cameras: dict[str, CameraModel],
+                    layout: DeckLayout, spec: MethodSpec, *, sigma_px: float = 1.0,
+                    progress: Progress | None = None) -> pd.DataFrame:
+    """The estimates table of a run's frames (:func:`read_estimate_inputs`): frames of one camera as one batch."""
+    from deckpose import run_folder as rl
+
     options = method_options(spec, sigma_px)
     ids = [int(f) for f in frames["frame_id"]]
     R_all = rl.R_world_from_cam_all(frames)
@@ -188,7 +222,4 @@ def estimate_run(
             results[k] = e
     done = [e for e in results if e is not None]
     assert len(done) == len(ids), "every frame has a camera, so every frame is estimated"
-    df = estimates_frame(done).assign(method=spec.label)
-    out = run.estimates(detector, spec.label)
-    write_table(df, out, "estimates")
-    return EstimateRunResult(out, df)
+    return estimates_frame(done).assign(method=spec.label)
