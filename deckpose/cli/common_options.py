@@ -45,8 +45,12 @@ def add_workers(p: argparse.ArgumentParser, what: str, *, zero: str | None = Non
 
 
 def workers(args: argparse.Namespace) -> int:
-    """The ``--workers`` value, the default resolved."""
+    """The ``--workers`` value, the default resolved; a negative one is refused (before any work)."""
     w = getattr(args, "workers", None)
+    if w is not None and int(w) < 0:
+        from deckpose.errors import ConfigError
+
+        raise ConfigError(f"--workers must be >= 0, got {w}")
     return default_workers() if w is None else int(w)
 
 

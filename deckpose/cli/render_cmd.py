@@ -79,13 +79,12 @@ def run(args: argparse.Namespace) -> int:
                                       sensor_block(cfg))
     from deckpose.output_folder import claim_output
 
-    if workers(args) < 0:  # before the output folder is claimed (created)
-        raise ConfigError(f"--workers must be >= 0, got {workers(args)}")
+    n_workers = workers(args)  # a bad count is refused before the output folder is claimed (created)
 
     # room for at least the largest frame (uncompressed), checked before anything is written
     biggest = max(c.width_px * c.height_px for c in cfg.cameras_by_name().values())
     claim_output(out, need_bytes=biggest * 3 * (2 if cfg.sensor.bit_depth > 8 else 1), what="render")
-    path = render_dataset(cfg, out, workers=workers(args), resume=args.resume, scheduler=args.scheduler,
+    path = render_dataset(cfg, out, workers=n_workers, resume=args.resume, scheduler=args.scheduler,
                           progress=not args.no_progress, detection=detection)
     print(f"dataset written to {path}")
     if detection is not None and detection.detectors:
