@@ -43,8 +43,9 @@ from scipy.stats import chi2 as chi2_dist
 
 from deckpose.camera import CameraModel
 from deckpose.painted_ring import CentreMark, PaintedRing
-from deckpose.records import PoseEstimate
+from deckpose.records import POSE_PARAMS, PoseEstimate
 from deckpose.ring_detection import RingDetection
+from deckpose.rotation import wrap_angle_rad
 
 __all__ = ["AMBIGUITY_CHI2", "DISC_CHECK_ALPHA", "METHOD", "PaintedRingPose", "disc_consistency",
            "estimate_painted_ring"]
@@ -193,6 +194,11 @@ def _candidates(det: RingDetection, camera: CameraModel, ring: PaintedRing, R_wc
     return out
 
 
+def _failed(det: RingDetection, reason: str) -> PaintedRingPose:
+    """A failed estimate of the detection's frame, with its reason."""
+    return PaintedRingPose(PoseEstimate.failed(METHOD, reason).for_frame(det.frame_id))
+
+
 def estimate_painted_ring(det: RingDetection, camera: CameraModel, ring: PaintedRing,
                           R_world_from_cam: FloatArray) -> PaintedRingPose:
     """Ship pose from a :class:`~deckpose.ring_detection.RingDetection` (module docstring).
@@ -210,17 +216,14 @@ def estimate_painted_ring(det: RingDetection, camera: CameraModel, ring: Painted
     PaintedRingPose
         Never raises on a bad detection: failures are a falsy estimate with a reason.
     """
-    def failed(reason: str) -> PaintedRingPose:
-        return PaintedRingPose(PoseEstimate.failed(METHOD, reason).for_frame(det.frame_id))
-
     if not det.ok:
-        return failed(f"ring not detected: {det.reason}")
+        return _failed(det, f"ring not detected: {det.reason}")
     if min(len(det.inner_px), len(det.outer_px)) < MIN_POINTS:
-        return failed(f"too few edge points (needs {MIN_POINTS} per edge)")
+        return _failed(det, f"too few edge points (needs {MIN_POINTS} per edge)")
     R_wc = np.asarray(R_world_from_cam, dtype=float)
     edges = _edges(det, camera, ring)
     if not all(np.all(e.sigma_px > 0) for e in edges):
-        return failed("edge points without scatter: no noise to weigh them by")
+        return _failed(det, "edge points without scatter: no noise to weigh them by")
     with_disc = _fit(det, camera, ring, R_wc, edges)
     if len(edges) == 2 or not with_disc.estimate.ok:
         return with_disc
@@ -254,10 +257,8 @@ def disc_consistency(ring_only: PoseEstimate, with_disc: PoseEstimate) -> tuple[
     S_r, S_d = ring_only.covariance, with_disc.covariance
     if S_r is None or S_d is None:
         return 0.0, 0
-    d = np.array([with_disc.roll_rad - ring_only.roll_rad, with_disc.pitch_rad - ring_only.pitch_rad,
-                  with_disc.yaw_rad - ring_only.yaw_rad, with_disc.surge_m - ring_only.surge_m,
-                  with_disc.sway_m - ring_only.sway_m, with_disc.height_m - ring_only.height_m])
-    d[:3] = (d[:3] + math.pi) % (2 * math.pi) - math.pi
+    d = np.array([getattr(with_disc, p) - getattr(ring_only, p) for p in POSE_PARAMS])
+    d[:3] = wrap_angle_rad(d[:3])
     vals, vecs = np.linalg.eigh(S_r)
     W = vecs @ np.diag(1.0 / np.sqrt(np.maximum(vals, 1e-300))) @ vecs.T  # S_r^(-1/2)
     lam, U = np.linalg.eigh(np.eye(6) - W @ S_d @ W)
@@ -269,9 +270,6 @@ def disc_consistency(ring_only: PoseEstimate, with_disc: PoseEstimate) -> tuple[
 def _fit(det: RingDetection, camera: CameraModel, ring: PaintedRing, R_wc: FloatArray,
          edges: list[_Edge]) -> PaintedRingPose:
     """The refinement on ``edges`` (module docstring, steps 1-3)."""
-    def failed(reason: str) -> PaintedRingPose:
-        return PaintedRingPose(PoseEstimate.failed(METHOD, reason).for_frame(det.frame_id))
-
     end_rays = _normalised(camera, det.bow_ends_px)
 
     def solve(x0: FloatArray) -> tuple[FloatArray, FloatArray, float, list[_Edge]]:
@@ -288,20 +286,20 @@ def _fit(det: RingDetection, camera: CameraModel, ring: PaintedRing, R_wc: Float
 
     cands = _candidates(det, camera, ring, R_wc)
     if not cands:
-        return failed("the outer edge's conic is not the image of a circle in front of the camera")
+        return _failed(det, "the outer edge's conic is not the image of a circle in front of the camera")
     sols = sorted((solve(c) for c in cands), key=lambda s: s[2])
     x, J, chi2, _ = sols[0]
     n_res = sum(len(e.points_px) for e in edges) + 1
     try:
         cov = np.asarray(np.linalg.inv(J.T @ J), dtype=np.float64)
     except np.linalg.LinAlgError:
-        return failed("singular normal matrix: the edges do not fix the pose")
+        return _failed(det, "singular normal matrix: the edges do not fix the pose")
     sig = np.sqrt(np.diag(cov))
     if len(sols) > 1 and sols[1][2] - chi2 < AMBIGUITY_CHI2:
         d = sols[1][0] - x
-        d[:3] = (d[:3] + math.pi) % (2 * math.pi) - math.pi
+        d[:3] = wrap_angle_rad(d[:3])
         if np.any(np.abs(d) > 5 * sig):
-            return failed(f"ambiguous: both deck planes fit the edges (chi2 {chi2:.0f} and {sols[1][2]:.0f})")
+            return _failed(det, f"ambiguous: both deck planes fit the edges (chi2 {chi2:.0f} and {sols[1][2]:.0f})")
     # the bounds: the same Jacobian, each edge row at its point's bound (the bow row unchanged)
     ratio = np.concatenate([e.sigma_px / e.bound_px for e in edges] + [np.ones(1)])
     bound = _bound(J, ratio)
