@@ -102,7 +102,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return exit_codes.USAGE
     except KeyboardInterrupt:
         print(f"deckpose {args.command}: interrupted", file=sys.stderr)
-        return 130
+        return exit_codes.INTERRUPTED
     except BrokenPipeError:
         # the reader of our output went away (``deckpose ... | head``): stop quietly, as a Unix
         # tool does, and keep Python from complaining when it flushes stdout at exit
@@ -112,7 +112,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         except (OSError, ValueError, AttributeError):  # a stdout without a file descriptor
             pass
-        return 141  # 128 + SIGPIPE
+        return exit_codes.BROKEN_PIPE
     except OSError as exc:
         if getattr(args, "debug", False):
             raise

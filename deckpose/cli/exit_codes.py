@@ -5,7 +5,11 @@
   traceback with ``deckpose --debug``;
 * :data:`USAGE` (2): bad input or usage (a missing file, a bad option or config);
 * :data:`NO_FRAME_OK` (3): the job ran but no frame succeeded;
-* :data:`SOME_FAILED` (4): with ``--strict``, some frames failed.
+* :data:`SOME_FAILED` (4): with ``--strict``, some frames failed;
+* :data:`INTERRUPTED` (130, 128 + SIGINT): stopped by Ctrl-C (finished files kept; the same
+  command resumes);
+* :data:`BROKEN_PIPE` (141, 128 + SIGPIPE): the reader of the output went away
+  (``deckpose ... | head``); nothing is printed.
 """
 
 from __future__ import annotations
@@ -15,6 +19,8 @@ UNEXPECTED = 1
 USAGE = 2
 NO_FRAME_OK = 3
 SOME_FAILED = 4
+INTERRUPTED = 130
+BROKEN_PIPE = 141
 
 
 def frames_exit_code(n_frames: int, n_ok: int, *, strict: bool = False) -> int:
