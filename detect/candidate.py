@@ -55,6 +55,15 @@ class Candidate:
     frame_shape : (int, int) or None
         ``(height, width)`` of the whole frame, pixels, so that a window can tell where
         the frame edge cuts a spot (:meth:`edge_distance_px`); None: not known.
+    surround_grad : (float, float)
+        A bright spot measured above its flat pedestal (``clip_signal``): the slope along
+        u and v of a plane fitted to the window border, DN per pixel, which the pedestal
+        does not remove (a neighbour's glare, the lit deck). (0, 0) where the plane is
+        removed (``background_grad``) or not known. See :meth:`surround_tilt_cov`.
+    surround_grad_sd : float
+        Standard deviation of each component of ``surround_grad`` from the noise alone,
+        DN per pixel (``noise_dn`` over the border's spread), so that a tilt within the
+        noise does not count.
     """
 
     pixels: np.ndarray
@@ -69,6 +78,8 @@ class Candidate:
     threshold_dn: float
     clip_signal: bool = False
     frame_shape: tuple[int, int] | None = None
+    surround_grad: tuple[float, float] = (0.0, 0.0)
+    surround_grad_sd: float = 0.0
 
     def edge_distance_px(self, u_px: float, v_px: float) -> float:
         """Distance from ``(u_px, v_px)`` to the nearest frame edge, pixels (inf if not known).
@@ -149,6 +160,55 @@ class Candidate:
         """Per-pixel noise variance, DN^2: background noise plus shot noise of the signal."""
         s = self.signal() if signal_dn is None else signal_dn
         return self.noise_dn**2 + self.gain_dn_per_e * np.maximum(s, 0.0)
+
+    def surround_tilt_cov(
+        self, window: np.ndarray, signal_dn: np.ndarray, du_px: np.ndarray, dv_px: np.ndarray,
+        flux_dn: float,
+    ) -> np.ndarray:
+        """Covariance of the centre's bias from the surround's tilt, px^2 (2, 2), isotropic.
+
+        A background tilt ``g`` (DN/px) left in the signal moves a windowed centroid by
+        ``g_u sum(w du^2) / F'`` along u (and likewise along v): the window is symmetric
+        about the centre, so the tilt's first moment over it is not zero. (``w`` counts
+        where the signal is positive; ``F' = F - sum_edge(r s) / 2`` over the window's soft
+        edge, where the window follows the centre: the first-order solution of the
+        re-centred window's fixed point.) For a large
+        bright spot it dominates the noise: at 2 m the thesis camera sees 0.15 m
+        beacons as spots of sigma 49 px, and the glare of the neighbours 570-750 px
+        away tilts each one's surround by about 1e-3 DN/px, which moved ``cog``'s
+        centres 0.03-0.04 px inward against a noise sigma of 0.003 px. The border's tilt
+        (:attr:`surround_grad`) bounds it from the data; it measures the tilt farther out
+        than the spot, where a neighbour's glare changes faster, and 2-5x the actual
+        shift was seen on rendered frames, so this is an upper bound rather than a
+        correction. Its direction is not a bound either (the border's tilt pointed
+        across the actual shift on some of those frames), so the bias's size goes on both
+        axes. The noise's share of the slope (:attr:`surround_grad_sd` per component) is
+        taken out first (``E[|g_hat|^2] = |g|^2 + 2 sd^2``), so a flat surround adds
+        nothing on average.
+
+        Parameters
+        ----------
+        window : (h, w) array of float
+            The disc window's weight of each pixel (1 inside, falling to 0 over its edge pixel).
+        signal_dn : (h, w) array of float
+            The signal the centroid was measured on, DN.
+        du_px, dv_px : (h, w) or broadcastable arrays of float
+            Pixel offsets from the centre, px.
+        flux_dn : float
+            Windowed flux ``F = sum(window * signal)``, DN.
+        """
+        gu, gv = self.surround_grad
+        if (gu == 0.0 and gv == 0.0) or not flux_dn > 0:
+            return np.zeros((2, 2))
+        g2 = max(gu * gu + gv * gv - 2.0 * self.surround_grad_sd**2, 0.0)
+        if g2 == 0.0:
+            return np.zeros((2, 2))
+        r2 = du_px * du_px + dv_px * dv_px
+        m2 = 0.5 * float((window * (signal_dn > 0) * r2).sum())
+        edge = (window > 0) & (window < 1)
+        f_eff = flux_dn - 0.5 * float((np.sqrt(r2) * signal_dn)[edge].sum())
+        f_eff = f_eff if f_eff > 0.5 * flux_dn else flux_dn
+        return np.eye(2) * (g2 * (m2 / f_eff) ** 2)
 
     def mask_moments(self) -> tuple[float, float, float]:
         """Binary centroid ``(u, v)`` and Gaussian-equivalent sigma of the mask, pixels."""

@@ -186,6 +186,26 @@ def border_plane(pixels: np.ndarray) -> tuple[float, float, float]:
     return float(coef[0]), float(coef[1]), float(coef[2])
 
 
+def border_spread_px2(shape: tuple[int, ...]) -> float:
+    """Sum over a window's border pixels of the squared column offset from the centre, px^2.
+
+    The same holds for the rows with ``h`` and ``w`` swapped; the smaller of the two is
+    returned. A least-squares slope fitted to the border (:func:`border_plane`) on white
+    noise of sd ``n`` has sd ``n / sqrt(this)`` (the plane's three columns are orthogonal
+    on the border, which is symmetric about the centre).
+    """
+    h, w = int(shape[0]), int(shape[1])
+    if h < 3 or w < 3:
+        return float(max(h * w, 1))
+
+    def spread(a: int, b: int) -> float:  # offsets along the side of length a
+        rows = 2.0 * a * (a * a - 1) / 12.0  # the two full sides of length a
+        cols = 2.0 * (b - 2) * ((a - 1) / 2.0) ** 2  # the two short sides, at the ends
+        return rows + cols
+
+    return min(spread(w, h), spread(h, w))
+
+
 def _border_median(pixels: np.ndarray) -> float:
     return float(
         np.median(np.concatenate([pixels[0], pixels[-1], pixels[1:-1, 0], pixels[1:-1, -1]]))
@@ -199,9 +219,11 @@ BoxesFn = Callable[
 
 
 #: A candidate window before the gain is known: pixels, blob mask, saturated pixels,
-#: corner (u0, v0), background plane, threshold, noise, and whether its signal is clipped.
+#: corner (u0, v0), background plane, threshold, noise, whether its signal is clipped, and
+#: the surround's tilt left in it with its noise sd (du, dv, sd; see Candidate.surround_grad).
 RawWindow = tuple[
-    np.ndarray, np.ndarray, np.ndarray, int, int, tuple[float, float, float], float, float, bool
+    np.ndarray, np.ndarray, np.ndarray, int, int, tuple[float, float, float], float, float, bool,
+    tuple[float, float, float],
 ]
 
 
@@ -330,6 +352,7 @@ def search_candidates(
             else:
                 wpix, wsat = _window(image, wb, sat_dn)
             mask = np.zeros(wpix.shape, bool)
+            surround = (0.0, 0.0, 0.0)
             mask[gv0 - wb[1] : gv0 - wb[1] + h, gu0 - wb[0] : gu0 - wb[0] + w] = comp
             plane = border_plane(wpix)
             if search is not None:
@@ -343,10 +366,14 @@ def search_candidates(
                 ped = spot_pedestal(wpix, mask, plane[0],
                                     options.window_sigma * sigma_core - r_eq)
                 noise_box = spot_noise
+                # the border's tilt stays in the signal; it bounds the centre's bias instead
+                # (Candidate.surround_tilt_cov)
+                surround = (plane[1], plane[2], noise_box / math.sqrt(border_spread_px2(wpix.shape)))
                 plane = (ped, 0.0, 0.0)
                 # half the core's height above the background, peak-channel DN
                 thr_box = plane[0] + 0.5 * (float(wpix[mask].max()) - plane[0])
-            raw.append((wpix, mask, wsat, wb[0], wb[1], plane, thr_box, noise_box, search is not None))
+            raw.append((wpix, mask, wsat, wb[0], wb[1], plane, thr_box, noise_box, search is not None,
+                        surround))
     # A frame whose median pixel is 0 DN (a dark, heavily quantised or noise-free frame)
     # has no Gaussian noise to judge significance by: its rare 1-DN pixels cluster into
     # "spots" by chance (a 64 MP 8-bit frame with a 0.02 DN background gave 105). The
@@ -364,8 +391,8 @@ def search_candidates(
     gain0 = options.gain_dn_per_e or 1.0
     cands = [
         Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, gain0, t, clip_signal=clip,
-                  frame_shape=(H, W))
-        for p, m, s, u0, v0, bg, t, nz, clip in raw
+                  frame_shape=(H, W), surround_grad=(sg[0], sg[1]), surround_grad_sd=sg[2])
+        for p, m, s, u0, v0, bg, t, nz, clip, sg in raw
     ]
     if options.gain_dn_per_e is None:
         gain = estimate_gain(cands, options.window_sigma)
@@ -437,7 +464,7 @@ def _significant_windows(
         mask = labels == labels[pv, pu]
         noise = max(st.noise_dn, border_noise(wpix))
         out.append((wpix, mask, _saturated(image, wb, sat_dn), wb[0], wb[1], plane,
-                    plane[0] + 0.5 * top, noise, False))
+                    plane[0] + 0.5 * top, noise, False, (0.0, 0.0, 0.0)))
         taken.append((wb[0] + pu - 1.0, wb[1] + pv - 1.0, wb[0] + pu + 1.0, wb[1] + pv + 1.0))
     return out, "", note
 

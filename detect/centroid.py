@@ -202,6 +202,8 @@ def _windowed_centroid(
         )
         / F**2
     )
+    # the surround's tilt left in the signal (a bright spot above its flat pedestal)
+    cov = cov + cand.surround_tilt_cov(win, s, du, dv, float(F))
     return cand.blob(u, v, flux_dn=float(F), size_px=sigma, cov_px2=cov)
 
 
