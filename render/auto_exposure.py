@@ -27,7 +27,7 @@ import math
 
 import cv2
 import numpy as np
-from deckpose.render.config import AutoExposureSpec, SensorSpec
+from deckpose.render.sensor_config import AutoExposureSpec, SensorSpec
 from numpy.typing import NDArray
 
 __all__ = ["metered_exposure", "raster_levels"]

@@ -47,7 +47,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
 import pandas as pd
-from deckpose.render.config import BayerPattern, RenderConfig, config_to_dict, load_config
+from deckpose.render.config import RenderConfig, config_to_dict, load_config
 from deckpose.render.fixed_pattern import hot_pixel_table
 from deckpose.render.plan import FrameSpec, plan_frames
 from deckpose.render.render_detection import (
@@ -57,6 +57,7 @@ from deckpose.render.render_detection import (
     resolve_detection,
     write_rendered_detections,
 )
+from deckpose.render.sensor_config import BayerPattern
 
 from deckpose.atomic_io import atomic_open, remove_stale_temps
 from deckpose.camera_info import write_camera_info

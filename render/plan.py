@@ -15,8 +15,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from deckpose.render.approach import ApproachSpec, approach_camera_pose, approach_times_s
-from deckpose.render.config import Lighting, MotionSource, MotionSpec, RenderConfig
+from deckpose.render.config import RenderConfig
+from deckpose.render.motion_config import MotionSource, MotionSpec
 from deckpose.render.rolling_shutter import ShipTrack
+from deckpose.render.scene_config import Lighting
 
 from deckpose.capture_time import epoch_ns, replay_starts_ns
 from deckpose.errors import ConfigError, DeckposeError
