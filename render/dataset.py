@@ -82,6 +82,7 @@ from deckpose.table_schemas import (
 from deckpose.tables import write_table
 
 if TYPE_CHECKING:
+    from deckpose.render.scene import DeckRenderer
     from distributed import Client
 
 log = logging.getLogger(__name__)
@@ -140,14 +141,9 @@ def encode_frame(cfg: RenderConfig, spec: FrameSpec, detection: RenderDetection 
         painted_ring_rows,
         render_frame,
     )
-    from deckpose.render.scene import DeckRenderer
-
-    key = (cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
     with _LOCK:  # one GL context per process; Dask may run several threads per worker
-        if key not in _RENDERERS:
-            _RENDERERS[key] = DeckRenderer(cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
         camera = cfg.cameras_by_name()[spec.camera_name]
-        rf = render_frame(cfg, spec, camera, _RENDERERS[key])
+        rf = render_frame(cfg, spec, camera, _renderer(cfg))
     img = rf.frame.image
     bgr = img if img.ndim == 2 else img[..., ::-1]
     keep = detection is None or detection.keep_images
@@ -161,6 +157,16 @@ def encode_frame(cfg: RenderConfig, spec: FrameSpec, detection: RenderDetection 
     if detection is not None and detection.detectors:
         part["detections"] = detect_rendered(rf.frame, spec.camera_name, rel, cfg.layout, detection)
     return EncodedFrame(spec.frame_id, image, preview_png, part)
+
+
+def _renderer(cfg: RenderConfig) -> DeckRenderer:
+    """This process's renderer of the config's scene (made on first use; call with ``_LOCK`` held)."""
+    from deckpose.render.scene import DeckRenderer
+
+    key = (cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
+    if key not in _RENDERERS:
+        _RENDERERS[key] = DeckRenderer(cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
+    return cast("DeckRenderer", _RENDERERS[key])
 
 
 def _write_bytes(path: Path, data: bytes) -> None:
@@ -237,7 +243,15 @@ def sensor_block(cfg: RenderConfig) -> dict[str, Any]:
     if s.prnu or s.dsnu_e or s.hot_pixel_fraction:
         block["fixed_pattern"] = {"prnu": s.prnu, "dsnu_e": s.dsnu_e, "hot_pixel_fraction": s.hot_pixel_fraction,
                                   "hot_pixel_e": s.hot_pixel_e, "hot_pixels": "cameras/<name>_hot_pixels.parquet"}
-    if s.auto_exposure is not None:
+    ae = s.auto_exposure
+    if ae is not None and ae.controlled:
+        block["exposure"] = {
+            "control": "per time sequence (camera, height, lighting) in time order: frame k's exposure from the "
+                       "meterings of the frames before it (render/exposure_control.py); nothing drawn at random",
+            "time_constant_s": ae.time_constant_s, "max_step_stops": ae.max_step_stops,
+            "metering_scale": ae.metering_scale,
+            "columns": "frames.parquet exposure (used), metered_exposure (the frame's own metering)"}
+    elif ae is not None:
         block["exposure"] = "per frame: frames.parquet exposure (auto-exposure)"
     return block
 
@@ -440,6 +454,30 @@ def _render_todo(cfg: RenderConfig, plan: list[FrameSpec], out: Path, workers: i
         bar.close()
 
 
+def _controlled_exposures(cfg: RenderConfig, plan: list[FrameSpec], progress: bool) -> list[FrameSpec]:
+    """The plan with the auto-exposure controller's exposures (the plan itself without the controller).
+
+    The metering pre-pass (:mod:`deckpose.render.exposure_control`) rasterises every
+    frame's scene at ``metering_scale`` in this process, in plan order, and runs the
+    controller over each time sequence; a resumed run meters again and gets the same
+    exposures (nothing is drawn at random).
+    """
+    ae = cfg.sensor.auto_exposure
+    if ae is None or not ae.controlled:
+        return plan
+    from deckpose.render.exposure_control import metering_exposure, with_exposures
+    from tqdm import tqdm
+
+    cams = cfg.cameras_by_name()
+    metered = []
+    with _LOCK:
+        renderer = _renderer(cfg)
+        for spec in tqdm(plan, unit="frame", disable=None if progress else True, desc=f"meter {cfg.name}"):
+            metered.append(metering_exposure(spec, cams[spec.camera_name], renderer, cfg.sensor,
+                                             cfg.scene.shading, ae))
+    return with_exposures(plan, metered, ae)
+
+
 def _remove_unfinished(out: Path) -> None:
     """Remove what :func:`_prepare` wrote into ``out`` (all but another job's lock file)."""
     for p in out.iterdir():
@@ -491,6 +529,7 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
     fresh = not RunPaths(out).manifest.exists()
     with _connect(scheduler) if scheduler else contextlib.nullcontext() as client:  # before writing
         _prepare(cfg, plan, out, resume, detection)
+        plan = _controlled_exposures(cfg, plan, progress)
         try:
             _render_todo(cfg, plan, out, workers, scheduler, client, progress, detection)
         except ConfigError as exc:

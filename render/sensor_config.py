@@ -29,12 +29,28 @@ class AutoExposureSpec:
     (``percentile: null``) or that percentile of its values is brought to ``target``;
     the exposure (the unit of ``sensor.exposure``) is clamped to
     [``min_exposure``, ``max_exposure``].
+
+    Across frames (:mod:`deckpose.render.exposure_control`), off by default: with
+    ``time_constant_s`` > 0 or a ``max_step_stops``, the exposure of frame ``k`` of a time
+    sequence comes from the meterings of the frames before it, through a first-order
+    controller in log exposure of that time constant (0: the next frame takes the last
+    metering at once), its change per frame limited to ``max_step_stops`` stops (null:
+    no limit); the meterings are taken in a pre-pass on the scene rendered at
+    ``metering_scale`` times the frame's width and height (1: the full frame).
     """
 
     target: float = 0.18
     percentile: float | None = None
     min_exposure: float = 0.05
     max_exposure: float = 50.0
+    time_constant_s: float = 0.0
+    max_step_stops: float | None = None
+    metering_scale: float = 0.25
+
+    @property
+    def controlled(self) -> bool:
+        """Whether the exposure follows the sequence (False: each frame meters itself)."""
+        return self.time_constant_s > 0 or self.max_step_stops is not None
 
 
 @dataclass(frozen=True)
@@ -111,3 +127,7 @@ def _check_sensor_effects(spec: SensorSpec, where: str) -> None:
         if ae.max_exposure < ae.min_exposure:
             raise ConfigError(f"{w}: max_exposure {ae.max_exposure:g} is below min_exposure "
                               f"{ae.min_exposure:g}; raise max_exposure")
+        check_range(ae.time_constant_s, f"{w}.time_constant_s", low=0, high=3600)
+        if ae.max_step_stops is not None:
+            check_range(ae.max_step_stops, f"{w}.max_step_stops", low=0, low_open=True, high=20)
+        check_range(ae.metering_scale, f"{w}.metering_scale", low=0, low_open=True, high=1)
