@@ -350,6 +350,8 @@ def config_to_dict(cfg: RenderConfig) -> dict[str, Any]:
             sub = {k: _plain(v) for k, v in asdict(val).items()}
             if key == "motion":
                 sub["params"] = dict(val.params)
+            if key == "sensor" and sub.get("video") is None:
+                sub.pop("video", None)  # no key: a config without video resolves as it did before
             out[key] = sub
         else:
             out[key] = _plain(val)

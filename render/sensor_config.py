@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from deckpose.errors import ConfigError
 from deckpose.typed_config import check_range, from_mapping
 
-__all__ = ["AutoExposureSpec", "BayerPattern", "SensorSpec", "sensor_spec"]
+__all__ = ["AutoExposureSpec", "BayerPattern", "SensorSpec", "VideoCodec", "VideoSpec", "sensor_spec"]
 
 
 class BayerPattern(enum.Enum):
@@ -53,6 +53,31 @@ class AutoExposureSpec:
         return self.time_constant_s > 0 or self.max_step_stops is not None
 
 
+class VideoCodec(enum.Enum):
+    """A video codec of OpenCV's FFmpeg writer (:mod:`deckpose.render.video_codec`).
+
+    ``mp4v``: MPEG-4 Part 2 (motion-compensated P-frames, 8x8 DCT: the family of H.264,
+    whose encoders OpenCV's wheels lack); ``vp9``: libvpx's VP9 (a codec of H.264's and
+    HEVC's generation: larger transforms, more prediction modes; several times slower).
+    """
+
+    MP4V = "mp4v"
+    VP9 = "vp9"
+
+
+@dataclass(frozen=True)
+class VideoSpec:
+    """A run's frames compressed as a video stream, in time order, and decoded back.
+
+    ``codec`` (:class:`VideoCodec`), ``bitrate_kbps`` of the stream at the sequence's
+    frame rate, ``gop_frames``: frames from one key frame to the next.
+    """
+
+    codec: VideoCodec = VideoCodec.MP4V
+    bitrate_kbps: float = 4000.0
+    gop_frames: int = 12
+
+
 @dataclass(frozen=True)
 class SensorSpec:
     """Sensor model applied after rendering (see :mod:`deckpose.render.sensor`).
@@ -62,8 +87,9 @@ class SensorSpec:
     ``bit_depth`` 8, 12 or 16 (12 is stored in 16-bit PNG, values 0..4095);
     ``color`` ``rgb`` or ``mono``; ``noise: false`` gives the noise-free image.
     Sensor effects, off by default: ``bayer`` (:class:`BayerPattern`), ``jpeg_quality``,
-    the fixed pattern ``prnu`` / ``dsnu_e`` / ``hot_pixel_fraction`` / ``hot_pixel_e`` and
-    ``auto_exposure`` (:class:`AutoExposureSpec`); the README's "Sensor effects" says what each models.
+    the fixed pattern ``prnu`` / ``dsnu_e`` / ``hot_pixel_fraction`` / ``hot_pixel_e``,
+    ``auto_exposure`` (:class:`AutoExposureSpec`) and ``video`` (:class:`VideoSpec`);
+    the README's "Sensor effects" says what each models.
     """
 
     bit_depth: int = 8
@@ -84,6 +110,7 @@ class SensorSpec:
     hot_pixel_fraction: float = 0.0
     hot_pixel_e: float = 2000.0
     auto_exposure: AutoExposureSpec | None = None
+    video: VideoSpec | None = None
 
 
 def sensor_spec(doc: object, where: str = "sensor") -> SensorSpec:
@@ -104,7 +131,7 @@ def sensor_spec(doc: object, where: str = "sensor") -> SensorSpec:
 
 
 def _check_sensor_effects(spec: SensorSpec, where: str) -> None:
-    """Range checks of the sensor effects (Bayer, JPEG, fixed pattern, auto-exposure)."""
+    """Range checks of the sensor effects (Bayer, JPEG, fixed pattern, auto-exposure, video)."""
     if spec.bayer is not BayerPattern.NONE and spec.color == "mono":
         raise ConfigError(f"{where}.bayer: a mono sensor has no colour filter array; "
                           "set sensor.color: rgb or sensor.bayer: none")
@@ -131,3 +158,15 @@ def _check_sensor_effects(spec: SensorSpec, where: str) -> None:
         if ae.max_step_stops is not None:
             check_range(ae.max_step_stops, f"{w}.max_step_stops", low=0, low_open=True, high=20)
         check_range(ae.metering_scale, f"{w}.metering_scale", low=0, low_open=True, high=1)
+    video = spec.video
+    if video is not None:
+        w = f"{where}.video"
+        if spec.bit_depth != 8:
+            raise ConfigError(f"{w}: the video codecs hold 8-bit frames only, got bit_depth {spec.bit_depth}; "
+                              "set sensor.bit_depth: 8 or video: null")
+        if spec.jpeg_quality is not None:
+            raise ConfigError(f"{w}: a frame is either JPEG-compressed or part of a video stream; "
+                              "set jpeg_quality: null or video: null")
+        # 10 kbit/s to 1 Gbit/s spans a thumbnail stream to a near-lossless 8K one
+        check_range(video.bitrate_kbps, f"{w}.bitrate_kbps", low=10, high=1e6)
+        check_range(video.gop_frames, f"{w}.gop_frames", low=1, high=1000)
