@@ -122,6 +122,9 @@ FRAME_COLUMNS: tuple[Column, ...] = (
     _C("cam_z_m", "float64", "m", "camera position, world z (up)", nullable=False),
     _C("exposure", "float64", "", "exposure the auto-exposure chose (unit of sensor.exposure: 1 = the raster's "
        "white fills the well); the column exists only with sensor.auto_exposure"),
+    _C("metered_exposure", "float64", "", "exposure this frame's own metering asks for; the auto-exposure "
+       "controller sets the frame's exposure from the meterings of the frames before it; the column exists "
+       "only with sensor.auto_exposure.time_constant_s > 0 or max_step_stops"),
 )
 
 #: ``beacons.parquet``: one row per frame x beacon, the true projection and spot model.

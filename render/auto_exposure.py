@@ -1,7 +1,9 @@
 """Auto-exposure: the exposure of each frame chosen from a metering of its noise-free image.
 
-A real camera meters the frames before the one it takes; frames here are rendered
-independently (any order, any worker), so each frame meters itself: the noise-free,
+A real camera meters the frames before the one it takes; that controller, switched on by
+``auto_exposure.time_constant_s`` or ``max_step_stops``, runs over each time sequence
+before the frames render (:mod:`deckpose.render.exposure_control`, with this metering).
+Without it each frame meters itself: the noise-free,
 clipped background (the rasterised deck and sea through the sensor's mean table,
 without the beacons and other lights, which cover well under 0.1 % of a frame) at a
 trial exposure ``E``, in full-scale units, is ``min(E * a, 1)`` per pixel and channel
@@ -17,8 +19,7 @@ luma-weighted scale), so the metering is exact from a 256-bin histogram per chan
 dark takes the longest exposure and its beacons saturate, a bright day frame a short
 one and its beacons come out dim. The exposure used is recorded per frame
 (``exposure`` in ``frames.parquet``) and the spot model of ``beacons.parquet`` is
-computed under it. A change of exposure from one frame to the next is not smoothed
-(that would make a frame depend on the one before it).
+computed under it.
 """
 
 from __future__ import annotations
@@ -27,7 +28,7 @@ import math
 
 import cv2
 import numpy as np
-from deckpose.render.config import AutoExposureSpec, SensorSpec
+from deckpose.render.sensor_config import AutoExposureSpec, SensorSpec
 from numpy.typing import NDArray
 
 __all__ = ["metered_exposure", "raster_levels"]

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
-from deckpose.render.config import BayerPattern
+from deckpose.render.sensor_config import BayerPattern
 from numpy.typing import NDArray
 
 __all__ = ["CHANNEL_INDEX", "demosaic", "filter_channels", "select_mosaic"]

@@ -22,9 +22,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from deckpose.render.config import EmitterShape, LedSpec, SensorSpec
 from deckpose.render.emitter import dome_light_centroids
+from deckpose.render.leds_config import EmitterShape, LedSpec
 from deckpose.render.light import beacon_flux
+from deckpose.render.sensor_config import SensorSpec
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel

@@ -13,7 +13,7 @@ from dataclasses import replace
 import cv2
 import numpy as np
 from deckpose.render.beacons import Splat
-from deckpose.render.config import SensorSpec
+from deckpose.render.sensor_config import SensorSpec
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel

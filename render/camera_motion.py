@@ -23,7 +23,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from deckpose.render.config import ShutterSpec
+from deckpose.render.shutter_config import ShutterSpec
 from numpy.typing import NDArray
 
 from deckpose.pose import CameraPose

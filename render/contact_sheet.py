@@ -17,10 +17,11 @@ from typing import Any
 
 import cv2
 import numpy as np
-from deckpose.render.config import Lighting, Shading, config_from_dict, load_config
+from deckpose.render.config import config_from_dict, load_config
 from deckpose.render.frame import render_frame
 from deckpose.render.plan import FrameSpec
 from deckpose.render.scene import DeckRenderer
+from deckpose.render.scene_config import Lighting, Shading
 
 from deckpose.atomic_io import atomic_path
 from deckpose.pose import ShipPose

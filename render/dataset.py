@@ -46,8 +46,9 @@ from multiprocessing import get_context
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
+import numpy as np
 import pandas as pd
-from deckpose.render.config import BayerPattern, RenderConfig, config_to_dict, load_config
+from deckpose.render.config import RenderConfig, config_to_dict, load_config
 from deckpose.render.fixed_pattern import hot_pixel_table
 from deckpose.render.plan import FrameSpec, plan_frames
 from deckpose.render.render_detection import (
@@ -57,6 +58,7 @@ from deckpose.render.render_detection import (
     resolve_detection,
     write_rendered_detections,
 )
+from deckpose.render.sensor_config import BayerPattern, VideoSpec
 
 from deckpose.atomic_io import atomic_open, remove_stale_temps
 from deckpose.camera_info import write_camera_info
@@ -81,6 +83,7 @@ from deckpose.table_schemas import (
 from deckpose.tables import write_table
 
 if TYPE_CHECKING:
+    from deckpose.render.scene import DeckRenderer
     from distributed import Client
 
 log = logging.getLogger(__name__)
@@ -139,14 +142,9 @@ def encode_frame(cfg: RenderConfig, spec: FrameSpec, detection: RenderDetection 
         painted_ring_rows,
         render_frame,
     )
-    from deckpose.render.scene import DeckRenderer
-
-    key = (cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
     with _LOCK:  # one GL context per process; Dask may run several threads per worker
-        if key not in _RENDERERS:
-            _RENDERERS[key] = DeckRenderer(cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
         camera = cfg.cameras_by_name()[spec.camera_name]
-        rf = render_frame(cfg, spec, camera, _RENDERERS[key])
+        rf = render_frame(cfg, spec, camera, _renderer(cfg))
     img = rf.frame.image
     bgr = img if img.ndim == 2 else img[..., ::-1]
     keep = detection is None or detection.keep_images
@@ -160,6 +158,16 @@ def encode_frame(cfg: RenderConfig, spec: FrameSpec, detection: RenderDetection 
     if detection is not None and detection.detectors:
         part["detections"] = detect_rendered(rf.frame, spec.camera_name, rel, cfg.layout, detection)
     return EncodedFrame(spec.frame_id, image, preview_png, part)
+
+
+def _renderer(cfg: RenderConfig) -> DeckRenderer:
+    """This process's renderer of the config's scene (made on first use; call with ``_LOCK`` held)."""
+    from deckpose.render.scene import DeckRenderer
+
+    key = (cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
+    if key not in _RENDERERS:
+        _RENDERERS[key] = DeckRenderer(cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
+    return cast("DeckRenderer", _RENDERERS[key])
 
 
 def _write_bytes(path: Path, data: bytes) -> None:
@@ -236,9 +244,32 @@ def sensor_block(cfg: RenderConfig) -> dict[str, Any]:
     if s.prnu or s.dsnu_e or s.hot_pixel_fraction:
         block["fixed_pattern"] = {"prnu": s.prnu, "dsnu_e": s.dsnu_e, "hot_pixel_fraction": s.hot_pixel_fraction,
                                   "hot_pixel_e": s.hot_pixel_e, "hot_pixels": "cameras/<name>_hot_pixels.parquet"}
-    if s.auto_exposure is not None:
+    ae = s.auto_exposure
+    if ae is not None and ae.controlled:
+        block["exposure"] = {
+            "control": "per time sequence (camera, height, lighting) in time order: frame k's exposure from the "
+                       "meterings of the frames before it (render/exposure_control.py); nothing drawn at random",
+            "time_constant_s": ae.time_constant_s, "max_step_stops": ae.max_step_stops,
+            "metering_scale": ae.metering_scale,
+            "columns": "frames.parquet exposure (used), metered_exposure (the frame's own metering)"}
+    elif ae is not None:
         block["exposure"] = "per frame: frames.parquet exposure (auto-exposure)"
+    if s.video is not None:
+        from deckpose.render.video_codec import CONTAINER, FOURCC
+
+        block["video"] = {
+            "codec": s.video.codec.value, "bitrate_kbps": s.video.bitrate_kbps, "gop_frames": s.video.gop_frames,
+            "encoder": f"OpenCV {_opencv_version()} VideoWriter (FFmpeg), FOURCC {FOURCC[s.video.codec]!r}, "
+                       f"{CONTAINER} container, YUV 4:2:0",
+            "order": "one stream per time sequence (camera, height, lighting) in time order, at its frame rate; "
+                     "the decoded frames are stored (render/video_codec.py)"}
     return block
+
+
+def _opencv_version() -> str:
+    import cv2
+
+    return str(cv2.__version__)
 
 
 def _write_json(path: Path, doc: dict[str, Any]) -> None:
@@ -439,6 +470,91 @@ def _render_todo(cfg: RenderConfig, plan: list[FrameSpec], out: Path, workers: i
         bar.close()
 
 
+def _controlled_exposures(cfg: RenderConfig, plan: list[FrameSpec], progress: bool) -> list[FrameSpec]:
+    """The plan with the auto-exposure controller's exposures (the plan itself without the controller).
+
+    The metering pre-pass (:mod:`deckpose.render.exposure_control`) rasterises every
+    frame's scene at ``metering_scale`` in this process, in plan order, and runs the
+    controller over each time sequence; a resumed run meters again and gets the same
+    exposures (nothing is drawn at random).
+    """
+    ae = cfg.sensor.auto_exposure
+    if ae is None or not ae.controlled:
+        return plan
+    from deckpose.render.exposure_control import metering_exposure, with_exposures
+    from tqdm import tqdm
+
+    cams = cfg.cameras_by_name()
+    metered = []
+    with _LOCK:
+        renderer = _renderer(cfg)
+        for spec in tqdm(plan, unit="frame", disable=None if progress else True, desc=f"meter {cfg.name}"):
+            metered.append(metering_exposure(spec, cams[spec.camera_name], renderer, cfg.sensor,
+                                             cfg.scene.shading, ae))
+    return with_exposures(plan, metered, ae)
+
+
+def _video_pass(cfg: RenderConfig, video: VideoSpec, plan: list[FrameSpec], out: Path, progress: bool) -> None:
+    """Compress each time sequence's stored frames as a video stream and store the decoded frames.
+
+    Two-phase, so an interrupted pass resumes without compressing a frame twice: a
+    sequence's decoded frames and previews are written under ``.video/`` and then
+    ``.video/<k>.staged``; only then are they moved over ``images/`` and ``previews/``
+    (each move atomic), and ``.video/<k>.applied`` marks the sequence done. A sequence
+    with no marker still has every frame as rendered.
+    """
+    from deckpose.render.exposure_control import time_sequences
+    from tqdm import tqdm
+
+    stage = out / ".video"
+    stage.mkdir(exist_ok=True)
+    sequences = time_sequences(plan)
+    bar = tqdm(total=len(plan), unit="frame", disable=None if progress else True, desc=f"video {cfg.name}")
+    try:
+        for k, idx in enumerate(sequences):
+            applied, staged = stage / f"{k:04d}.applied", stage / f"{k:04d}.staged"
+            if not applied.exists():
+                specs = [plan[i] for i in idx]
+                if not staged.exists():
+                    _stage_sequence(cfg, video, specs, out, stage)
+                    with atomic_open(staged, "w") as fh:
+                        json.dump([s.frame_id for s in specs], fh)
+                for spec in specs:
+                    for rel in (image_relpath(spec.frame_id, cfg.image_format.suffix), preview_relpath(spec.frame_id)):
+                        if (stage / rel).exists():  # (moved already when a pass was cut here)
+                            os.replace(stage / rel, out / rel)
+                with atomic_open(applied, "w") as fh:
+                    json.dump([s.frame_id for s in specs], fh)
+                staged.unlink()
+            bar.update(len(idx))
+    finally:
+        bar.close()
+
+
+def _stage_sequence(cfg: RenderConfig, video: VideoSpec, specs: list[FrameSpec], out: Path, stage: Path) -> None:
+    """Write one sequence's frames after the video round trip, and their previews, under ``stage``."""
+    from deckpose.render.video_codec import video_round_trip
+
+    from deckpose.image_store import decode_image
+
+    rels = [image_relpath(s.frame_id, cfg.image_format.suffix) for s in specs]
+    frames = []
+    for rel in rels:
+        img = decode_image((out / rel).read_bytes(), rel)
+        frames.append(img if img.ndim == 2 else img[..., ::-1])  # BGR on disk
+    t = np.array([s.t_s for s in specs], float)
+    steps = np.diff(t)
+    dt = float(np.median(steps)) if steps.size and np.median(steps) > 0 else cfg.motion.dt_s
+    decoded = video_round_trip(frames, 1.0 / dt, video)
+    for spec, rel, img in zip(specs, rels, decoded):
+        bgr = img if img.ndim == 2 else np.ascontiguousarray(img[..., ::-1])
+        for path in (stage / rel, stage / preview_relpath(spec.frame_id)):
+            path.parent.mkdir(parents=True, exist_ok=True)
+        _write_bytes(stage / rel, encode_image(bgr, cfg.image_format))
+        _write_bytes(stage / preview_relpath(spec.frame_id), encode_image(make_preview(bgr, PREVIEW_PX),
+                                                                          ImageFormat.PNG))
+
+
 def _remove_unfinished(out: Path) -> None:
     """Remove what :func:`_prepare` wrote into ``out`` (all but another job's lock file)."""
     for p in out.iterdir():
@@ -486,10 +602,15 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
     plan = plan_frames(cfg)  # every config error surfaces here, before any frame
     out = Path(out_dir)
     if detection is not None:  # checked before anything is written
+        if cfg.sensor.video is not None:
+            raise ConfigError("sensor.video compresses the frames after they are rendered, so --detect would "
+                              "detect frames the video changes afterwards: detect the run with deckpose detect, "
+                              "or set sensor.video: null")
         detection = resolve_detection(detection, sensor_block(cfg))
     fresh = not RunPaths(out).manifest.exists()
     with _connect(scheduler) if scheduler else contextlib.nullcontext() as client:  # before writing
         _prepare(cfg, plan, out, resume, detection)
+        plan = _controlled_exposures(cfg, plan, progress)
         try:
             _render_todo(cfg, plan, out, workers, scheduler, client, progress, detection)
         except ConfigError as exc:
@@ -500,6 +621,8 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
                 _remove_unfinished(out)
                 raise ConfigError(f"{exc} (nothing was kept in {out})") from None
             raise
+    if cfg.sensor.video is not None:
+        _video_pass(cfg, cfg.sensor.video, plan, out, progress)
     parts = read_parts(out, plan)
 
     fdf, bdf, ldf = collect_tables(out, plan, parts)

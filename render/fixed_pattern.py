@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-from deckpose.render.config import SensorSpec
+from deckpose.render.sensor_config import SensorSpec
 from numpy.typing import NDArray
 
 __all__ = ["FIXED_PATTERN_STREAM", "FixedPattern", "apply_fixed_pattern", "fixed_pattern", "hot_pixel_table"]

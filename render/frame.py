@@ -113,8 +113,10 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
     proj = project_layout(cfg.layout, spec.ship, cam_pose, camera) if shutter is None else shutter.projection
     scale = radiance_scale(spec.lighting, cfg.scene.shading)
     sensor = cfg.sensor  # with auto-exposure, the exposure this frame's metering chose (and the truth uses)
-    if sensor.auto_exposure is not None:
-        sensor = dataclasses.replace(sensor, exposure=metered_exposure(raster, scale, sensor, sensor.auto_exposure))
+    if sensor.auto_exposure is not None:  # the controller's, chosen before (exposure_control), or its own
+        exposure = (spec.exposure if spec.exposure is not None
+                    else metered_exposure(raster, scale, sensor, sensor.auto_exposure))
+        sensor = dataclasses.replace(sensor, exposure=exposure)
     if cfg.scene.bloom_fraction > 0:  # glare around every light, point-symmetric (truth unchanged)
         glare_px = bloom_sigma_px(cfg.scene.bloom_sigma_mrad, camera)
         splats = bloom(splats, cfg.scene.bloom_fraction, glare_px)
@@ -186,6 +188,8 @@ def frame_row(rf: RenderedFrame, image_relpath: str) -> dict[str, Any]:
                           t.camera_pose, s.lighting.value, s.seed, int(np.count_nonzero(t.visible)))
     if rf.exposure is not None:  # the column exists only with sensor.auto_exposure (default tables unchanged)
         row["exposure"] = rf.exposure
+    if s.metered_exposure is not None:  # only with the exposure controller (exposure_control)
+        row["metered_exposure"] = s.metered_exposure
     return row
 
 

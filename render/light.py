@@ -1,6 +1,6 @@
 """How much of a light reaches the sensor: emission pattern, distance, extinction, unit tolerance.
 
-Two beacon models (:class:`~deckpose.render.config.LedModel`):
+Two beacon models (:class:`~deckpose.render.leds_config.LedModel`):
 
 * ``disc`` (default; the frames of earlier versions): a flat emitting disc of radius
   ``r`` and constant radiance, so its light on the sensor is the radiance times its
@@ -25,7 +25,8 @@ bound stays exact whatever the model.
 from __future__ import annotations
 
 import numpy as np
-from deckpose.render.config import LedModel, LedSpec, SensorSpec
+from deckpose.render.leds_config import LedModel, LedSpec
+from deckpose.render.sensor_config import SensorSpec
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel

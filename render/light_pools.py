@@ -23,7 +23,7 @@ import math
 
 import cv2
 import numpy as np
-from deckpose.render.config import Lighting
+from deckpose.render.scene_config import Lighting
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from deckpose.render.beacons import Splat
-from deckpose.render.config import OcclusionSpec
+from deckpose.render.occlusion_config import OcclusionSpec
 from numpy.typing import NDArray
 from scipy.special import ndtri
 

@@ -1,6 +1,6 @@
 """The lens beyond a Gaussian: defocus, diffraction, glare, spikes, blooming, vignetting, CA, field blur.
 
-Every effect is off by default (:class:`deckpose.render.config.OpticsSpec`) and acts on the
+Every effect is off by default (:class:`deckpose.render.optics_config.OpticsSpec`) and acts on the
 light spots (:mod:`deckpose.render.beacons`), not on the whole frame (cost). A spot's
 window, the Gaussian core and halo sampled at pixel centres, is convolved in full, per
 colour channel ``c``, with a kernel
@@ -54,7 +54,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 from deckpose.render.beacons import Splat
 from deckpose.render.blooming import bloom_splats
-from deckpose.render.config import OpticsSpec, SensorSpec
+from deckpose.render.optics_config import OpticsSpec
 from deckpose.render.psf_kernels import (
     AIRY_TRUNCATION,
     GLARE_TRUNCATION,
@@ -76,6 +76,7 @@ from deckpose.render.psf_kernels import (
     spike_kernel,
 )
 from deckpose.render.sensor import SpotRecord, spot_record
+from deckpose.render.sensor_config import SensorSpec
 from deckpose.render.spot_bound import spot_crb_px
 from numpy.typing import NDArray
 

@@ -37,8 +37,8 @@ from typing import Any
 
 import numpy as np
 from deckpose.render.beacons import Splat
-from deckpose.render.config import Lighting
 from deckpose.render.scene import PRESETS
+from deckpose.render.scene_config import Lighting
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel

@@ -15,8 +15,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from deckpose.render.approach import ApproachSpec, approach_camera_pose, approach_times_s
-from deckpose.render.config import Lighting, MotionSource, MotionSpec, RenderConfig
+from deckpose.render.config import RenderConfig
+from deckpose.render.motion_config import MotionSource, MotionSpec
 from deckpose.render.rolling_shutter import ShipTrack
+from deckpose.render.scene_config import Lighting
 
 from deckpose.capture_time import epoch_ns, replay_starts_ns
 from deckpose.errors import ConfigError, DeckposeError
@@ -55,6 +57,12 @@ class FrameSpec:
     camera : CameraPose or None
         The camera's pose where an approach moves it (:mod:`deckpose.render.approach`);
         None: straight down from ``height_m`` above the world origin.
+    exposure : float or None
+        The exposure the auto-exposure controller chose from the frames before
+        (:mod:`deckpose.render.exposure_control`); None: the frame meters itself, or
+        ``sensor.exposure`` without auto-exposure.
+    metered_exposure : float or None
+        The exposure this frame's own metering asks for (with the controller; else None).
     """
 
     frame_id: int
@@ -68,6 +76,8 @@ class FrameSpec:
     capture_offset_ns: int = 0
     track: ShipTrack | None = None
     camera: CameraPose | None = None
+    exposure: float | None = None
+    metered_exposure: float | None = None
 
     @property
     def camera_pose(self) -> CameraPose:

@@ -15,7 +15,7 @@ from collections.abc import Callable
 
 import cv2
 import numpy as np
-from deckpose.render.config import OpticsSpec
+from deckpose.render.optics_config import OpticsSpec
 from numpy.typing import NDArray
 from scipy.special import erf, j1
 

@@ -47,7 +47,10 @@ from dataclasses import dataclass
 import numpy as np
 from deckpose.render.beacons import Splat, beacon_splats
 from deckpose.render.camera_motion import CameraMotion
-from deckpose.render.config import LedSpec, MotionSpec, Readout, SensorSpec, ShutterSpec
+from deckpose.render.leds_config import LedSpec
+from deckpose.render.motion_config import MotionSpec
+from deckpose.render.sensor_config import SensorSpec
+from deckpose.render.shutter_config import Readout, ShutterSpec
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel

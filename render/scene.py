@@ -41,9 +41,10 @@ from typing import Any
 
 import cv2
 import numpy as np
-from deckpose.render.config import Backend, Lighting, SceneSpec, Shading
+from deckpose.render.config import Backend
 from deckpose.render.lens import MAX_SIDE_PX
 from deckpose.render.light_pools import AMBIENT_LUX, apply_light_pools, pool_gain
+from deckpose.render.scene_config import Lighting, SceneSpec, Shading
 from deckpose.render.sea import Waves, sea_colour, sea_grid_m, sea_grid_surface, sea_waves
 from deckpose.render.ship_model import hull_mesh, superstructure_mesh
 from numpy.typing import NDArray

@@ -25,7 +25,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from deckpose.render.config import SeaSpec
+from deckpose.render.scene_config import SeaSpec
 from numpy.typing import NDArray
 
 __all__ = ["GRAVITY_M_PER_S2", "SEA_STREAM", "Waves", "sea_colour", "sea_grid_m", "sea_grid_surface",

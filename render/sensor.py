@@ -40,8 +40,8 @@ import cv2
 import numpy as np
 from deckpose.render.bayer import demosaic, select_mosaic
 from deckpose.render.beacons import Splat, add_splats
-from deckpose.render.config import BayerPattern, SensorSpec
 from deckpose.render.fixed_pattern import FixedPattern, apply_fixed_pattern
+from deckpose.render.sensor_config import BayerPattern, SensorSpec
 from numpy.typing import NDArray
 
 #: Float32 values per processing strip: each of its three work buffers (1 MiB) stays in cache.

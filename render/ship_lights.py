@@ -27,8 +27,10 @@ from dataclasses import dataclass
 
 import numpy as np
 from deckpose.render.beacons import Splat, spot_splat
-from deckpose.render.config import LedSpec, SensorSpec, ShipLightsSpec
+from deckpose.render.leds_config import LedSpec
 from deckpose.render.light import point_light_gain, transmission
+from deckpose.render.sensor_config import SensorSpec
+from deckpose.render.ship_lights_config import ShipLightsSpec
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel

@@ -11,8 +11,8 @@ import math
 
 import numpy as np
 from deckpose.render.beacons import Splat
-from deckpose.render.config import SensorSpec
 from deckpose.render.psf_kernels import Kernel, full_convolution
+from deckpose.render.sensor_config import SensorSpec
 from numpy.typing import NDArray
 
 from deckpose.spot_fisher import centre_crb_px2
