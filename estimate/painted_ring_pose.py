@@ -19,14 +19,21 @@
    ``centre_radius_m``). The candidate of least chi-square wins; when the other fits as well
    (chi-square within :data:`AMBIGUITY_CHI2`) at a pose more than 5 sigmas away, the
    estimate is not ok ("ambiguous").
-3. **Covariance and bounds.** The covariance is ``(J^T J)^-1`` of the whitened Jacobian at the
-   optimum: the measured noise. The bound is the same Jacobian with each edge point's sigma
-   replaced by its Cramér–Rao bound (the bow row unchanged): the bound of any unbiased
-   estimator from the same pixels under white noise of the measured level, the deck's local
-   level and slope and the paint's level beside each point unknown (nuisance parameters).
-   ``bound_known_levels`` has those levels known (the position-only white-noise bound, below
-   it). Deck texture whose errors are correlated along the edge raises the measured noise,
-   and the covariance, above the bound.
+3. **Covariance and bounds.** The covariance is the sandwich ``A^-1 S A^-1`` of the whitened
+   Jacobian ``J`` at the optimum, ``A = J^T J``, with ``S`` the Newey–West sum of each edge's
+   scores ``J_i r_i`` over their order along the edge
+   (:mod:`deckpose.long_run_covariance`): the deck texture under neighbouring edge pixels
+   moves neighbouring points together (lag-1 correlation 0.1-0.4 on rendered decks), which
+   ``(J^T J)^-1`` would count as independent. Three bounds sit beside it, each the same
+   Jacobian with each edge point's sigma replaced by its Cramér–Rao bound (the bow row
+   unchanged): ``bound``, the white-noise bound (any unbiased estimator from the same pixels
+   under white noise of the measured level, the deck's local level and slope and the paint's
+   level beside each point unknown: nuisance parameters); ``bound_known_levels``, the same
+   with those levels known (below it); and ``bound_correlated``, the correlated-noise bound:
+   each point at its bound, correlated along its edge as the residuals are (the sandwich with
+   the residuals' Bartlett-tapered autocorrelation; for the pose's smooth regressors the
+   weighted fit is efficient under such noise to first order, Grenander's theorem, so this
+   is close to the Cramér–Rao bound of that correlated noise).
 """
 
 from __future__ import annotations
@@ -82,7 +89,7 @@ class PaintedRingPose:
     estimate : PoseEstimate
         Method :data:`METHOD`; covariance from the measured edge-point noise.
     bound : (6, 6) array of float or None
-        Covariance bound from the image-derived edge noise, same Jacobian (None when not ok).
+        White-noise bound: each edge point at its Cramér–Rao bound, same Jacobian (None when not ok).
     chi2_per_point : float
         Chi-square of the optimum over the number of residuals.
     bound_known_levels : (6, 6) array of float or None
@@ -93,6 +100,9 @@ class PaintedRingPose:
     disc_check_chi2 : float
         :func:`disc_consistency`'s statistic when a disc was detected (NaN otherwise): above
         the chi-square quantile of :data:`DISC_CHECK_ALPHA`, the disc is left out.
+    bound_correlated : (6, 6) array of float or None
+        Correlated-noise bound: each edge point at its Cramér–Rao bound, correlated along its
+        edge as the residuals are (module docstring, step 3).
     """
 
     estimate: PoseEstimate
