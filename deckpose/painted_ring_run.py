@@ -68,11 +68,15 @@ def painted_ring_of_run(run: RunPaths) -> PaintedRing:
 
 def bound_row(frame_id: int, bound: np.ndarray | None, chi2_per_point: float,
               bound_known_levels: np.ndarray | None = None, used_disc: bool = False,
-              disc_check_chi2: float = math.nan) -> dict[str, object]:
+              disc_check_chi2: float = math.nan, bound_correlated: np.ndarray | None = None) -> dict[str, object]:
     """The bound table's row of one frame (NaN without a bound)."""
     s = np.sqrt(np.diag(bound)) if bound is not None else np.full(6, math.nan)
     k = np.sqrt(np.diag(bound_known_levels)) if bound_known_levels is not None else np.full(6, math.nan)
-    return {"frame_id": frame_id, "bound_roll_deg": math.degrees(s[0]), "bound_pitch_deg": math.degrees(s[1]),
+    c = np.sqrt(np.diag(bound_correlated)) if bound_correlated is not None else np.full(6, math.nan)
+    corr = {f"bound_correlated_{p}_{u}": math.degrees(c[i]) if u == "deg" else float(c[i])
+            for i, (p, u) in enumerate((("roll", "deg"), ("pitch", "deg"), ("yaw", "deg"), ("surge", "m"),
+                                        ("sway", "m"), ("height", "m")))}
+    return {**corr, "frame_id": frame_id, "bound_roll_deg": math.degrees(s[0]), "bound_pitch_deg": math.degrees(s[1]),
             "bound_yaw_deg": math.degrees(s[2]), "bound_surge_m": s[3], "bound_sway_m": s[4],
             "bound_height_m": s[5], "bound_known_levels_roll_deg": math.degrees(k[0]),
             "bound_known_levels_pitch_deg": math.degrees(k[1]), "bound_known_levels_yaw_deg": math.degrees(k[2]),
@@ -125,7 +129,7 @@ def painted_ring_run(run_dir: str | os.PathLike[str], *, progress: bool = False,
         det_rows.append(ring_detection_row(det, t1 - t0))
         ests.append(res.estimate)
         bounds.append({**bound_row(fid, res.bound, res.chi2_per_point, res.bound_known_levels, res.used_disc,
-                                   res.disc_check_chi2),
+                                   res.disc_check_chi2, res.bound_correlated),
                        "seconds": t2 - t1})
     run.detections_dir.mkdir(parents=True, exist_ok=True)
     run.estimates_dir.mkdir(parents=True, exist_ok=True)

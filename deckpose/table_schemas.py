@@ -245,6 +245,11 @@ PAINTED_RING_BOUND_COLUMNS: tuple[Column, ...] = (
     *(_C(f"bound_known_levels_{p}_{u}", "float64", u, f"{p}: the same bound were the deck's and paint's levels "
          "beside each edge point known (white noise, position only; null: no estimate)")
       for p, u in (("roll", "deg"), ("pitch", "deg"), ("yaw", "deg"), ("height", "m"))),
+    *(_C(f"bound_correlated_{p}_{u}", "float64", u, f"{p}: correlated-noise bound's standard deviation: each edge "
+         "point at its own Cramér-Rao bound, correlated along its edge as the residuals are (Newey-West sandwich; "
+         "null: no estimate)")
+      for p, u in (("roll", "deg"), ("pitch", "deg"), ("yaw", "deg"), ("surge", "m"), ("sway", "m"),
+                   ("height", "m"))),
     _C("used_disc", "bool", "", "whether the centre disc's edge was in the fit"),
     _C("disc_check_chi2", "float64", "", "Hausman chi-square of the pose with the centre disc against the ring "
        "alone (null: no disc detected); above the 1e-3 tail the disc is left out"),

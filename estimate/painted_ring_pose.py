@@ -19,20 +19,27 @@
    ``centre_radius_m``). The candidate of least chi-square wins; when the other fits as well
    (chi-square within :data:`AMBIGUITY_CHI2`) at a pose more than 5 sigmas away, the
    estimate is not ok ("ambiguous").
-3. **Covariance and bounds.** The covariance is ``(J^T J)^-1`` of the whitened Jacobian at the
-   optimum: the measured noise. The bound is the same Jacobian with each edge point's sigma
-   replaced by its Cramér–Rao bound (the bow row unchanged): the bound of any unbiased
-   estimator from the same pixels under white noise of the measured level, the deck's local
-   level and slope and the paint's level beside each point unknown (nuisance parameters).
-   ``bound_known_levels`` has those levels known (the position-only white-noise bound, below
-   it). Deck texture whose errors are correlated along the edge raises the measured noise,
-   and the covariance, above the bound.
+3. **Covariance and bounds.** The covariance is the sandwich ``A^-1 S A^-1`` of the whitened
+   Jacobian ``J`` at the optimum, ``A = J^T J``, with ``S`` the Newey–West sum of each edge's
+   scores ``J_i r_i`` over their order along the edge
+   (:mod:`deckpose.long_run_covariance`): the deck texture under neighbouring edge pixels
+   moves neighbouring points together (lag-1 correlation 0.1-0.4 on rendered decks), which
+   ``(J^T J)^-1`` would count as independent. Three bounds sit beside it, each the same
+   Jacobian with each edge point's sigma replaced by its Cramér–Rao bound (the bow row
+   unchanged): ``bound``, the white-noise bound (any unbiased estimator from the same pixels
+   under white noise of the measured level, the deck's local level and slope and the paint's
+   level beside each point unknown: nuisance parameters); ``bound_known_levels``, the same
+   with those levels known (below it); and ``bound_correlated``, the correlated-noise bound:
+   each point at its bound, correlated along its edge as the residuals are (the sandwich with
+   the residuals' Bartlett-tapered autocorrelation; for the pose's smooth regressors the
+   weighted fit is efficient under such noise to first order, Grenander's theorem, so this
+   is close to the Cramér–Rao bound of that correlated noise).
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from deckpose.estimate.circle_pose import circle_planes
@@ -42,6 +49,14 @@ from scipy.optimize import least_squares
 from scipy.stats import chi2 as chi2_dist
 
 from deckpose.camera import CameraModel
+from deckpose.long_run_covariance import (
+    ar1_bandwidth,
+    autocorrelation,
+    bartlett_weights,
+    long_run_covariance,
+    long_run_covariance_of_model,
+    sandwich,
+)
 from deckpose.painted_ring import CentreMark, PaintedRing
 from deckpose.records import POSE_PARAMS, PoseEstimate
 from deckpose.ring_detection import RingDetection
@@ -74,7 +89,7 @@ class PaintedRingPose:
     estimate : PoseEstimate
         Method :data:`METHOD`; covariance from the measured edge-point noise.
     bound : (6, 6) array of float or None
-        Covariance bound from the image-derived edge noise, same Jacobian (None when not ok).
+        White-noise bound: each edge point at its Cramér–Rao bound, same Jacobian (None when not ok).
     chi2_per_point : float
         Chi-square of the optimum over the number of residuals.
     bound_known_levels : (6, 6) array of float or None
@@ -85,6 +100,9 @@ class PaintedRingPose:
     disc_check_chi2 : float
         :func:`disc_consistency`'s statistic when a disc was detected (NaN otherwise): above
         the chi-square quantile of :data:`DISC_CHECK_ALPHA`, the disc is left out.
+    bound_correlated : (6, 6) array of float or None
+        Correlated-noise bound: each edge point at its Cramér–Rao bound, correlated along its
+        edge as the residuals are (module docstring, step 3).
     """
 
     estimate: PoseEstimate
@@ -93,6 +111,7 @@ class PaintedRingPose:
     bound_known_levels: FloatArray | None = None
     used_disc: bool = False
     disc_check_chi2: float = math.nan
+    bound_correlated: FloatArray | None = None
 
 
 def _normalised(camera: CameraModel, points_px: FloatArray) -> FloatArray:
@@ -232,10 +251,8 @@ def estimate_painted_ring(det: RingDetection, camera: CameraModel, ring: Painted
         return with_disc
     stat, dof = disc_consistency(ring_only.estimate, with_disc.estimate)
     if dof > 0 and stat > float(chi2_dist.ppf(1.0 - DISC_CHECK_ALPHA, dof)):
-        return PaintedRingPose(ring_only.estimate, ring_only.bound, ring_only.chi2_per_point,
-                               ring_only.bound_known_levels, False, stat)
-    return PaintedRingPose(with_disc.estimate, with_disc.bound, with_disc.chi2_per_point,
-                           with_disc.bound_known_levels, True, stat)
+        return replace(ring_only, used_disc=False, disc_check_chi2=stat)
+    return replace(with_disc, used_disc=True, disc_check_chi2=stat)
 
 
 def disc_consistency(ring_only: PoseEstimate, with_disc: PoseEstimate) -> tuple[float, int]:
@@ -272,26 +289,28 @@ def _fit(det: RingDetection, camera: CameraModel, ring: PaintedRing, R_wc: Float
     """The refinement on ``edges`` (module docstring, steps 1-3)."""
     end_rays = _normalised(camera, det.bow_ends_px)
 
-    def solve(x0: FloatArray) -> tuple[FloatArray, FloatArray, float, list[_Edge]]:
+    def solve(x0: FloatArray) -> tuple[FloatArray, FloatArray, float, FloatArray]:
         x = x0
-        fit_edges = edges
-        J, cost = np.zeros((0, 6)), math.inf
+        J, cost, r = np.zeros((0, 6)), math.inf, np.zeros(0)
         for _ in range(2):  # the pixel scales at the start, then at the first optimum
             fit_edges = [e.at(_grad_norm(camera, x, R_wc, e.points_px, "rho")) for e in edges]
             g_phi = _grad_norm(camera, x, R_wc, det.bow_ends_px, "phi")
             sig_phi = float(det.bow_sigma_px * np.mean(g_phi) / math.sqrt(2.0))
             sol = least_squares(_residuals, x, method="lm", x_scale="jac", args=(R_wc, fit_edges, end_rays, sig_phi))
             x, J, cost = np.asarray(sol.x, np.float64), np.asarray(sol.jac, np.float64), float(sol.cost)
-        return x, J, 2.0 * cost, fit_edges
+            r = np.asarray(sol.fun, np.float64)
+        return x, J, 2.0 * cost, r
 
     cands = _candidates(det, camera, ring, R_wc)
     if not cands:
         return _failed(det, "the outer edge's conic is not the image of a circle in front of the camera")
     sols = sorted((solve(c) for c in cands), key=lambda s: s[2])
-    x, J, chi2, _ = sols[0]
+    x, J, chi2, r = sols[0]
     n_res = sum(len(e.points_px) for e in edges) + 1
+    # the bounds' rows: the same Jacobian, each edge row at its point's bound (the bow row unchanged)
+    ratio = np.concatenate([e.sigma_px / e.bound_px for e in edges] + [np.ones(1)])
     try:
-        cov = np.asarray(np.linalg.inv(J.T @ J), dtype=np.float64)
+        cov, bound_corr = _correlated_covariances(J, r, [len(e.points_px) for e in edges], ratio)
     except np.linalg.LinAlgError:
         return _failed(det, "singular normal matrix: the edges do not fix the pose")
     sig = np.sqrt(np.diag(cov))
@@ -300,15 +319,48 @@ def _fit(det: RingDetection, camera: CameraModel, ring: PaintedRing, R_wc: Float
         d[:3] = wrap_angle_rad(d[:3])
         if np.any(np.abs(d) > 5 * sig):
             return _failed(det, f"ambiguous: both deck planes fit the edges (chi2 {chi2:.0f} and {sols[1][2]:.0f})")
-    # the bounds: the same Jacobian, each edge row at its point's bound (the bow row unchanged)
-    ratio = np.concatenate([e.sigma_px / e.bound_px for e in edges] + [np.ones(1)])
     bound = _bound(J, ratio)
     known = det.known_levels_ratio
     bound_known = _bound(J, ratio / np.concatenate([np.full(n_res - 1, known), [1.0]])) if math.isfinite(known) else None
     est = PoseEstimate(METHOD, True, roll_rad=float(x[0]), pitch_rad=float(x[1]), yaw_rad=float(x[2]),
                        surge_m=float(x[3]), sway_m=float(x[4]), height_m=float(x[5]), covariance=cov,
                        frame_id=det.frame_id)
-    return PaintedRingPose(est, bound, chi2 / n_res, bound_known, len(edges) > 2)
+    return PaintedRingPose(est, bound, chi2 / n_res, bound_known, len(edges) > 2,
+                           bound_correlated=bound_corr if np.all(np.isfinite(ratio) & (ratio > 0)) else None)
+
+
+def _correlated_covariances(J: FloatArray, r: FloatArray, sizes: list[int], ratio: FloatArray
+                            ) -> tuple[FloatArray, FloatArray]:
+    """The fit's covariance and its correlated-noise bound, both sandwiches over the edges' order.
+
+    ``J`` (n, 6) and ``r`` (n,) are the whitened Jacobian and residuals at the optimum: the
+    edges' points in their order along each edge (``sizes`` of them per edge), then the bow
+    row. Each edge's scores ``J_i r_i`` are summed with their correlation along the edge
+    (:func:`~deckpose.long_run_covariance.long_run_covariance`, Andrews' bandwidth from the
+    edge's residuals); the bow row counts at its model variance (one residual tells nothing
+    of its own scatter). The covariance is ``A^-1 S A^-1``.
+
+    The correlated-noise bound is the same sandwich with each edge row at its point's
+    white-noise bound (rows times ``ratio``) and the residuals' measured correlation
+    (Bartlett-tapered) in place of their products: the covariance this fit would have were
+    each point's noise at its Cramér–Rao bound, correlated along the edge as measured.
+
+    Raises
+    ------
+    numpy.linalg.LinAlgError
+        When the normal matrix is singular.
+    """
+    A = J.T @ J
+    Jb = J * np.where(np.isfinite(ratio) & (ratio > 0), ratio, 1.0)[:, None]
+    S, Sb = J[-1:].T @ J[-1:], Jb[-1:].T @ Jb[-1:]
+    start = 0
+    for n in sizes:
+        sl = slice(start, start + n)
+        start += n
+        lag = ar1_bandwidth(r[sl])
+        S += long_run_covariance(J[sl] * r[sl, None], lag)
+        Sb += long_run_covariance_of_model(Jb[sl], autocorrelation(r[sl], lag) * bartlett_weights(lag))
+    return sandwich(A, S), sandwich(Jb.T @ Jb, Sb)
 
 
 def _bound(J: FloatArray, ratio: FloatArray) -> FloatArray | None:

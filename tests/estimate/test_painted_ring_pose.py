@@ -91,10 +91,12 @@ def test_pose_from_analytic_images_within_its_sigmas_and_near_its_bound():
         bounds.append(b)
     e, s, b = np.array(errs), np.array(sigmas), np.array(bounds)
     # the bound (white-noise CRB of each edge point from the image's contrast, noise and blur)
-    # is below the covariance from the measured point scatter; that scatter is the noise's plus
-    # the gradient maximum's pixel locking (~0.04 px, tests/detect/test_ring_edges.py), ~1.5x
+    # is the covariance of the measured point scatter to within that scatter's excess over the
+    # bound (1.0-1.1 here) and the sandwich's own estimation noise: a variance from ~1500
+    # residuals and a few lags, ~4 % in sigma at 1 standard error for the tilt's few harmonics
+    # (measured 0.94-1.14)
     ratio = s / b
-    assert np.all(ratio >= 0.95) and np.all(ratio < 2.2), ratio
+    assert np.all(ratio >= 0.85) and np.all(ratio < 2.2), ratio
     # errors over the bound, RMS over 6 frames per parameter: measured 1.1-2.0 (the 1.5x scatter
     # and 6 samples' spread: a chi with 6 degrees of freedom is within 0.5-1.5 of 1 at 90 %)
     assert np.all(np.sqrt(np.mean((e / b) ** 2, axis=0)) < 3.0)
