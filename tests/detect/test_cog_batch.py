@@ -54,7 +54,7 @@ def test_a_batch_measures_each_candidate_as_alone_and_near_the_truth() -> None:
 
 
 def test_degenerate_candidates_are_none_in_their_place() -> None:
-    frame, pts, _sigma, _flux = _frame()
+    frame, _pts, _sigma, _flux = _frame()
     cands, _ = find_candidates(frame, DetectorOptions(gain_dn_per_e=1.0))
     # a candidate without any signal has no centroid; the others are measured as before
     empty = dataclasses.replace(cands[1], pixels=np.zeros_like(cands[1].pixels), background_dn=0.0)
