@@ -55,7 +55,9 @@ def cog_centroid(
 ) -> Row | None:
     """Iterated, soft-windowed intensity centroid of one candidate (``None`` if degenerate).
 
-    A batch of one of :func:`cog_centroids`, which has the method.
+    A batch of one of :func:`cog_centroids`, which has the method. Measuring a frame's
+    candidates one at a time this way costs 2-3x one call with all of them (each batch
+    carries its iteration's bookkeeping; a bright 8 MP spot: ~1.9 against ~0.5 ms).
     """
     return cog_centroids([cand], window_sigma, max_iter, tol_px, above_floor=above_floor)[0]
 
