@@ -10,7 +10,11 @@ alternating order, one frame at a time. Printed per frame: each tree's median CP
 time and the median (and quartiles) of the per-run ratios, with the load.
 
 Frames: the speed benchmark's synthetic 8 MP and 64 MP frames (16-bit mono and 8-bit
-RGB, ``bench_detectors.py``'s), and with ``--rendered DATASET`` some of its frames.
+RGB, ``bench_detectors.py``'s), with ``--independent`` the first 8 MP frame of some
+datasets of the independent generator (``bench_independent.py``'s, its seed), and with
+``--rendered DATASET`` some of its frames. Besides the medians, each tree's fastest run
+per frame is printed: on a loaded machine the least disturbed of the runs, an indicator
+of the CPU time on a quiet one.
 
 Usage::
 
@@ -92,6 +96,29 @@ def rendered_frames(dataset: str, n: int, folder: Path) -> list[Path]:
     return paths
 
 
+#: Datasets of ``bench_independent.py`` whose first frame ``--independent`` times.
+INDEPENDENT = ("rgb_uneven", "mono_dim_bow", "hard")
+
+
+def independent_frames(folder: Path, seed: int = 2026) -> list[Path]:
+    """The first frame of each of :data:`INDEPENDENT`'s datasets, as ``bench_independent.py`` makes it."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    import bench_independent as bi
+    import independent_spots as gen
+
+    from deckpose.camera import CameraModel
+    from deckpose.layout import DeckLayout
+    from deckpose.records import Frame
+
+    paths = []
+    for name in INDEPENDENT:
+        rng = np.random.default_rng([seed, list(bi.DATASETS).index(name)])
+        fr = gen.make_frame(bi.DATASETS[name][0], rng)
+        cam = CameraModel(fr.image.shape[1], fr.image.shape[0], fr.K)
+        paths.append(_save(folder / f"independent_{name}.pkl", Frame(fr.image, cam, 0), DeckLayout()))
+    return paths
+
+
 def _save(path: Path, frame: object, layout: object) -> Path:
     """A decoded frame and its deck layout, pickled for the workers (both trees read it)."""
     with open(path, "wb") as f:
@@ -132,6 +159,8 @@ def main() -> None:
     ap.add_argument("--rendered", metavar="DATASET", help="also time frames of this dataset")
     ap.add_argument("--rendered-frames", type=int, default=4)
     ap.add_argument("--no-synthetic", action="store_true")
+    ap.add_argument("--independent", action="store_true",
+                    help="also time frames of the independent generator (bench_independent.py)")
     ap.add_argument("--worker", nargs="+", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.worker:
@@ -140,6 +169,8 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         folder = Path(tmp)
         paths = [] if args.no_synthetic else synthetic_frames(folder)
+        if args.independent:
+            paths += independent_frames(folder)
         if args.rendered:
             paths += rendered_frames(args.rendered, args.rendered_frames, folder)
         base_tree = link_tree(Path(args.base), folder)
@@ -172,12 +203,14 @@ def main() -> None:
             p.wait()
     print(f"{args.detector} + identification, {args.repeat} interleaved runs per frame, one thread; "
           f"1-minute load {min(loads):.2f}-{max(loads):.2f} on {os.cpu_count()} cores")
-    print(f"{'frame':28s} {'base ms':>8s} {'this ms':>8s} {'this/base':>10s}  (quartiles)")
+    print(f"{'frame':28s} {'base ms':>8s} {'this ms':>8s} {'this/base':>10s}  (quartiles)  "
+          "fastest run: base, this ms")
     for i, p in enumerate(paths):
         ratio = cpu[i, 1] / cpu[i, 0]
         q1, q3 = np.percentile(ratio, [25, 75])
         print(f"{Path(p).stem:28s} {1000 * np.median(cpu[i, 0]):8.1f} "
-              f"{1000 * np.median(cpu[i, 1]):8.1f} {np.median(ratio):10.3f}  ({q1:.3f}-{q3:.3f})")
+              f"{1000 * np.median(cpu[i, 1]):8.1f} {np.median(ratio):10.3f}  ({q1:.3f}-{q3:.3f})  "
+              f"{1000 * np.min(cpu[i, 0]):6.1f} {1000 * np.min(cpu[i, 1]):6.1f}")
 
 
 if __name__ == "__main__":

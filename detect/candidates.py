@@ -67,6 +67,9 @@ MAX_SPOT_AREA_FRACTION = 0.05
 
 
 MeasureFn = Callable[[Candidate], "tuple[float, float, np.ndarray, float, float, float] | None"]
+BatchMeasureFn = Callable[
+    [list[Candidate]], "list[tuple[float, float, np.ndarray, float, float, float] | None]"
+]
 
 
 def coarse_image(image: np.ndarray, factor: int) -> np.ndarray:
@@ -474,14 +477,28 @@ def measure_candidates(
 ) -> Blobs:
     """Run ``measure`` on every candidate of ``frame``; ``None`` results are dropped.
 
-    A blob measured twice (reached from two coarse boxes, e.g. a faint spot whose
-    coarse footprint fell apart) is kept once: of two centres closer than the
-    larger spot sigma (at least 1 px), the one with more flux stays.
+    One candidate at a time: :func:`measure_candidate_batch` with ``measure`` mapped
+    over the frame's candidates.
+    """
+    return measure_candidate_batch(frame, options, lambda cands: [measure(c) for c in cands],
+                                   boxes_fn=boxes_fn)
+
+
+def measure_candidate_batch(
+    frame: Frame, options: DetectorOptions, measure: BatchMeasureFn, *,
+    boxes_fn: BoxesFn = coarse_boxes,
+) -> Blobs:
+    """Run ``measure`` on all the candidates of ``frame`` at once; ``None`` results are dropped.
+
+    ``measure`` takes the frame's candidates and returns one row (or ``None``) per
+    candidate, in their order. A blob measured twice (reached from two coarse boxes,
+    e.g. a faint spot whose coarse footprint fell apart) is kept once: of two centres
+    closer than the larger spot sigma (at least 1 px), the one with more flux stays.
     """
     cands, reason, note = search_candidates(frame, options, boxes_fn=boxes_fn)
     if reason:
         return Blobs.empty(reason)
-    rows = [r for r in (measure(c) for c in cands) if r is not None]
+    rows = [r for r in measure(cands) if r is not None]
     if not rows:
         return Blobs.empty("no candidate could be measured")
     kept: list[tuple[float, float, np.ndarray, float, float, float]] = []

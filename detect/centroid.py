@@ -16,6 +16,7 @@ from :func:`cog_centroid`.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 from deckpose.detect.candidate import Candidate
@@ -54,9 +55,28 @@ def cog_centroid(
 ) -> Row | None:
     """Iterated, soft-windowed intensity centroid of one candidate (``None`` if degenerate).
 
+    A batch of one of :func:`cog_centroids`, which has the method. Measuring a frame's
+    candidates one at a time this way costs 2-3x one call with all of them (each batch
+    carries its iteration's bookkeeping; a bright 8 MP spot: ~1.9 against ~0.5 ms).
+    """
+    return cog_centroids([cand], window_sigma, max_iter, tol_px, above_floor=above_floor)[0]
+
+
+def cog_centroids(
+    cands: Sequence[Candidate],
+    window_sigma: float = 3.0,
+    max_iter: int = 30,
+    tol_px: float = 1e-4,
+    *,
+    above_floor: bool = True,
+) -> list[Row | None]:
+    """Iterated, soft-windowed intensity centroid of each candidate, (K,) rows (``None`` if degenerate).
+
     The window is a disc of radius ``window_sigma * sigma`` whose edge pixels are
     weighted by their approximate coverage; ``sigma`` is re-estimated from the
-    windowed second moment (corrected for the truncation) at each iteration.
+    windowed second moment (corrected for the truncation) at each iteration. The
+    iterations of all the candidates run together (:func:`_windowed_centroids`: one
+    set of array operations per iteration for the frame, not one per candidate).
 
     The signal is first the candidate's own (:meth:`Candidate.signal`: above its
     pedestal for a bright spot). A bright spot whose core is not clipped
@@ -68,30 +88,55 @@ def cog_centroid(
     second pass the spot sigma may grow to at most :data:`FLOOR_SIGMA_GROWTH` times
     the first pass's, so lit deck reaching into a window around a small housing
     cannot widen the window without end. ``above_floor=False`` keeps the first pass.
+    An unclipped spot found by its significance (not ``clip_signal``) is measured
+    through a Gaussian window instead (:func:`_matched_centroid`).
     """
-    s_full = cand.signal()
-    unclipped = not cand.saturated[cand.mask].any()
-    if not cand.clip_signal and unclipped:
-        return _matched_centroid(cand, s_full)
-    ms = np.where(cand.mask, s_full, 0.0)
-    F = ms.sum()
-    if not F > 0:
-        return None
-    vv0, uu0 = np.nonzero(cand.mask)
-    wts = ms[vv0, uu0]
-    u = float((wts * uu0).sum() / F) + cand.u0
-    v = float((wts * vv0).sum() / F) + cand.v0
-    h, w = s_full.shape
-    sigma_max = 0.5 * min(h, w) / window_sigma + 1.0
-    row = _windowed_centroid(
-        cand, s_full, u, v, cand.mask_moments()[2], window_sigma, sigma_max, max_iter, tol_px
-    )
-    if row is None or not above_floor or not cand.clip_signal or not unclipped:
-        return row
-    u, v, _, _, sigma, _ = row
-    s_floor = np.maximum(cand.above_floor(u, v, window_sigma * sigma + 2.0)[0], 0.0)
-    grown = min(sigma_max, FLOOR_SIGMA_GROWTH * sigma)
-    return _windowed_centroid(cand, s_floor, u, v, sigma, window_sigma, grown, max_iter, tol_px)
+    if max_iter < 0:
+        raise ValueError(f"max_iter must be >= 0, got {max_iter}")
+    rows: list[Row | None] = [None] * len(cands)
+    disc: list[int] = []
+    signals: list[np.ndarray] = []
+    starts: list[tuple[float, float, float, float]] = []
+    for i, cand in enumerate(cands):
+        s_full = cand.signal()
+        if not cand.clip_signal and not cand.saturated[cand.mask].any():
+            rows[i] = _matched_centroid(cand, s_full)
+            continue
+        ms = np.where(cand.mask, s_full, 0.0)
+        F = ms.sum()
+        if not F > 0:
+            continue
+        vv0, uu0 = np.nonzero(cand.mask)
+        wts = ms[vv0, uu0]
+        u = float((wts * uu0).sum() / F) + cand.u0
+        v = float((wts * vv0).sum() / F) + cand.v0
+        h, w = s_full.shape
+        sigma_max = 0.5 * min(h, w) / window_sigma + 1.0
+        disc.append(i)
+        signals.append(s_full)
+        starts.append((u, v, cand.mask_moments()[2], sigma_max))
+    if not disc:
+        return rows
+    first = _windowed_centroids([cands[i] for i in disc], signals, np.array(starts),
+                                window_sigma, max_iter, tol_px)
+    again: list[int] = []
+    floors: list[np.ndarray] = []
+    restarts: list[tuple[float, float, float, float]] = []
+    for k, i in enumerate(disc):
+        row = rows[i] = first[k]
+        cand = cands[i]
+        if row is None or not above_floor or not cand.clip_signal or cand.saturated[cand.mask].any():
+            continue
+        u, v, _, _, sigma, _ = row
+        floors.append(np.maximum(cand.above_floor(u, v, window_sigma * sigma + 2.0)[0], 0.0))
+        restarts.append((u, v, sigma, min(starts[k][3], FLOOR_SIGMA_GROWTH * sigma)))
+        again.append(i)
+    if again:
+        second = _windowed_centroids([cands[i] for i in again], floors, np.array(restarts),
+                                     window_sigma, max_iter, tol_px)
+        for i, row in zip(again, second):
+            rows[i] = row
+    return rows
 
 
 def _matched_centroid(cand: Candidate, s_full: np.ndarray) -> Row | None:
@@ -139,72 +184,126 @@ def _window_moment(cand: Candidate, s_full: np.ndarray, u: float, v: float, sw: 
     return float((ws * (du * du + dv * dv)).sum()) / (2.0 * F) if F > 0 else math.nan
 
 
-def _windowed_centroid(
-    cand: Candidate,
-    s_full: np.ndarray,
-    u: float,
-    v: float,
-    sigma: float,
+def _windowed_centroids(
+    cands: Sequence[Candidate],
+    signals: Sequence[np.ndarray],
+    starts: np.ndarray,
     window_sigma: float,
-    sigma_max: float,
     max_iter: int,
     tol_px: float,
-) -> Row | None:
-    """The iteration of :func:`cog_centroid` on the signal ``s_full`` (DN), from ``(u, v, sigma)``."""
-    h, w = s_full.shape
+) -> list[Row | None]:
+    """The iteration of :func:`cog_centroids` on the signal of each candidate, all together.
+
+    Parameters
+    ----------
+    cands : sequence of K Candidate
+    signals : sequence of K arrays of float, each its candidate's window shape
+        The signal to measure, DN.
+    starts : (K, 4) array of float
+        Start ``u, v`` (pixels), start spot sigma and the largest sigma, pixels.
+    window_sigma, max_iter, tol_px
+        As :func:`cog_centroids`.
+
+    Returns
+    -------
+    list of K Row or None
+        ``None`` where the candidate is degenerate (no flux in its window, or the frame
+        edge cuts it within a sigma).
+
+    Notes
+    -----
+    The windows are stacked, zero-padded, and each iteration gathers, for every
+    candidate still iterating, the square around its current disc (the pixels
+    of its own window there; the padding's zeros beyond), so its sums are those of
+    one candidate alone, added in another order.
+    """
+    K = len(cands)
+    hs = np.array([s.shape[0] for s in signals])
+    ws = np.array([s.shape[1] for s in signals])
+    Hp, Wp = int(hs.max()) + 1, int(ws.max()) + 1  # one zero row and column past every window
+    stack = np.zeros((K, Hp, Wp))
+    for k, s in enumerate(signals):
+        stack[k, : s.shape[0], : s.shape[1]] = s
+    flat = stack.ravel()
+    u0 = np.array([c.u0 for c in cands], float)
+    v0 = np.array([c.v0 for c in cands], float)
+    shape = np.array([c.frame_shape if c.frame_shape is not None else (np.inf, np.inf)
+                      for c in cands], float)
+    u, v, sigma, sigma_max = (np.array(starts[:, j], float) for j in range(4))
     m2_frac = truncated_m2_fraction(window_sigma)
+    rows: list[Row | None] = [None] * K
+    act = np.arange(K)
     for it in range(max_iter + 1):
-        R = window_sigma * sigma
-        edge = cand.edge_distance_px(u, v)
-        if R > edge:
-            # The frame edge cuts the disc on one side: shrink it to the largest disc
-            # inside the frame, which stays symmetric about the spot (and keep sigma,
-            # which a truncated moment would shrink). Less than one sigma of it: the
-            # spot cannot be measured without a bias.
-            if edge < sigma:
-                return None
-            R = edge
-        # Work on the square around the current window only.
-        c0 = max(0, int(np.floor(u - cand.u0 - R - 1)))
-        c1 = min(w, int(np.ceil(u - cand.u0 + R + 2)))
-        r0 = max(0, int(np.floor(v - cand.v0 - R - 1)))
-        r1 = min(h, int(np.ceil(v - cand.v0 + R + 2)))
-        if c1 <= c0 or r1 <= r0:  # the estimate left the candidate's window: degenerate
-            return None
-        s = s_full[r0:r1, c0:c1]
-        du = (np.arange(c0, c1, dtype=float) + cand.u0 - u)[None, :]
-        dv = (np.arange(r0, r1, dtype=float) + cand.v0 - v)[:, None]
-        d2 = du * du + dv * dv
-        # np.clip's value by two ufuncs (np.clip's dispatch costs more than the work here)
-        win = np.minimum(np.maximum(R + 0.5 - np.sqrt(d2), 0.0), 1.0)
-        ws = win * s
-        F = ws.sum()
-        if not F > 0:
-            return None
-        su, sv = float((ws * du).sum() / F), float((ws * dv).sum() / F)
-        if it == max_iter or math.hypot(su, sv) < tol_px:
+        ua, va, sa = u[act], v[act], sigma[act]
+        R = window_sigma * sa
+        # Candidate.edge_distance_px: where the frame edge cuts the disc on one side, shrink
+        # it to the largest disc inside the frame, which stays symmetric about the spot (and
+        # keep sigma, which a truncated moment would shrink). Less than one sigma of it: the
+        # spot cannot be measured without a bias.
+        fh, fw = shape[act, 0], shape[act, 1]
+        with np.errstate(invalid="ignore"):  # inf - inf where the frame shape is not known
+            edge = np.minimum(np.minimum(ua + 0.5, va + 0.5), np.minimum(fw - 0.5 - ua, fh - 0.5 - va))
+        edge = np.where(np.isfinite(fh), edge, np.inf)
+        cut = R > edge
+        R = np.where(cut, edge, R)
+        # the square around the current window, within the candidate's own window
+        c0 = np.maximum(0, np.floor(ua - u0[act] - R - 1)).astype(np.intp)
+        c1 = np.minimum(ws[act], np.ceil(ua - u0[act] + R + 2)).astype(np.intp)
+        r0 = np.maximum(0, np.floor(va - v0[act] - R - 1)).astype(np.intp)
+        r1 = np.minimum(hs[act], np.ceil(va - v0[act] + R + 2)).astype(np.intp)
+        # degenerate: cut within a sigma, or the estimate left the candidate's window
+        ok = ~(cut & (edge < sa)) & (c1 > c0) & (r1 > r0)
+        if not ok.all():
+            act, ua, va, sa, R, c0, c1, r0, r1 = (a[ok] for a in (act, ua, va, sa, R, c0, c1, r0, r1))
+            cut = cut[ok]
+        if act.size == 0:
             break
-        if R == window_sigma * sigma:  # a whole disc (not one cut to the frame edge)
-            m2 = float((ws * d2).sum() / F) / 2.0 - (su * su + sv * sv) / 2.0
-            sigma = float(np.clip(math.sqrt(max(m2, 0.0) / m2_frac), 0.5, sigma_max))
-        u, v = u + su, v + sv
-    else:  # only an empty loop ends without a break (the last iteration breaks)
-        raise ValueError(f"max_iter must be >= 0, got {max_iter}")
-    u, v = u + su, v + sv
-    du, dv = du - su, dv - sv
-    var = cand.variance(s) * win**2
-    cov = (
-        np.array(
-            [
-                [(var * du * du).sum(), (var * du * dv).sum()],
-                [(var * du * dv).sum(), (var * dv * dv).sum()],
-            ]
-        )
-        / F**2
-    )
-    # the surround's tilt left in the signal (a bright spot above its flat pedestal)
-    cov = cov + cand.surround_tilt_cov(win, s, du, dv, float(F))
-    return cand.blob(u, v, flux_dn=float(F), size_px=sigma, cov_px2=cov)
+        cols = c0[:, None] + np.arange(int((c1 - c0).max()))
+        rws = r0[:, None] + np.arange(int((r1 - r0).max()))
+        c_in, r_in = cols < c1[:, None], rws < r1[:, None]
+        at = ((act[:, None, None] * Hp + np.where(r_in, rws, Hp - 1)[:, :, None]) * Wp
+              + np.where(c_in, cols, Wp - 1)[:, None, :])
+        s = flat[at]  # (n, rows, cols); the padding's zeros outside each square
+        du1 = cols + u0[act][:, None] - ua[:, None]  # (n, cols)
+        dv1 = rws + v0[act][:, None] - va[:, None]  # (n, rows)
+        du, dv = du1[:, None, :], dv1[:, :, None]
+        d2 = du * du + dv * dv
+        win = np.minimum(np.maximum(R[:, None, None] + 0.5 - np.sqrt(d2), 0.0), 1.0)
+        wsig = win * s
+        # the moments from the windowed signal's column and row sums (two passes over the
+        # squares instead of one per moment)
+        by_col, by_row = wsig.sum(axis=1), wsig.sum(axis=2)  # (n, cols), (n, rows)
+        F = by_col.sum(axis=1)
+        good = F > 0  # no flux in the window: degenerate
+        with np.errstate(divide="ignore", invalid="ignore"):
+            su = (by_col * du1).sum(axis=1) / F
+            sv = (by_row * dv1).sum(axis=1) / F
+        done = good & ((np.hypot(su, sv) < tol_px) | (it == max_iter))
+        for j in np.flatnonzero(done):
+            cand = cands[act[j]]
+            inside = r_in[j][:, None] & c_in[j][None, :]
+            duj, dvj = du[j] - su[j], dv[j] - sv[j]
+            var = cand.variance(s[j]) * win[j] ** 2 * inside
+            cov = np.array([[(var * duj * duj).sum(), (var * duj * dvj).sum()],
+                            [(var * duj * dvj).sum(), (var * dvj * dvj).sum()]]) / F[j] ** 2
+            # the surround's tilt left in the signal (a bright spot above its flat pedestal)
+            cov = cov + cand.surround_tilt_cov(win[j] * inside, s[j], duj, dvj, float(F[j]))
+            rows[act[j]] = cand.blob(ua[j] + su[j], va[j] + sv[j], flux_dn=float(F[j]),
+                                     size_px=float(sa[j]), cov_px2=cov)
+        more = good & ~done
+        if not more.any():
+            break
+        # the spot sigma from the windowed second moment, where the disc is whole (not cut
+        # by the frame edge)
+        m = np.flatnonzero(more)
+        d2sum = (by_col[m] * du1[m] ** 2).sum(axis=1) + (by_row[m] * dv1[m] ** 2).sum(axis=1)
+        m2 = d2sum / F[m] / 2.0 - (su[m] ** 2 + sv[m] ** 2) / 2.0
+        s_new = np.clip(np.sqrt(np.maximum(m2, 0.0) / m2_frac), 0.5, sigma_max[act[m]])
+        act = act[m]
+        sigma[act] = np.where(cut[m], sa[m], s_new)
+        u[act] = ua[m] + su[m]
+        v[act] = va[m] + sv[m]
+    return rows
 
 
 #: Largest step of one :func:`gaussian_window_centroid` iteration, in window sigmas.

@@ -1,10 +1,10 @@
-"""The ``cog`` detector: intensity-weighted centre of gravity of each candidate (:func:`~deckpose.detect.centroid.cog_centroid`)."""
+"""The ``cog`` detector: intensity-weighted centre of gravity of each candidate (:func:`~deckpose.detect.centroid.cog_centroids`)."""
 
 from __future__ import annotations
 
 from deckpose.detect.candidate import Candidate
-from deckpose.detect.candidates import measure_candidates
-from deckpose.detect.centroid import Row, cog_centroid
+from deckpose.detect.candidates import measure_candidate_batch
+from deckpose.detect.centroid import Row, cog_centroids
 from deckpose.detect.registry import Blobs, DetectorOptions, register
 
 from deckpose.records import Frame
@@ -21,7 +21,8 @@ def detect_cog(frame: Frame, options: DetectorOptions) -> Blobs:
     gravity is that of the part in view. (``gauss`` fits its wings instead.)
     """
 
-    def measure(c: Candidate) -> Row | None:
-        return None if c.clipped_at_frame_edge() else cog_centroid(c, options.window_sigma)
+    def measure(cands: list[Candidate]) -> list[Row | None]:
+        rows = cog_centroids(cands, options.window_sigma)
+        return [None if c.clipped_at_frame_edge() else r for c, r in zip(cands, rows)]
 
-    return measure_candidates(frame, options, measure)
+    return measure_candidate_batch(frame, options, measure)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 from deckpose.detect.candidate import Candidate
-from deckpose.detect.centroid import cog_centroid
+from deckpose.detect.centroid import cog_centroids
 from deckpose.detect.synthetic import pixel_fractions
 
 #: Used when no blob constrains the gain.
@@ -29,8 +29,8 @@ def estimate_gain(cands: list[Candidate], window_sigma: float = 3.0, max_blobs: 
     num = den = 0.0
     unclipped = [c for c in cands if not c.saturated[c.mask].any()]
     by_size = sorted(unclipped, key=lambda c: -int(c.mask.sum()))
-    for c in by_size[:max_blobs]:
-        row = cog_centroid(c, window_sigma, above_floor=False)
+    used = by_size[:max_blobs]
+    for c, row in zip(used, cog_centroids(used, window_sigma, above_floor=False)):
         if row is None:
             continue
         u, v, _, flux, sigma_mom, _ = row

@@ -22,8 +22,8 @@ import math
 
 import numpy as np
 from deckpose.detect.candidate import Candidate
-from deckpose.detect.candidates import measure_candidates
-from deckpose.detect.centroid import Row, cog_centroid
+from deckpose.detect.candidates import measure_candidate_batch
+from deckpose.detect.centroid import Row, cog_centroid, cog_centroids
 from deckpose.detect.core_fit import core_fit
 from deckpose.detect.crb import gaussian_pixel_terms
 from deckpose.detect.registry import Blobs, DetectorOptions, register
@@ -52,7 +52,14 @@ def _model_and_jac(
 
 def gauss_fit(cand: Candidate, window_sigma: float = 3.0) -> Row | None:
     """Fit one candidate; ``None`` when the fit fails or is degenerate."""
-    start = cog_centroid(cand, window_sigma, above_floor=False)
+    return gauss_fit_from(cand, cog_centroid(cand, window_sigma, above_floor=False), window_sigma)
+
+
+def gauss_fit_from(cand: Candidate, start: Row | None, window_sigma: float = 3.0) -> Row | None:
+    """:func:`gauss_fit` from the candidate's ``cog`` row ``start`` (its first pass, ``above_floor=False``).
+
+    ``None`` when ``start`` is (``cog`` found no centre) or the fit fails or is degenerate.
+    """
     if start is None:
         return None
     if cand.clip_signal or cand.saturated[cand.mask].any():
@@ -106,12 +113,16 @@ def gauss_fit(cand: Candidate, window_sigma: float = 3.0) -> Row | None:
 def detect_gauss(frame: Frame, options: DetectorOptions) -> Blobs:
     """Weighted least-squares pixel-integrated Gaussian fit per blob (with covariance)."""
 
-    def measure(c: Candidate) -> Row | None:
-        row = gauss_fit(c, options.window_sigma)
-        if row is None and (c.clip_signal or c.saturated[c.mask].any()):
-            # Too few unsaturated core pixels to fit: keep the windowed centroid rather
-            # than lose the beacon.
-            return cog_centroid(c, options.window_sigma)
-        return row
+    def measure(cands: list[Candidate]) -> list[Row | None]:
+        # the cog starts of all the candidates together (cog_centroids' batch)
+        starts = cog_centroids(cands, options.window_sigma, above_floor=False)
+        rows = [gauss_fit_from(c, s, options.window_sigma) for c, s in zip(cands, starts)]
+        # Too few unsaturated core pixels to fit: keep the windowed centroid rather than
+        # lose the beacon.
+        lost = [i for i, (c, r) in enumerate(zip(cands, rows))
+                if r is None and (c.clip_signal or c.saturated[c.mask].any())]
+        for i, row in zip(lost, cog_centroids([cands[i] for i in lost], options.window_sigma)):
+            rows[i] = row
+        return rows
 
-    return measure_candidates(frame, options, measure)
+    return measure_candidate_batch(frame, options, measure)

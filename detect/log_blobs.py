@@ -12,8 +12,8 @@ import math
 import cv2
 import numpy as np
 from deckpose.detect.background import difference_noise, noise_floor_dn, robust_stats
-from deckpose.detect.candidates import coarse_factor, coarse_image, measure_candidates
-from deckpose.detect.centroid import cog_centroid
+from deckpose.detect.candidates import coarse_factor, coarse_image, measure_candidate_batch
+from deckpose.detect.centroid import cog_centroids
 from deckpose.detect.registry import Blobs, DetectorOptions, register
 from deckpose.detect.spots import SpotSearch, peak_block_max
 from skimage.feature import blob_log
@@ -90,6 +90,6 @@ def log_boxes(
 @register("log")
 def detect_log(frame: Frame, options: DetectorOptions) -> Blobs:
     """scikit-image ``blob_log`` candidates refined by ``cog``."""
-    return measure_candidates(
-        frame, options, lambda c: cog_centroid(c, options.window_sigma), boxes_fn=log_boxes
+    return measure_candidate_batch(
+        frame, options, lambda cands: cog_centroids(cands, options.window_sigma), boxes_fn=log_boxes
     )

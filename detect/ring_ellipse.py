@@ -54,6 +54,9 @@ def ransac_ellipse(
         samples = (rng.choice(n, 5, replace=False) for _ in range(opts.max_ransac))
     needed = opts.max_ransac
     tried = 0
+    # The local optimisation's result is a function of the inlier set alone: most samples
+    # of a ring share one, whose refit is made once.
+    refits: dict[bytes, tuple[NDArray[np.bool_] | None, FloatArray, float]] = {}
     for s in samples:  # type: ignore[attr-defined]
         c = cn.fit_conic(points[list(s)])
         inl, d, tol = _ellipse_inliers(c, points, opts)
@@ -61,8 +64,10 @@ def ransac_ellipse(
             continue
         # Local optimisation: refit on the inliers and count again, so a conic that
         # only passes near points by the first-order distance does not win.
-        c = cn.fit_conic(points[inl])
-        inl, d, tol = _ellipse_inliers(c, points, opts)
+        key = inl.tobytes()
+        if key not in refits:
+            refits[key] = _ellipse_inliers(cn.fit_conic(points[inl]), points, opts)
+        inl, d, tol = refits[key]
         if inl is None:
             continue
         k = int(inl.sum())

@@ -7,7 +7,13 @@ import math
 import numpy as np
 import pytest
 from deckpose.detect.background import row_median
-from deckpose.detect.significance import TEXTURE_TILE_PX, box_means, texture_noise
+from deckpose.detect.significance import (
+    TEXTURE_TILE_PX,
+    box_means,
+    ring_max,
+    texture_noise,
+    tiles_of,
+)
 
 
 @pytest.mark.parametrize("m", [1, 2, 3, 16, 17, 26, 256])
@@ -68,3 +74,29 @@ def test_box_means_are_the_means_of_boxes_shifted_inside(n: int) -> None:
         want = float(np.mean(G[y0 : y0 + k, x0 : x0 + k], dtype=np.float64))
         # float64 sums of float32 values: equal to ~1e-12 relative
         assert got[i] == pytest.approx(want, rel=1e-10)
+
+
+@pytest.mark.parametrize("n", [0, 1, 500])
+def test_ring_max_is_the_largest_of_each_peaks_samples(n: int) -> None:
+    rng = np.random.default_rng(n)
+    Gp = rng.normal(0, 1, 5000).astype(np.float32)
+    base = rng.integers(100, 4900, n)
+    offsets = np.array([-37, -12, 0, 5, 41, 90])
+    got = ring_max(Gp, base, offsets)
+    # the reference: every sample of a peak's ring in a loop, the largest of them
+    want = np.array([max(Gp[b + o] for o in offsets) for b in base], np.float32)
+    assert got.dtype == Gp.dtype
+    np.testing.assert_array_equal(got, want)  # a maximum is exact
+
+
+@pytest.mark.parametrize("n", [0, 1, 7, 4000])
+def test_tiles_of_are_the_sorted_tiles_holding_points(n: int) -> None:
+    rng = np.random.default_rng(n)
+    w = 700  # a partial last tile column
+    ys, xs = rng.integers(0, 400, n), rng.integers(0, w, n)
+    tiles, of = tiles_of(ys, xs, w)
+    # the reference: each point's (tile row, tile column), the distinct pairs in row-major order
+    pairs = sorted({(int(y) // TEXTURE_TILE_PX, int(x) // TEXTURE_TILE_PX) for y, x in zip(ys, xs)})
+    assert tiles.tolist() == [list(p) for p in pairs]
+    for i in range(n):
+        assert tuple(tiles[of[i]]) == (ys[i] // TEXTURE_TILE_PX, xs[i] // TEXTURE_TILE_PX)
