@@ -142,7 +142,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="after estimating, track each estimates table over time (deckpose track's default "
                         "tracker); needs frames in time: a motion series or an approach")
     add_progress(p)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, resume_hint="finished frames are kept whole; run the same command again: it renders only the rest")
 
 
 def run(args: argparse.Namespace) -> int:

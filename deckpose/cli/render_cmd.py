@@ -48,7 +48,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--no-images", action="store_true",
                    help="keep no frame (previews and tables only); needs --detect")
     add_progress(p)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, resume_hint="finished frames are kept whole; add --resume to the same command to render the rest")
 
 
 def run(args: argparse.Namespace) -> int:
