@@ -17,6 +17,10 @@ Printed: those counts, and the median and largest seconds from the interrupt to 
 Usage::
 
     .venv/bin/python benchmarks/ctrl_c_workers.py [--trials 10] [--seed 0] [--work /tmp/ctrl_c_workers]
+
+Another checkout (laid out as installed: deckpose/ holding render/, detect/, estimate/, evaluate/)::
+
+    PYTHONPATH=CHECKOUT:.venv/lib/python3.11/site-packages .venv/bin/python -S benchmarks/ctrl_c_workers.py
 """
 
 from __future__ import annotations
@@ -42,7 +46,9 @@ motion: {source: fixed, attitudes_deg: [[0, 0, 0], [2, 1, 5], [-2, 3, 10], [4, -
 scene: {texture_px: 128}
 """
 
-DECKPOSE = [sys.executable, "-m", "deckpose"]
+#: With ``python -S`` (and the checkout and site-packages on PYTHONPATH) the commands run a
+#: checkout other than the installed one, e.g. an older commit to compare with.
+DECKPOSE = [sys.executable, *(["-S"] if sys.flags.no_site else []), "-m", "deckpose"]
 
 
 def command(kind: str, cfg: Path, run: Path, *, rerun: bool = False) -> list[str]:

@@ -36,6 +36,7 @@ from deckpose.camera_info import camera_to_dict, read_camera_info
 from deckpose.errors import InputDataError
 from deckpose.layout import DeckLayout, layout_from_dict
 from deckpose.pose import CameraPose, ShipPose
+from deckpose.shell_command import deckpose_command
 from deckpose.table_schemas import (
     LIGHT_COLUMNS,
     ROTATION_COLUMN_NAMES,
@@ -228,9 +229,10 @@ def _require(path: Path, command: str) -> None:
 def require_dataset(run: RunPaths) -> None:
     """Raise unless the render stage's outputs are present."""
     if not run.root.is_dir():
-        raise InputDataError(f"run folder {run.root} does not exist; make it with: deckpose render CONFIG.yaml {run.root}")
+        raise InputDataError(f"run folder {run.root} does not exist; make it with: "
+                             f"{deckpose_command('render', 'CONFIG.yaml', run.root)}")
     for p in (run.manifest, run.frames, run.beacons):
-        _require(p, f"deckpose render CONFIG.yaml {run.root}")
+        _require(p, deckpose_command("render", "CONFIG.yaml", run.root))
 
 
 def read_manifest(run: RunPaths) -> dict[str, Any]:
@@ -274,14 +276,14 @@ def read_cameras(run: RunPaths, names: list[str] | None = None) -> dict[str, Cam
     out = {}
     for n in names:
         path = run.camera_file(n)
-        _require(path, f"deckpose render CONFIG.yaml {run.root}")
+        _require(path, deckpose_command("render", "CONFIG.yaml", run.root))
         out[n] = read_camera_info(path)
     return out
 
 
 def read_detections(run: RunPaths, detector: str) -> pd.DataFrame:
     p = run.detections(detector)
-    _require(p, f"deckpose detect {run.root} --detector {detector}")
+    _require(p, deckpose_command("detect", run.root, "--detector", detector))
     return upgrade_legacy_columns(read_table(p, "detections"), "detections")
 
 
@@ -293,21 +295,21 @@ def read_detect_frames(run: RunPaths, detector: str) -> pd.DataFrame | None:
 
 def read_estimates(run: RunPaths, detector: str, method: str) -> pd.DataFrame:
     p = run.estimates(detector, method)
-    _require(p, f"deckpose estimate --run {run.root} --detector {detector} --method {method}")
+    _require(p, deckpose_command("estimate", "--run", run.root, "--detector", detector, "--method", method))
     return read_table(p, "estimates")
 
 
 def read_tracks(run: RunPaths, detector: str, method: str, tracker: str) -> pd.DataFrame:
     """The filtered states of one track (``TRACK_COLUMNS``)."""
     p = run.tracks(detector, method, tracker)
-    _require(p, f"deckpose track {run.root} --detector {detector} --estimates {method} --method {tracker}")
+    _require(p, deckpose_command("track", run.root, "--detector", detector, "--estimates", method, "--method", tracker))
     return read_table(p, "tracks")
 
 
 def read_track_predictions(run: RunPaths, detector: str, method: str, tracker: str) -> pd.DataFrame:
     """The predictions of one track (``TRACK_PREDICTION_COLUMNS``)."""
     p = run.track_predictions(detector, method, tracker)
-    _require(p, f"deckpose track {run.root} --detector {detector} --estimates {method} --method {tracker}")
+    _require(p, deckpose_command("track", run.root, "--detector", detector, "--estimates", method, "--method", tracker))
     return read_table(p, "track predictions")
 
 

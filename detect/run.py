@@ -36,6 +36,7 @@ from deckpose.errors import ConfigError, InputDataError
 from deckpose.layout import DeckLayout, layout_to_dict
 from deckpose.records import Frame
 from deckpose.run_folder import DETECTIONS_FORMAT, RunPaths
+from deckpose.shell_command import deckpose_command
 
 log = logging.getLogger(__name__)
 
@@ -130,7 +131,8 @@ def detect_run(
             at_render = frameset.manifest.get("detect_at_render", {}).get("detectors", [])
             where = RunPaths(frameset.root).detections(detector)
             fix = (f"its {detector} detections were made at render time ({where}): estimate from them "
-                   f"(deckpose estimate --run {source} --detector {detector})" if detector in at_render else
+                   f"({deckpose_command('estimate', '--run', source, '--detector', detector)})"
+                   if detector in at_render else
                    f"its detections were made at render time ({', '.join(at_render) or 'none'}); for "
                    f"{detector}, render it again with --detect {detector} (or without --no-images)")
             raise InputDataError(f"{source} keeps no frames (rendered with --no-images), so there is "

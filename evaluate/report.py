@@ -28,6 +28,7 @@ from deckpose import run_folder as rl
 from deckpose.atomic_io import atomic_open
 from deckpose.camera import THESIS_RESOLUTIONS
 from deckpose.errors import InputDataError
+from deckpose.shell_command import deckpose_command
 from deckpose.tables import read_table
 
 
@@ -190,7 +191,7 @@ def write_report(run: rl.RunPaths) -> Path:
     """Write ``report/report.md`` and its figures for an evaluated run; return the Markdown path."""
     rl.require_dataset(run)  # a missing run folder is named as such, not as a missing stage
     if not run.errors.exists():
-        raise InputDataError(f"{run.errors} is missing; make it with: deckpose evaluate {run.root}")
+        raise InputDataError(f"{run.errors} is missing; make it with: {deckpose_command('evaluate', run.root)}")
     errors = read_table(run.errors, "errors")
     frames = rl.read_frames(run)
     beacons = rl.read_beacons(run)

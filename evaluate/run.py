@@ -14,6 +14,7 @@ from deckpose import run_folder as rl
 from deckpose.atomic_io import atomic_open
 from deckpose.errors import InputDataError
 from deckpose.preview import PREVIEW_PX
+from deckpose.shell_command import deckpose_command
 from deckpose.tables import read_table, write_table
 
 
@@ -56,23 +57,25 @@ def compute_errors(run: rl.RunPaths) -> pd.DataFrame:
     pairs = run.estimate_pairs()
     if not pairs:
         dets = run.detectors()
-        hint = (f"deckpose estimate --run {run.root} --detector {dets[0]} --method pnp" if dets
-                else f"deckpose detect {run.root} --detector cog, then deckpose estimate --run {run.root} --detector cog")
+        hint = (deckpose_command("estimate", "--run", run.root, "--detector", dets[0], "--method", "pnp") if dets
+                else f"{deckpose_command('detect', run.root, '--detector', 'cog')}, then "
+                     f"{deckpose_command('estimate', '--run', run.root, '--detector', 'cog')}")
         raise InputDataError(f"{run.root} has no estimates (folder {run.root / 'estimates'}); make them with: {hint}")
     parts = []
     crb_by_detector: dict[str, pd.DataFrame] = {}
     for det, method in pairs:
         e = rl.read_estimates(run, det, method)
         if det == rl.RING_DETECTOR:  # painted-ring: one row of fitted ellipses per frame, no beacon centroids
-            rl.check_frames_match(frames, e, f"estimates of {det}+{method}", f"deckpose painted-ring {run.root}")
+            rl.check_frames_match(frames, e, f"estimates of {det}+{method}", deckpose_command("painted-ring", run.root))
             errs = frame_errors(frames, e)
             errs.insert(1, "detector", det)
             parts.append(errs)
             continue
         d = rl.read_detections(run, det)
-        rl.check_frames_match(frames, d, f"detections of {det}", f"deckpose detect {run.root} --detector {det}")
+        rl.check_frames_match(frames, d, f"detections of {det}",
+                              deckpose_command("detect", run.root, "--detector", det))
         rl.check_frames_match(frames, e, f"estimates of {det}+{method}",
-                              f"deckpose estimate --run {run.root} --detector {det} --method {method}")
+                              deckpose_command("estimate", "--run", run.root, "--detector", det, "--method", method))
         errs = run_errors(frames, beacons, d, e, det)
         if det not in crb_by_detector:
             rms = errs.set_index("frame_id")["centroid_rms_px"]

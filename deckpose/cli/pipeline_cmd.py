@@ -27,6 +27,7 @@ from typing import TYPE_CHECKING
 from deckpose.atomic_io import atomic_open
 from deckpose.cli.common_options import HelpFormatter, add_progress, add_workers, frame_bar, workers
 from deckpose.errors import ConfigError, DeckposeError
+from deckpose.shell_command import deckpose_command
 
 if TYPE_CHECKING:
     from deckpose.render.config import RenderConfig
@@ -379,7 +380,7 @@ def publish_report(run_dir: Path, dest: Path) -> Path:
     paths = run_paths(run_dir)
     report = paths.report_dir / "report.md"
     if not report.exists():
-        raise DeckposeError(f"{report} is missing; make it with: deckpose report {run_dir}")
+        raise DeckposeError(f"{report} is missing; make it with: {deckpose_command('report', run_dir)}")
     dest = Path(dest)
     dest.parent.mkdir(parents=True, exist_ok=True)
     tmp = dest.parent / f".{dest.name}.tmp-{os.getpid()}"

@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from deckpose.cli.common_options import HelpFormatter, add_progress, frame_bar
+from deckpose.shell_command import deckpose_command
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -83,5 +84,6 @@ def run(args: argparse.Namespace) -> int:
                         method=args.estimates, command=command, progress=bar.update)
     print(res.summary())
     print(f"predictions: {res.predictions_path}")
-    print(f"to play it in Foxglove (filtered and predicted decks, roll against time): deckpose evaluate {run_folder.root}")
+    print("to play it in Foxglove (filtered and predicted decks, roll against time): "
+          + deckpose_command("evaluate", run_folder.root))
     return 0
