@@ -35,7 +35,7 @@ from deckpose.camera_info import write_camera_info
 from deckpose.errors import ConfigError, InputDataError
 from deckpose.layout import DeckLayout, layout_to_dict
 from deckpose.records import Frame
-from deckpose.run_folder import DETECTIONS_FORMAT, RunPaths
+from deckpose.run_folder import DETECT_RECORD, DETECTIONS_FORMAT, RunPaths
 from deckpose.shell_command import deckpose_command
 
 log = logging.getLogger(__name__)
@@ -368,7 +368,7 @@ def write_run(
     else:
         base = Path(out_dir)
         det_path, frames_path = base / "detections.parquet", base / "detect_frames.parquet"
-        meta_path, cam_dir = base / "detect_run.json", base / "cameras"
+        meta_path, cam_dir = base / DETECT_RECORD, base / "cameras"
     write_tables(det_path, frames_path, detections, frames)
     cams = {}
     for name, cam in frameset.cameras.items():
