@@ -75,6 +75,10 @@ def main() -> int:
     ap.add_argument("--timeout", type=float, default=60.0, help="seconds after the interrupt that count as hung")
     ap.add_argument("--stop-within", type=float, default=5.0, help="seconds after the interrupt that count as slow")
     args = ap.parse_args()
+    # A job started in the background of a shell (``... &``, nohup) begins with SIGINT ignored, and an
+    # ignored signal stays ignored through exec: the commands would never see the interrupt. Handled
+    # here, it is reset to the default in them.
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     rng = np.random.default_rng(args.seed)
     shutil.rmtree(args.work, ignore_errors=True)
     args.work.mkdir(parents=True)

@@ -42,8 +42,14 @@ def _deckpose(*argv: str) -> list[str]:
 
 def test_ctrl_c_stops_a_two_worker_render_with_one_line_and_it_resumes(tmp_path: Path) -> None:
     cfg, out = _config(tmp_path), tmp_path / "ds"
-    proc = subprocess.Popen(_deckpose("render", str(cfg), str(out), "--workers", "2", "--no-progress"),
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    # pytest started in the background of a shell (``&``, nohup) runs with SIGINT ignored, which
+    # exec passes on (the command would never see the interrupt); handled here, it is reset in the child
+    handler = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        proc = subprocess.Popen(_deckpose("render", str(cfg), str(out), "--workers", "2", "--no-progress"),
+                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    finally:
+        signal.signal(signal.SIGINT, handler)
     parts = out / ".parts"
     deadline = time.monotonic() + 120.0
     while proc.poll() is None and time.monotonic() < deadline:  # until a frame is written
