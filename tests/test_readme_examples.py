@@ -160,12 +160,13 @@ def test_readme_thesis_tables_command_runs_as_written(tmp_path):
     # 1e-9). Same cells and quantities as the committed full-scale table; the statistics of
     # 1,980 draws cannot equal the committed maxima of 247,500, so values are not compared here
     # (tests/evaluate/test_thesis_tables.py checks them against the thesis).
-    cmd = next(c for c in COMMANDS if c.startswith("deckpose thesis-tables "))
+    cmd = next(c for c in COMMANDS if shlex.split(c)[:2] == ["deckpose", "thesis-tables"])
     assert "--repetitions" not in cmd
     _run(cmd + " --repetitions 4", tmp_path)
-    table = (tmp_path / "reports" / "thesis_tables.md").read_text()
+    assert not (tmp_path / "reports").exists()  # the default is a folder of its own, not the committed one
+    table = (tmp_path / "runs" / "thesis_tables" / "thesis_tables.md").read_text()
     assert "Maxima of 1,980 draws" in table  # 4 x 495
-    ours = pd.read_csv(tmp_path / "reports" / "thesis_tables.csv")
+    ours = pd.read_csv(tmp_path / "runs" / "thesis_tables" / "thesis_tables.csv")
     committed = pd.read_csv(REPO / "reports" / "thesis_tables.csv")
     keys = ["table", "resolution", "noise_px", "height", "quantity"]
     pd.testing.assert_frame_equal(ours[keys], committed[keys])
