@@ -124,6 +124,8 @@ def _main(argv: list[str], parsed: list[argparse.Namespace]) -> int:
         parser.print_help()
         return 2
     configure_logging(args)
+    if getattr(args, "quiet", False) and hasattr(args, "no_progress"):
+        args.no_progress = True  # -q: errors and the result only (deckpose.cli.console), no bars
     try:
         return int(args.func(args) or 0)
     except DeckposeError as exc:

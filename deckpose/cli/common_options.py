@@ -5,7 +5,9 @@
 * ``--no-progress``: no progress bars (they are off anyway when the output is not a
   terminal: tqdm's ``disable=None``);
 * ``-v/--verbose`` and ``-q/--quiet`` (top level): the log level of the ``deckpose``
-  loggers (warnings by default, ``-v`` info, ``-vv`` debug, ``-q`` errors only).
+  loggers (warnings by default, ``-v`` info, ``-vv`` debug, ``-q`` errors only); ``-q``
+  also leaves of stdout only what was asked for (:mod:`deckpose.cli.console`) and turns
+  the progress bars off.
 """
 
 from __future__ import annotations
@@ -83,7 +85,9 @@ def add_verbosity(p: argparse.ArgumentParser, *, command: bool = False) -> None:
     p.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS if command else 0,
                    help="log more: -v what each stage does, -vv debugging detail")
     p.add_argument("-q", "--quiet", action="store_true",
-                   default=argparse.SUPPRESS if command else False, help="log errors only")
+                   default=argparse.SUPPRESS if command else False,
+                   help="quiet: errors only, plus the command's result (its output's path, or the data "
+                        "asked for); no summaries or progress bars")
 
 
 def configure_logging(args: Any) -> None:

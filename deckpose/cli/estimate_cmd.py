@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from deckpose.cli.common_options import HelpFormatter, add_progress, frame_bar
+from deckpose.cli.console import wrote
 from deckpose.cli.exit_codes import frames_exit_code
 
 if TYPE_CHECKING:
@@ -114,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
                                 source=str(args.detections), progress=bar.update)
         write_table(df, out, "estimates")
         res = EstimateRunResult(out, df)
-    print(res.summary() + _mean_note(res.table))
+    wrote(args, res.path, res.summary() + _mean_note(res.table))
     return frames_exit_code(res.n_frames, res.n_ok, strict=args.strict)
 
 

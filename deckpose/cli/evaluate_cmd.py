@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from deckpose.cli.common_options import HelpFormatter
+from deckpose.cli.console import wrote
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -49,8 +50,7 @@ def run_evaluate(args: argparse.Namespace) -> int:
     command = ["deckpose", "evaluate", str(args.run), *(["--no-mcap"] if args.no_mcap else []),
                "--preview-px", str(args.preview_px)]
     paths = evaluate_run(run, mcap=not args.no_mcap, preview_px=args.preview_px, command=command)
-    for k, v in paths.items():
-        print(f"{k}: {v}")
+    wrote(args, paths["errors"], "\n".join(f"{k}: {v}" for k, v in paths.items()))
     return 0
 
 
@@ -62,5 +62,6 @@ def run_report(args: argparse.Namespace) -> int:
     run = run_paths(args.run)
     if run.root.is_dir():
         claim_output(run.root, what="report")
-    print(f"report: {write_report(run)}")
+    md = write_report(run)
+    wrote(args, md, f"report: {md}")
     return 0

@@ -26,6 +26,7 @@ from typing import TYPE_CHECKING
 
 from deckpose.atomic_io import atomic_open
 from deckpose.cli.common_options import HelpFormatter, add_progress, add_workers, frame_bar, workers
+from deckpose.cli.console import is_quiet, wrote
 from deckpose.errors import ConfigError, DeckposeError
 from deckpose.shell_command import deckpose_command
 
@@ -76,6 +77,8 @@ class PipelineOptions:
         After estimating, track every estimates table over time (``deckpose track``'s default
         tracker and config), so the log plays the filtered and predicted decks; needs frames in
         time (a motion series or an approach).
+    quiet : bool
+        Print nothing (``-q``): no stage lines or summaries; errors are raised.
     """
 
     run_dir: Path
@@ -91,6 +94,7 @@ class PipelineOptions:
     detect_at_render: bool = False
     keep_images: bool = True
     track: bool = False
+    quiet: bool = False
 
     def __post_init__(self) -> None:
         if not self.detectors:
@@ -155,10 +159,10 @@ def run(args: argparse.Namespace) -> int:
         scheduler=args.scheduler, mcap=not args.no_mcap, progress=not args.no_progress,
         publish_dir=args.publish, from_stage=args.from_stage, command=_canonical_command(args),
         detect_at_render=args.detect_at_render, keep_images=not args.no_images, track=args.track,
+        quiet=is_quiet(args),
     )
     paths = run_pipeline(config, options, config_label=str(args.config))
-    for key, path in paths.items():
-        print(f"  {key}: {path}")
+    wrote(args, paths["report"], "\n".join(f"  {key}: {path}" for key, path in paths.items()))
     return 0
 
 
@@ -253,7 +257,11 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         raise ConfigError("--track needs frames in time, and this config renders fixed attitudes (motion source "
                           "'fixed'): give it a motion series (motion.source sea_state, file or thesis) or an "
                           "approach: section, or drop --track")
-    say = step or (lambda n, total, text: print(f"[{n}/{total}] {text}", flush=True))
+    def tell(text: str) -> None:  # a summary line (none with quiet)
+        if not options.quiet:
+            print(text, flush=True)
+
+    say = step or (lambda n, total, text: tell(f"[{n}/{total}] {text}"))
     run_dir = Path(options.run_dir)
     total = 5 + bool(options.mcap) + (options.publish_dir is not None)
     seconds: dict[str, float] = {}
@@ -293,7 +301,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         say(2, total, f"detect beacons ({', '.join(options.detectors)})")
         for det in options.detectors:  # a stage whose every frame failed still ran: the report says so
             res = detect_run(run_dir, det, progress=options.progress, workers=options.workers)
-            print(res.summary())
+            tell(res.summary())
         seconds["detect"] = time.perf_counter() - t
         log.info("stage detect: %.1f s", seconds["detect"])
     t = time.perf_counter()
@@ -305,7 +313,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
                 spec = parse_method(method)
                 with frame_bar(f"estimate ({spec.label})", enabled=options.progress) as b:
                     est = estimate_run_with_prior(run_dir, spec, detector=det, progress=b.update)
-                print(est.summary())
+                tell(est.summary())
                 if options.track:
                     from deckpose.tracking.config import TRACKERS, TrackConfig
                     from deckpose.tracking.run import track_run
@@ -313,7 +321,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
                     with frame_bar(f"track ({spec.label})", enabled=options.progress) as b:
                         tr = track_run(run_dir, TrackConfig(), tracker=TRACKERS[0], detector=det, method=spec.label,
                                        command=list(options.command), progress=b.update)
-                    print(tr.summary())
+                    tell(tr.summary())
         seconds["estimate"] = time.perf_counter() - t
         log.info("stage estimate: %.1f s", seconds["estimate"])
     t = time.perf_counter()
@@ -321,7 +329,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         say(4, total, "evaluate against the ground truth")
         # (the MCAP log is written after the report, which it attaches)
         for key, path in evaluate_run(paths, mcap=False, command=options.command).items():
-            print(f"{key}: {path}")
+            tell(f"{key}: {path}")
         seconds["evaluate"] = time.perf_counter() - t
         log.info("stage evaluate: %.1f s", seconds["evaluate"])
     previous = _read_record(run_dir)
@@ -343,14 +351,14 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         json.dump(record, fh, indent=2)
     t = time.perf_counter()
     say(5, total, "write the report")
-    print(f"report: {write_report(paths)}")
+    tell(f"report: {write_report(paths)}")
     out = {"report": paths.report_dir / "report.md", "tables": paths.evaluation_dir / "resolution_tables.md",
            "errors": paths.errors}
     if options.mcap and runs("evaluate"):
         t_log = time.perf_counter()
         say(6, total, "write the MCAP log (with the report attached)")
         for key, path in write_log(paths, command=options.command).items():
-            print(f"{key}: {path}")
+            tell(f"{key}: {path}")
         record["log_seconds"] = round(time.perf_counter() - t_log, 1)
         with atomic_open(run_dir / PIPELINE_RECORD, "w") as fh:
             json.dump(record, fh, indent=2)
@@ -359,8 +367,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     if options.publish_dir is not None:
         say(total, total, f"publish the report and tables -> {options.publish_dir}")
         out["published"] = publish_report(run_dir, Path(options.publish_dir))
-    print(f"pipeline done in {time.perf_counter() - t_all:.0f} s (report {time.perf_counter() - t:.0f} s)",
-          flush=True)
+    tell(f"pipeline done in {time.perf_counter() - t_all:.0f} s (report {time.perf_counter() - t:.0f} s)")
     return out
 
 

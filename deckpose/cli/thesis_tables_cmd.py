@@ -12,6 +12,7 @@ from deckpose.cli.common_options import (
     add_workers,
     workers,
 )
+from deckpose.cli.console import wrote
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -50,5 +51,5 @@ def run(args: argparse.Namespace) -> int:
 
     md = run_thesis_tables(config, args.output, progress)
     bar.close()
-    print(f"wrote {md} (and thesis_tables.csv, thesis_tables.manifest.json)")
+    wrote(args, md, f"wrote {md} (and thesis_tables.csv, thesis_tables.manifest.json)")
     return 0
