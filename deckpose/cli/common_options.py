@@ -15,6 +15,7 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -71,11 +72,21 @@ def add_progress(p: argparse.ArgumentParser) -> None:
                    help="no progress bars (they are off anyway when the output is not a terminal)")
 
 
-def frame_bar(desc: str, *, enabled: bool) -> tqdm:
-    """A progress bar counting frames (off when not ``enabled`` or when not on a terminal)."""
+def frame_bar(desc: str, *, enabled: bool, total: int | None = None, unit: str = "frame") -> tqdm:
+    """A progress bar counting frames (or ``unit``), of ``total`` when known (off when not
+    ``enabled`` or when not on a terminal)."""
     from tqdm import tqdm
 
-    return tqdm(desc=desc, unit="frame", leave=False, disable=None if enabled else True)
+    return tqdm(desc=desc, unit=unit, total=total, leave=False, disable=None if enabled else True)
+
+
+def done_of_total(bar: tqdm) -> Callable[[int, int], None]:
+    """A ``progress(done, total)`` callback that moves ``bar`` (for stages that count that way)."""
+    def progress(done: int, total: int) -> None:
+        bar.total = total
+        bar.update(done - bar.n)
+
+    return progress
 
 
 def add_verbosity(p: argparse.ArgumentParser, *, command: bool = False) -> None:

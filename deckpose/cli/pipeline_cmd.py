@@ -25,7 +25,14 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from deckpose.atomic_io import atomic_open
-from deckpose.cli.common_options import HelpFormatter, add_progress, add_workers, frame_bar, workers
+from deckpose.cli.common_options import (
+    HelpFormatter,
+    add_progress,
+    add_workers,
+    done_of_total,
+    frame_bar,
+    workers,
+)
 from deckpose.cli.console import is_quiet, wrote
 from deckpose.errors import ConfigError, DeckposeError
 from deckpose.shell_command import deckpose_command
@@ -249,7 +256,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     from deckpose.evaluate.run import evaluate_run, write_log
     from deckpose.render.dataset import render_dataset
     from deckpose.render.render_detection import RenderDetection
-    from deckpose.run_folder import run_paths
+    from deckpose.run_folder import read_frames, run_paths
     from deckpose.sequence_run import estimate_run_with_prior
 
     check_names(options)
@@ -308,17 +315,18 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     if runs("estimate"):
         say(3, total, f"estimate the pose ({', '.join(options.methods)})"
                       + (", then track it over time" if options.track else ""))
+        n_frames = len(read_frames(paths))  # the bars' total
         for det in options.detectors:
             for method in options.methods:
                 spec = parse_method(method)
-                with frame_bar(f"estimate ({spec.label})", enabled=options.progress) as b:
+                with frame_bar(f"estimate ({spec.label})", enabled=options.progress, total=n_frames) as b:
                     est = estimate_run_with_prior(run_dir, spec, detector=det, progress=b.update)
                 tell(est.summary())
                 if options.track:
                     from deckpose.tracking.config import TRACKERS, TrackConfig
                     from deckpose.tracking.run import track_run
 
-                    with frame_bar(f"track ({spec.label})", enabled=options.progress) as b:
+                    with frame_bar(f"track ({spec.label})", enabled=options.progress, total=n_frames) as b:
                         tr = track_run(run_dir, TrackConfig(), tracker=TRACKERS[0], detector=det, method=spec.label,
                                        command=list(options.command), progress=b.update)
                     tell(tr.summary())
@@ -328,7 +336,9 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     if runs("evaluate"):
         say(4, total, "evaluate against the ground truth")
         # (the MCAP log is written after the report, which it attaches)
-        for key, path in evaluate_run(paths, mcap=False, command=options.command).items():
+        with frame_bar("evaluate", enabled=options.progress) as b:
+            evaluated = evaluate_run(paths, mcap=False, command=options.command, progress=done_of_total(b))
+        for key, path in evaluated.items():
             tell(f"{key}: {path}")
         seconds["evaluate"] = time.perf_counter() - t
         log.info("stage evaluate: %.1f s", seconds["evaluate"])
@@ -351,7 +361,9 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         json.dump(record, fh, indent=2)
     t = time.perf_counter()
     say(5, total, "write the report")
-    tell(f"report: {write_report(paths)}")
+    with frame_bar("report", enabled=options.progress, unit="figure") as b:
+        md = write_report(paths, progress=done_of_total(b))
+    tell(f"report: {md}")
     out = {"report": paths.report_dir / "report.md", "tables": paths.evaluation_dir / "resolution_tables.md",
            "errors": paths.errors}
     if options.mcap and runs("evaluate"):
