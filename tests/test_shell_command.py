@@ -61,7 +61,7 @@ def test_no_message_writes_a_command_with_a_value_in_an_f_string() -> None:
     # "deckpose SUBCOMMAND <words> {value}" in an f-string is a hint that would print a path unquoted;
     # such hints are built by deckpose_command. (A title like "deckpose report: {...}" is not a command.)
     names = "|".join(map(re.escape, _subcommands()))
-    pattern = re.compile(r"deckpose (" + names + r") [^;)`]*\{")
+    pattern = re.compile(r"deckpose (" + names + r") [^;)`'\"]*\{")  # a command ends at ; ) ` or a quote
     found = []
     for folder in ("deckpose", "render", "detect", "estimate", "evaluate"):
         for path in sorted((REPO / folder).rglob("*.py")):
