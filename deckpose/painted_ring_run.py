@@ -29,6 +29,7 @@ import pandas as pd
 from deckpose.errors import InputDataError
 from deckpose.painted_ring import PaintedRing, painted_ring_from_dict
 from deckpose.run_folder import RING_DETECTOR, RunPaths, read_cameras, read_frames
+from deckpose.shell_command import deckpose_command
 from deckpose.table_schemas import PAINTED_RING_BOUND_COLUMNS, RING_DETECTION_COLUMNS, typed_frame
 from deckpose.tables import write_table
 
@@ -151,5 +152,5 @@ def read_bounds(run: RunPaths) -> pd.DataFrame:
     p = run.estimates(DETECTOR, METHOD)
     p = p.with_name(p.name.replace(".parquet", ".bound.parquet"))
     if not p.is_file():
-        raise InputDataError(f"{p}: missing; run 'deckpose painted-ring {run.root}' first")
+        raise InputDataError(f"{p}: missing; run {deckpose_command('painted-ring', run.root)} first")
     return read_table(p, "painted ring bounds")

@@ -34,8 +34,9 @@ import pandas as pd
 from deckpose.camera import CameraModel
 from deckpose.camera_info import camera_to_dict, read_camera_info
 from deckpose.errors import InputDataError
-from deckpose.layout import DeckLayout, layout_from_dict
+from deckpose.layout import DeckLayout, layout_from_dict, layout_to_dict
 from deckpose.pose import CameraPose, ShipPose
+from deckpose.shell_command import deckpose_command
 from deckpose.table_schemas import (
     LIGHT_COLUMNS,
     ROTATION_COLUMN_NAMES,
@@ -48,6 +49,9 @@ from deckpose.tables import read_table
 DATASET_FORMAT = "deckpose-dataset/1"
 #: Format of a detect run's metadata file.
 DETECTIONS_FORMAT = "deckpose-detections/1"
+#: The record ``deckpose detect -o DIR`` writes beside its tables: DIR is a detections folder
+#: (``detections.parquet``, ``detect_frames.parquet``, ``cameras/``), not a run folder.
+DETECT_RECORD = "detect_run.json"
 #: Between the detector and the method in an estimates file name (``cog--pnp.parquet``).
 SEPARATOR = "--"
 #: The painted ring's edge detector (``deckpose painted-ring``): its detections table is one row
@@ -226,11 +230,59 @@ def _require(path: Path, command: str) -> None:
 
 
 def require_dataset(run: RunPaths) -> None:
-    """Raise unless the render stage's outputs are present."""
+    """Raise unless the render stage's outputs are present.
+
+    A detections folder (``deckpose detect -o DIR``) is named as such, with what to run
+    instead, rather than as a run folder that lacks its frames.
+    """
     if not run.root.is_dir():
-        raise InputDataError(f"run folder {run.root} does not exist; make it with: deckpose render CONFIG.yaml {run.root}")
+        raise InputDataError(f"run folder {run.root} does not exist; make it with: "
+                             f"{deckpose_command('render', 'CONFIG.yaml', run.root)}")
+    if not run.manifest.exists():
+        record = detections_folder_record(run.root)
+        if record is not None:
+            raise InputDataError(detections_folder_message(run.root, record))
     for p in (run.manifest, run.frames, run.beacons):
-        _require(p, f"deckpose render CONFIG.yaml {run.root}")
+        _require(p, deckpose_command("render", "CONFIG.yaml", run.root))
+
+
+def detections_folder_record(root: str | os.PathLike[str]) -> dict[str, Any] | None:
+    """The :data:`DETECT_RECORD` of a detections folder (``deckpose detect -o``); None for any other folder."""
+    path = Path(root) / DETECT_RECORD
+    try:
+        record = json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) and record.get("format") == DETECTIONS_FORMAT else None
+
+
+def detections_folder_message(root: str | os.PathLike[str], record: dict[str, Any]) -> str:
+    """What a detections folder is, and what to run instead of giving it where a run folder is needed.
+
+    Parameters
+    ----------
+    root : path-like
+        The folder ``deckpose detect -o`` wrote.
+    record : dict
+        Its :data:`DETECT_RECORD` (:func:`detections_folder_record`).
+    """
+    root = Path(root)
+    detector = str(record.get("detector", "cog"))
+    source = str(record.get("source", "SOURCE"))
+    cameras = record.get("cameras") or {}
+    camera = (root / str(next(iter(cameras.values())))) if len(cameras) == 1 else root / "cameras" / "CAMERA.yaml"
+    table = deckpose_command("estimate", root / str(record.get("detections", "detections.parquet")),
+                             "--camera", camera, "-o", "estimates.parquet",
+                             *(() if record.get("layout") in (None, layout_to_dict(DeckLayout()))
+                               else ("--layout", "LAYOUT.yaml")))
+    what = (f"{root} is a detections folder: 'deckpose detect -o' wrote {detector}'s detections of "
+            f"{source} there; it holds no frames or ground truth, so it is not a run folder")
+    if record.get("source_kind") != "dataset":  # a folder of images: nothing to evaluate against
+        return f"{what}. Estimate from its table: {table}"
+    return (f"{what}. Detect into the dataset itself and give the dataset to this command: "
+            f"{deckpose_command('detect', source, '--detector', detector)} (no -o), then e.g. "
+            f"{deckpose_command('estimate', '--run', source, '--detector', detector)}; or estimate "
+            f"from its table alone: {table}")
 
 
 def read_manifest(run: RunPaths) -> dict[str, Any]:
@@ -274,14 +326,14 @@ def read_cameras(run: RunPaths, names: list[str] | None = None) -> dict[str, Cam
     out = {}
     for n in names:
         path = run.camera_file(n)
-        _require(path, f"deckpose render CONFIG.yaml {run.root}")
+        _require(path, deckpose_command("render", "CONFIG.yaml", run.root))
         out[n] = read_camera_info(path)
     return out
 
 
 def read_detections(run: RunPaths, detector: str) -> pd.DataFrame:
     p = run.detections(detector)
-    _require(p, f"deckpose detect {run.root} --detector {detector}")
+    _require(p, deckpose_command("detect", run.root, "--detector", detector))
     return upgrade_legacy_columns(read_table(p, "detections"), "detections")
 
 
@@ -293,21 +345,21 @@ def read_detect_frames(run: RunPaths, detector: str) -> pd.DataFrame | None:
 
 def read_estimates(run: RunPaths, detector: str, method: str) -> pd.DataFrame:
     p = run.estimates(detector, method)
-    _require(p, f"deckpose estimate --run {run.root} --detector {detector} --method {method}")
+    _require(p, deckpose_command("estimate", "--run", run.root, "--detector", detector, "--method", method))
     return read_table(p, "estimates")
 
 
 def read_tracks(run: RunPaths, detector: str, method: str, tracker: str) -> pd.DataFrame:
     """The filtered states of one track (``TRACK_COLUMNS``)."""
     p = run.tracks(detector, method, tracker)
-    _require(p, f"deckpose track {run.root} --detector {detector} --estimates {method} --method {tracker}")
+    _require(p, deckpose_command("track", run.root, "--detector", detector, "--estimates", method, "--method", tracker))
     return read_table(p, "tracks")
 
 
 def read_track_predictions(run: RunPaths, detector: str, method: str, tracker: str) -> pd.DataFrame:
     """The predictions of one track (``TRACK_PREDICTION_COLUMNS``)."""
     p = run.track_predictions(detector, method, tracker)
-    _require(p, f"deckpose track {run.root} --detector {detector} --estimates {method} --method {tracker}")
+    _require(p, deckpose_command("track", run.root, "--detector", detector, "--estimates", method, "--method", tracker))
     return read_table(p, "track predictions")
 
 

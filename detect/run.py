@@ -11,12 +11,13 @@ with ``ok = False`` and a reason; the batch goes on.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import logging
 import os
 import platform
-from collections.abc import Iterator
+from collections.abc import Generator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,7 +35,8 @@ from deckpose.camera_info import write_camera_info
 from deckpose.errors import ConfigError, InputDataError
 from deckpose.layout import DeckLayout, layout_to_dict
 from deckpose.records import Frame
-from deckpose.run_folder import DETECTIONS_FORMAT, RunPaths
+from deckpose.run_folder import DETECT_RECORD, DETECTIONS_FORMAT, RunPaths
+from deckpose.shell_command import deckpose_command
 
 log = logging.getLogger(__name__)
 
@@ -129,7 +131,8 @@ def detect_run(
             at_render = frameset.manifest.get("detect_at_render", {}).get("detectors", [])
             where = RunPaths(frameset.root).detections(detector)
             fix = (f"its {detector} detections were made at render time ({where}): estimate from them "
-                   f"(deckpose estimate --run {source} --detector {detector})" if detector in at_render else
+                   f"({deckpose_command('estimate', '--run', source, '--detector', detector)})"
+                   if detector in at_render else
                    f"its detections were made at render time ({', '.join(at_render) or 'none'}); for "
                    f"{detector}, render it again with --detect {detector} (or without --no-images)")
             raise InputDataError(f"{source} keeps no frames (rendered with --no-images), so there is "
@@ -211,8 +214,10 @@ def detect_frames_with(
     desc = f"detect {','.join(detectors)}"
     job = _DetectJob(frameset.cameras, frameset.layout, frameset.root, tuple(detectors), options,
                      identify_options)
-    with tqdm(total=len(frameset.sources), desc=desc, unit="frame", disable=None if progress else True) as bar:
-        for chunk in _detect_chunks(job, frameset.sources, workers):
+    # closing: on an interrupt in this loop the workers are stopped now, not when collected
+    with (tqdm(total=len(frameset.sources), desc=desc, unit="frame", disable=None if progress else True) as bar,
+          contextlib.closing(_detect_chunks(job, frameset.sources, workers)) as chunks):
+        for chunk in chunks:
             for per_frame in chunk:
                 for detector, (rows, frame_row) in zip(detectors, per_frame):
                     det_parts[detector].append(rows)
@@ -256,26 +261,22 @@ _IMPORTED_PLUGINS: set[str] = set()
 
 
 def _detect_chunks(job: _DetectJob, sources: tuple[FrameSource, ...], workers: int
-                   ) -> Iterator[list[_FrameResult]]:
+                   ) -> Generator[list[_FrameResult], None, None]:
     """Each chunk's per-frame results, in input order, from this process or ``workers`` processes."""
     chunks = [sources[i:i + CHUNK_FRAMES] for i in range(0, len(sources), CHUNK_FRAMES)]
     if workers <= 1 or len(chunks) <= 1:
         for c in chunks:
             yield _detect_chunk(job, c)
         return
-    from concurrent.futures import ProcessPoolExecutor
-    from multiprocessing import get_context
-
     from deckpose.detect import registry
 
+    from deckpose.worker_pool import worker_pool
+
     job = dataclasses.replace(job, plugins=registry.plugins_for(job.detectors))
-    with ProcessPoolExecutor(max_workers=min(workers, len(chunks)), mp_context=get_context("spawn")) as pool:
-        results = pool.map(_detect_chunk, [job] * len(chunks), chunks)
-        try:
-            yield from results
-        except BaseException:
-            pool.shutdown(wait=False, cancel_futures=True)
-            raise
+    # workers ignore Ctrl-C; on it (or any error) the chunks not started are cancelled and the
+    # workers stopped within seconds (deckpose.worker_pool)
+    with worker_pool(min(workers, len(chunks))) as pool:
+        yield from pool.map(_detect_chunk, [job] * len(chunks), chunks)
 
 
 def _detect_chunk(job: _DetectJob, sources: tuple[FrameSource, ...]) -> list[_FrameResult]:
@@ -367,7 +368,7 @@ def write_run(
     else:
         base = Path(out_dir)
         det_path, frames_path = base / "detections.parquet", base / "detect_frames.parquet"
-        meta_path, cam_dir = base / "detect_run.json", base / "cameras"
+        meta_path, cam_dir = base / DETECT_RECORD, base / "cameras"
     write_tables(det_path, frames_path, detections, frames)
     cams = {}
     for name, cam in frameset.cameras.items():

@@ -27,6 +27,7 @@ from deckpose.image_store import decode_image
 from deckpose.layout import DeckLayout, layout_from_dict, read_layout
 from deckpose.records import Frame
 from deckpose.run_folder import DATASET_FORMAT, RunPaths
+from deckpose.shell_command import deckpose_command
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg", ".bmp", ".pgm", ".ppm", ".zst")
 
@@ -123,7 +124,7 @@ def open_dataset(path: str | os.PathLike[str]) -> FrameSet:
         done = len(list((root / ".parts").glob("*.json"))) if (root / ".parts").is_dir() else 0
         raise InputDataError(
             f"{root} is an unfinished dataset ({done} of {manifest.get('n_frames', '?')} frames "
-            f"rendered); finish it with: deckpose render CONFIG.yaml {root} --resume"
+            f"rendered); finish it with: {deckpose_command('render', 'CONFIG.yaml', root, '--resume')}"
         )
     layout = layout_from_dict(manifest.get("layout"), f"{root}/manifest.json: layout")
     try:

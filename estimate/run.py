@@ -9,7 +9,6 @@ estimate_batch` one camera at a time, which chunks them by its ``CHUNK_FRAMES``
 from __future__ import annotations
 
 import dataclasses
-import shlex
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,6 +24,7 @@ from deckpose.camera import CameraModel
 from deckpose.errors import ConfigError, InputDataError
 from deckpose.layout import DeckLayout
 from deckpose.records import Detections, PoseEstimate
+from deckpose.shell_command import deckpose_command
 
 if TYPE_CHECKING:
     from deckpose.run_folder import RunPaths
@@ -187,7 +187,7 @@ def read_estimate_inputs(run_dir: str | Path, *, detector: str | None = None, ra
         detectors = run.detectors()
         if not detectors:
             raise InputDataError(f"{run.root} has no detections yet; make them with: "
-                                 f"deckpose detect {shlex.quote(str(run.root))} --detector cog")
+                                 + deckpose_command("detect", run.root, "--detector", "cog"))
         if len(detectors) != 1:
             raise ConfigError(f"--run needs --detector: this run has detections of {', '.join(detectors)}")
         detector = detectors[0]
@@ -198,7 +198,7 @@ def read_estimate_inputs(run_dir: str | Path, *, detector: str | None = None, ra
     cameras = rl.read_cameras(run, sorted(frames["camera"].unique()))
     det_df = rl.read_detections(run, detector)
     rl.check_frames_match(frames, det_df, f"detections of {detector}",
-                          f"deckpose detect {run.root} --detector {detector}")
+                          deckpose_command("detect", run.root, "--detector", detector))
     dets = detections_from_frame(det_df, layout, str(run.detections(detector)))
     return run, detector, layout, frames, cameras, dets
 

@@ -22,6 +22,7 @@ from deckpose.camera import CameraModel
 from deckpose.errors import InputDataError, check_shape
 from deckpose.layout import DeckLayout
 from deckpose.pose import T_cam_from_deck
+from deckpose.shell_command import deckpose_command
 
 __all__ = ["ExportFrames", "deck_half_size_m", "read_export_frames"]
 
@@ -141,7 +142,7 @@ def read_export_frames(run: rl.RunPaths) -> ExportFrames:
     if missing:
         raise InputDataError(
             f"{len(missing)} of {len(paths)} images are missing (e.g. {missing[0]}); "
-            f"render them again with: deckpose render CONFIG.yaml {run.root}")
+            f"render them again with: {deckpose_command('render', 'CONFIG.yaml', run.root)}")
     return ExportFrames(ids, tuple(str(c) for c in frames["camera"]), paths, rel, T, points,
                         in_image, facing, cameras, layout, manifest)
 

@@ -47,7 +47,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import numpy as np
@@ -308,7 +308,8 @@ def _deck_translation(row: pd.Series, surge_m: float, sway_m: float, height_m: f
 
 
 def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px: int = PREVIEW_PX,
-                  errors: pd.DataFrame | None = None, command: Sequence[str] = ()) -> Path:
+                  errors: pd.DataFrame | None = None, command: Sequence[str] = (),
+                  progress: Callable[[int, int], object] | None = None) -> Path:
     """Write the run's MCAP log (atomically) and return its path.
 
     Parameters
@@ -323,6 +324,8 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
         Per-frame errors (``deckpose evaluate``'s), logged on ``/errors/<detector>--<method>``.
     command : sequence of str
         The command line that made the log, recorded in the ``deckpose.run`` metadata.
+    progress : callable, optional
+        ``progress(done, total)`` after each frame is logged.
     """
     if not 16 <= preview_px <= 4096:
         raise InputDataError(f"preview_px must be within 16..4096 (viewers cannot show larger textures), got {preview_px}")
@@ -367,7 +370,9 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
     with atomic_path(out) as tmp, open(tmp, "wb") as fh:
         log = McapLog(fh)
         write_records(log, run, manifest, camera_names, command, epoch, int(stamps.min()) if len(stamps) else 0)
-        for i in np.argsort(stamps.to_numpy(), kind="stable"):
+        for k, i in enumerate(np.argsort(stamps.to_numpy(), kind="stable")):
+            if progress is not None and k:  # k frames logged
+                progress(k, len(frames))
             row = frames.iloc[i]
             f = int(row["frame_id"])
             ts = int(stamps.iloc[i])
@@ -443,4 +448,6 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
                     obj.update(keys, detector=d, method=m)
                     log.json(errors_topic(d, m), _finite(obj), ts, err_schema)
         log.finish()
+    if progress is not None:
+        progress(len(frames), len(frames))
     return out

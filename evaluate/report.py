@@ -9,6 +9,7 @@ thesis's Table 4.2-4.13 maxima next to ours where resolution and height match.
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -28,6 +29,7 @@ from deckpose import run_folder as rl
 from deckpose.atomic_io import atomic_open
 from deckpose.camera import THESIS_RESOLUTIONS
 from deckpose.errors import InputDataError
+from deckpose.shell_command import deckpose_command
 from deckpose.tables import read_table
 
 
@@ -143,8 +145,12 @@ def _run_title(run: rl.RunPaths) -> str:
     return run.root.name
 
 
-def track_sections(run: rl.RunPaths, frames: pd.DataFrame, fig_dir: Path) -> list[str]:
-    """The report's tracking sections, one per track of the run (none without tracks), with their figures."""
+def track_sections(run: rl.RunPaths, frames: pd.DataFrame, fig_dir: Path,
+                   figure_done: Callable[[], object] | None = None) -> list[str]:
+    """The report's tracking sections, one per track of the run (none without tracks), with their figures.
+
+    ``figure_done()`` is called after each track's figure.
+    """
     from deckpose.evaluate.report_figures import plot_track_errors
     from deckpose.evaluate.track_errors import (
         filtered_by_height,
@@ -167,6 +173,8 @@ def track_sections(run: rl.RunPaths, frames: pd.DataFrame, fig_dir: Path) -> lis
         fig = f"track_{stem}.png"
         plot_track_errors(errs, predicted_roll_errors(frames, tracks, preds, h_plot), pred,
                           f"{d}+{m}, tracked ({t})", fig_dir / fig)
+        if figure_done is not None:
+            figure_done()
         status = tracks["status"].value_counts()
         z = errs[["roll_z_filtered", "pitch_z_filtered", "height_z_filtered"]].abs().to_numpy(float)
         lines += [f"## Tracking: {d}+{m} ({t})", "",
@@ -186,11 +194,14 @@ def track_sections(run: rl.RunPaths, frames: pd.DataFrame, fig_dir: Path) -> lis
     return lines
 
 
-def write_report(run: rl.RunPaths) -> Path:
-    """Write ``report/report.md`` and its figures for an evaluated run; return the Markdown path."""
+def write_report(run: rl.RunPaths, *, progress: Callable[[int, int], object] | None = None) -> Path:
+    """Write ``report/report.md`` and its figures for an evaluated run; return the Markdown path.
+
+    ``progress(done, total)`` counts the figures as each is drawn.
+    """
     rl.require_dataset(run)  # a missing run folder is named as such, not as a missing stage
     if not run.errors.exists():
-        raise InputDataError(f"{run.errors} is missing; make it with: deckpose evaluate {run.root}")
+        raise InputDataError(f"{run.errors} is missing; make it with: {deckpose_command('evaluate', run.root)}")
     errors = read_table(run.errors, "errors")
     frames = rl.read_frames(run)
     beacons = rl.read_beacons(run)
@@ -204,18 +215,32 @@ def write_report(run: rl.RunPaths) -> Path:
     manifest = json.loads(run.manifest.read_text()) if run.manifest.exists() else {}
     full_well = (manifest.get("sensor") or {}).get("full_well_e")
     clipped = saturated_cells(frames, beacons, full_well)
+    # the figures: four summary plots, an example frame per camera, a plot per track
+    n_figures = 4 + frames["camera"].nunique() + len(run.track_triples())
+    drawn = [0]
+
+    def figure_done() -> None:
+        drawn[0] += 1
+        if progress is not None:
+            progress(drawn[0], n_figures)
+
     plot_error_vs_resolution(table, sizes, fig_dir / "error_vs_resolution.png", clipped)
+    figure_done()
     plot_error_vs_height(table, fig_dir / "error_vs_height.png")
+    figure_done()
     plot_distributions(errors, fig_dir / "error_distributions.png")
+    figure_done()
     camera_of = dict(zip(frames.frame_id.astype(int), frames.camera.astype(str)))
     plot_centroid_vs_size({d: centroid_errors(beacons, df) for d, df in dets.items()},
                           fig_dir / "centroid_vs_size.png", camera_of)
+    figure_done()
     examples = []
     for cam, g in frames.groupby("camera"):
         row = g.sort_values("camera_height_m").iloc[0]
         name = f"example_{cam}.png"
         example_frame(run, row, beacons, dets, fig_dir / name)
         examples.append((cam, name))
+        figure_done()
     ok = errors.groupby(["detector", "method"])["ok"].mean()
     lines = [f"# deckpose report: {_run_title(run)}", "",
              (f"{len(frames)} rendered frames; cameras {', '.join(sorted(frames.camera.unique()))}; "
@@ -238,7 +263,7 @@ def write_report(run: rl.RunPaths) -> Path:
     lines += thesis_comparison(table, sizes)
     lines += ["", "## Example frames", ""]
     lines += [f"![{cam}](figures/{name})" for cam, name in examples]
-    lines += track_sections(run, frames, fig_dir)
+    lines += track_sections(run, frames, fig_dir, figure_done)
     lines += ["", resolution_markdown(table).replace("# Resolution tables", "## Resolution tables", 1)]
     md = run.report_dir / "report.md"
     with atomic_open(md, "w") as fh:

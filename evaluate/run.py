@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from pathlib import Path
 
 import pandas as pd
@@ -14,6 +14,7 @@ from deckpose import run_folder as rl
 from deckpose.atomic_io import atomic_open
 from deckpose.errors import InputDataError
 from deckpose.preview import PREVIEW_PX
+from deckpose.shell_command import deckpose_command
 from deckpose.tables import read_table, write_table
 
 
@@ -56,23 +57,25 @@ def compute_errors(run: rl.RunPaths) -> pd.DataFrame:
     pairs = run.estimate_pairs()
     if not pairs:
         dets = run.detectors()
-        hint = (f"deckpose estimate --run {run.root} --detector {dets[0]} --method pnp" if dets
-                else f"deckpose detect {run.root} --detector cog, then deckpose estimate --run {run.root} --detector cog")
+        hint = (deckpose_command("estimate", "--run", run.root, "--detector", dets[0], "--method", "pnp") if dets
+                else f"{deckpose_command('detect', run.root, '--detector', 'cog')}, then "
+                     f"{deckpose_command('estimate', '--run', run.root, '--detector', 'cog')}")
         raise InputDataError(f"{run.root} has no estimates (folder {run.root / 'estimates'}); make them with: {hint}")
     parts = []
     crb_by_detector: dict[str, pd.DataFrame] = {}
     for det, method in pairs:
         e = rl.read_estimates(run, det, method)
         if det == rl.RING_DETECTOR:  # painted-ring: one row of fitted ellipses per frame, no beacon centroids
-            rl.check_frames_match(frames, e, f"estimates of {det}+{method}", f"deckpose painted-ring {run.root}")
+            rl.check_frames_match(frames, e, f"estimates of {det}+{method}", deckpose_command("painted-ring", run.root))
             errs = frame_errors(frames, e)
             errs.insert(1, "detector", det)
             parts.append(errs)
             continue
         d = rl.read_detections(run, det)
-        rl.check_frames_match(frames, d, f"detections of {det}", f"deckpose detect {run.root} --detector {det}")
+        rl.check_frames_match(frames, d, f"detections of {det}",
+                              deckpose_command("detect", run.root, "--detector", det))
         rl.check_frames_match(frames, e, f"estimates of {det}+{method}",
-                              f"deckpose estimate --run {run.root} --detector {det} --method {method}")
+                              deckpose_command("estimate", "--run", run.root, "--detector", det, "--method", method))
         errs = run_errors(frames, beacons, d, e, det)
         if det not in crb_by_detector:
             rms = errs.set_index("frame_id")["centroid_rms_px"]
@@ -82,12 +85,20 @@ def compute_errors(run: rl.RunPaths) -> pd.DataFrame:
 
 
 def evaluate_run(run: rl.RunPaths, *, mcap: bool = True, preview_px: int = PREVIEW_PX,
-                 command: Sequence[str] = ()) -> dict[str, Path]:
+                 command: Sequence[str] = (), progress: Callable[[int, int], object] | None = None
+                 ) -> dict[str, Path]:
     """Write errors, resolution tables, the MCAP log and its Foxglove layout; return their paths.
 
     ``command`` (the command line that asked for it) is recorded in the log's metadata.
+    ``progress(done, total)`` counts the run's frames: once when their errors are computed
+    (every frame at once), then as each is logged (``mcap``), so ``total`` is the frames
+    times 1 or 2.
     """
+    n_frames = len(rl.read_frames(run))
+    steps = n_frames * (2 if mcap else 1)
     errors = compute_errors(run)
+    if progress is not None:
+        progress(n_frames, steps)
     out = run.evaluation_dir
     write_table(errors, run.errors, "errors")
     table = resolution_table(errors)
@@ -96,7 +107,8 @@ def evaluate_run(run: rl.RunPaths, *, mcap: bool = True, preview_px: int = PREVI
         fh.write(resolution_markdown(table))
     paths = {"errors": run.errors, "tables": out / "resolution_tables.md"}
     if mcap:
-        paths.update(write_log(run, errors=errors, preview_px=preview_px, command=command))
+        logged = None if progress is None else (lambda done, _total: progress(n_frames + done, steps))
+        paths.update(write_log(run, errors=errors, preview_px=preview_px, command=command, progress=logged))
     return paths
 
 
@@ -110,20 +122,21 @@ def track_horizons(run: rl.RunPaths) -> list[tuple[str, str, str, list[float]]]:
 
 
 def write_log(run: rl.RunPaths, *, errors: pd.DataFrame | None = None, preview_px: int = PREVIEW_PX,
-              command: Sequence[str] = ()) -> dict[str, Path]:
+              command: Sequence[str] = (), progress: Callable[[int, int], object] | None = None
+              ) -> dict[str, Path]:
     """Write the run's MCAP log and its Foxglove layout; return their paths (``mcap``, ``layout``).
 
     The log attaches the run's report when there is one, so the pipeline writes it after
     the report. ``errors`` (from :func:`compute_errors`) saves reading them again; without
     it, the run's ``evaluation/errors.parquet`` is read when there is one, and the layout
-    plots the errors the log holds.
+    plots the errors the log holds. ``progress(done, total)`` counts the frames logged.
     """
     from deckpose.evaluate.foxglove_layout import foxglove_layout
     from deckpose.evaluate.mcap_log import write_run_log
 
     if errors is None and run.errors.is_file():
         errors = read_table(run.errors, "errors")
-    mcap = write_run_log(run, errors=errors, preview_px=preview_px, command=command)
+    mcap = write_run_log(run, errors=errors, preview_px=preview_px, command=command, progress=progress)
     layout_path = run.root / "foxglove_layout.json"
     plotted = sorted({(str(d), str(m)) for d, m in zip(errors["detector"], errors["method"])}) if errors is not None else []
     with atomic_open(layout_path, "w") as fh:

@@ -25,6 +25,7 @@ from deckpose.evaluate.thesis_sim import CellResult, CellSpec, load_thesis_motio
 
 from deckpose.atomic_io import atomic_open
 from deckpose.errors import ConfigError
+from deckpose.shell_command import deckpose_command
 from deckpose.tables import write_table
 
 RESOLUTIONS = ("4mp", "8mp", "16mp", "64mp")
@@ -134,8 +135,8 @@ def markdown_report(df: pd.DataFrame, results: list[CellResult], config: ThesisT
         f"{len(results)} cells in {seconds:.0f} s on {platform.machine()} with {os.cpu_count()} cores "
         f"({config.workers or os.cpu_count()} worker processes)."),
         "",
-        ("Regenerate with `deckpose thesis-tables --repetitions "
-        f"{config.repetitions} --seed {config.seed} -o {out_dir}`."),
+        ("Regenerate with `" + deckpose_command("thesis-tables", "--repetitions", str(config.repetitions),
+                                                "--seed", str(config.seed), "-o", out_dir) + "`."),
         "",
     ]
     lines += _summary(df, results, n_img)

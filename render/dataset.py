@@ -38,11 +38,10 @@ import os
 import platform
 import shutil
 import threading
-from collections.abc import Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from collections.abc import Generator
+from concurrent.futures import as_completed
 from dataclasses import dataclass
 from importlib import metadata
-from multiprocessing import get_context
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
@@ -81,6 +80,7 @@ from deckpose.table_schemas import (
     typed_frame,
 )
 from deckpose.tables import write_table
+from deckpose.worker_pool import worker_pool
 
 if TYPE_CHECKING:
     from deckpose.render.scene import DeckRenderer
@@ -368,20 +368,17 @@ def _prepare(cfg: RenderConfig, plan: list[FrameSpec], out: Path, resume: bool,
 
 
 def _run_local(cfg: RenderConfig, todo: list[FrameSpec], out: Path, workers: int,
-               detection: RenderDetection | None = None) -> Iterator[int]:
+               detection: RenderDetection | None = None) -> Generator[int, None, None]:
     if workers == 0:
         for spec in todo:
             yield render_one(cfg, spec, str(out), detection)
         return
-    with ProcessPoolExecutor(max_workers=workers, mp_context=get_context("spawn")) as pool:
+    # workers ignore Ctrl-C; on it (or any error) the frames not started are cancelled and the
+    # workers stopped within seconds (deckpose.worker_pool)
+    with worker_pool(workers) as pool:
         futures = [pool.submit(render_one, cfg, spec, str(out), detection) for spec in todo]
-        try:
-            for fut in as_completed(futures):
-                yield fut.result()
-        except BaseException:
-            for f in futures:
-                f.cancel()
-            raise
+        for fut in as_completed(futures):
+            yield fut.result()
 
 
 def _connect(address: str) -> Client:
@@ -397,7 +394,7 @@ def _connect(address: str) -> Client:
 
 
 def _run_dask(client: Client, cfg: RenderConfig, todo: list[FrameSpec], out: Path,
-              detection: RenderDetection | None = None) -> Iterator[int]:
+              detection: RenderDetection | None = None) -> Generator[int, None, None]:
     """Render on the cluster's workers and write here, as the frames come back.
 
     The workers write nothing (:func:`encode_frame`), so they need no shared disk and
@@ -468,6 +465,7 @@ def _render_todo(cfg: RenderConfig, plan: list[FrameSpec], out: Path, workers: i
             bar.update(1)
     finally:
         bar.close()
+        runner.close()  # on an interrupt here, the workers are stopped now, not when collected
 
 
 def _controlled_exposures(cfg: RenderConfig, plan: list[FrameSpec], progress: bool) -> list[FrameSpec]:

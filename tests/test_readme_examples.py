@@ -77,9 +77,11 @@ def scratch(tmp_path: Path) -> Path:
 def test_readme_motion_example_runs_and_prints_the_readme_figures(scratch):
     cmd = next(c for c in COMMANDS if c.startswith("deckpose motion sea "))
     out = _run(cmd, scratch)
+    # the README's "prints" block after the command is what it prints, line for line
     block = README[README.index("deckpose motion sea "):]
-    stated = re.search(r"# (significant amplitudes .*)", block).group(1)
-    assert stated in out, (stated, out)
+    stated = re.search(r"\nprints\n\n```text\n(.*?)```", block, re.DOTALL).group(1)
+    assert out.splitlines() == stated.splitlines(), (stated, out)
+    assert "significant amplitudes (2 sigma): heave_m" in stated
     assert (scratch / "runs" / "ss6.parquet").is_file()
     assert (scratch / "reports" / "figures" / "motion_ss6_frigate.png").stat().st_size > 10_000
 
@@ -160,12 +162,13 @@ def test_readme_thesis_tables_command_runs_as_written(tmp_path):
     # 1e-9). Same cells and quantities as the committed full-scale table; the statistics of
     # 1,980 draws cannot equal the committed maxima of 247,500, so values are not compared here
     # (tests/evaluate/test_thesis_tables.py checks them against the thesis).
-    cmd = next(c for c in COMMANDS if c.startswith("deckpose thesis-tables "))
+    cmd = next(c for c in COMMANDS if shlex.split(c)[:2] == ["deckpose", "thesis-tables"])
     assert "--repetitions" not in cmd
     _run(cmd + " --repetitions 4", tmp_path)
-    table = (tmp_path / "reports" / "thesis_tables.md").read_text()
+    assert not (tmp_path / "reports").exists()  # the default is a folder of its own, not the committed one
+    table = (tmp_path / "runs" / "thesis_tables" / "thesis_tables.md").read_text()
     assert "Maxima of 1,980 draws" in table  # 4 x 495
-    ours = pd.read_csv(tmp_path / "reports" / "thesis_tables.csv")
+    ours = pd.read_csv(tmp_path / "runs" / "thesis_tables" / "thesis_tables.csv")
     committed = pd.read_csv(REPO / "reports" / "thesis_tables.csv")
     keys = ["table", "resolution", "noise_px", "height", "quantity"]
     pd.testing.assert_frame_equal(ours[keys], committed[keys])

@@ -80,10 +80,42 @@ def os_error_line(exc: OSError) -> tuple[str, int]:
             "traceback)"), exit_codes.UNEXPECTED)
 
 
+#: What the interrupted line says when the command names no way to resume (``resume_hint``).
+RESUME_HINT = "finished files are kept whole; run the same command again to finish"
+
+
+def interrupted_line(argv: Sequence[str], args: argparse.Namespace | None = None) -> str:
+    """The one line a Ctrl-C prints: the command, and how to finish the job.
+
+    ``args`` is ``None`` when the interrupt came before the command line was parsed (the
+    command is then the first word of ``argv`` that is not an option).
+    """
+    command = getattr(args, "command", None) or next((a for a in argv if not a.startswith("-")), "")
+    hint = getattr(args, "resume_hint", None) or RESUME_HINT
+    return f"deckpose{' ' + command if command else ''}: interrupted; {hint}"
+
+
 def main(argv: Sequence[str] | None = None) -> int:
-    """Entry point of the ``deckpose`` console script; returns the exit code."""
+    """Entry point of the ``deckpose`` console script; returns the exit code.
+
+    A Ctrl-C anywhere (the commands' imports included) prints one line and returns
+    :data:`~deckpose.cli.exit_codes.INTERRUPTED`; the stages' worker processes ignore it
+    and are stopped by the stage (:mod:`deckpose.worker_pool`).
+    """
+    words = list(sys.argv[1:] if argv is None else argv)
+    parsed: list[argparse.Namespace] = []
+    try:
+        return _main(words, parsed)
+    except KeyboardInterrupt:
+        print(interrupted_line(words, parsed[0] if parsed else None), file=sys.stderr)
+        return exit_codes.INTERRUPTED
+
+
+def _main(argv: list[str], parsed: list[argparse.Namespace]) -> int:
+    """:func:`main` but for Ctrl-C; the parsed arguments are appended to ``parsed``."""
     parser = build_parser()
     args, extra = parser.parse_known_args(argv)
+    parsed.append(args)
     if extra:  # said by the command's own parser, with its usage, not the top level's
         subs = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
         own = subs[0].choices.get(getattr(args, "command", None) or "") if subs else None
@@ -92,6 +124,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help()
         return 2
     configure_logging(args)
+    if getattr(args, "quiet", False) and hasattr(args, "no_progress"):
+        args.no_progress = True  # -q: errors and the result only (deckpose.cli.console), no bars
     try:
         return int(args.func(args) or 0)
     except DeckposeError as exc:
@@ -100,9 +134,6 @@ def main(argv: Sequence[str] | None = None) -> int:
             text = text[:1000] + " ..."
         print(f"deckpose {args.command}: error: {text}", file=sys.stderr)
         return exit_codes.USAGE
-    except KeyboardInterrupt:
-        print(f"deckpose {args.command}: interrupted", file=sys.stderr)
-        return exit_codes.INTERRUPTED
     except BrokenPipeError:
         # the reader of our output went away (``deckpose ... | head``): stop quietly, as a Unix
         # tool does, and keep Python from complaining when it flushes stdout at exit

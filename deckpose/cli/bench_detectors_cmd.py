@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from deckpose.cli.common_options import add_output
+from deckpose.cli.console import wrote
 from deckpose.cli.detect_cmd import add_detector_arguments
 
 
@@ -66,5 +67,5 @@ def run(args: argparse.Namespace) -> int:
         options=options,
         note=args.note,
     )
-    print(md.read_text())
+    wrote(args, md, md.read_text())
     return 0

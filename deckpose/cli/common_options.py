@@ -5,7 +5,9 @@
 * ``--no-progress``: no progress bars (they are off anyway when the output is not a
   terminal: tqdm's ``disable=None``);
 * ``-v/--verbose`` and ``-q/--quiet`` (top level): the log level of the ``deckpose``
-  loggers (warnings by default, ``-v`` info, ``-vv`` debug, ``-q`` errors only).
+  loggers (warnings by default, ``-v`` info, ``-vv`` debug, ``-q`` errors only); ``-q``
+  also leaves of stdout only what was asked for (:mod:`deckpose.cli.console`) and turns
+  the progress bars off.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -69,11 +72,21 @@ def add_progress(p: argparse.ArgumentParser) -> None:
                    help="no progress bars (they are off anyway when the output is not a terminal)")
 
 
-def frame_bar(desc: str, *, enabled: bool) -> tqdm:
-    """A progress bar counting frames (off when not ``enabled`` or when not on a terminal)."""
+def frame_bar(desc: str, *, enabled: bool, total: int | None = None, unit: str = "frame") -> tqdm:
+    """A progress bar counting frames (or ``unit``), of ``total`` when known (off when not
+    ``enabled`` or when not on a terminal)."""
     from tqdm import tqdm
 
-    return tqdm(desc=desc, unit="frame", leave=False, disable=None if enabled else True)
+    return tqdm(desc=desc, unit=unit, total=total, leave=False, disable=None if enabled else True)
+
+
+def done_of_total(bar: tqdm) -> Callable[[int, int], None]:
+    """A ``progress(done, total)`` callback that moves ``bar`` (for stages that count that way)."""
+    def progress(done: int, total: int) -> None:
+        bar.total = total
+        bar.update(done - bar.n)
+
+    return progress
 
 
 def add_verbosity(p: argparse.ArgumentParser, *, command: bool = False) -> None:
@@ -83,7 +96,9 @@ def add_verbosity(p: argparse.ArgumentParser, *, command: bool = False) -> None:
     p.add_argument("-v", "--verbose", action="count", default=argparse.SUPPRESS if command else 0,
                    help="log more: -v what each stage does, -vv debugging detail")
     p.add_argument("-q", "--quiet", action="store_true",
-                   default=argparse.SUPPRESS if command else False, help="log errors only")
+                   default=argparse.SUPPRESS if command else False,
+                   help="quiet: errors only, plus the command's result (its output's path, or the data "
+                        "asked for); no summaries or progress bars")
 
 
 def configure_logging(args: Any) -> None:

@@ -12,9 +12,11 @@ from __future__ import annotations
 
 import argparse
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 from deckpose.cli.common_options import HelpFormatter, add_progress, add_workers, workers
+from deckpose.cli.console import is_quiet, say, wrote
 
 METHODS = ("thesis", "conic", "pnp")
 
@@ -40,11 +42,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.set_defaults(func=run)
 
 
-def _step(n: int, total: int, text: str) -> None:
-    print(f"[{n}/{total}] {text}", flush=True)
-
-
-def _drop_stale_demo(run_dir: Path, config: object) -> None:
+def _drop_stale_demo(run_dir: Path, config: object, say: Callable[[str], None]) -> None:
     """Remove a demo run rendered from an older embedded config (after an update), which
     could not be resumed; a folder that holds anything but a demo run is left alone."""
     import json
@@ -62,7 +60,7 @@ def _drop_stale_demo(run_dir: Path, config: object) -> None:
         return
     now = json.loads(json.dumps(config_to_dict(config)))  # type: ignore[arg-type]
     if old.get("config") != now and (old.get("config") or {}).get("name") == now.get("name"):
-        print(f"{run_dir} holds a demo of an older embedded config; rendering it anew", flush=True)
+        say(f"{run_dir} holds a demo of an older embedded config; rendering it anew")
         shutil.rmtree(run_dir)
 
 
@@ -74,12 +72,20 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.render.config import approach_demo_config, default_config
 
     t0 = time.perf_counter()
+
+    def tell(text: str) -> None:
+        say(args, text)
+
+    def _step(n: int, total: int, text: str) -> None:
+        tell(f"[{n}/{total}] {text}")
+
     thesis_config = ThesisTablesConfig(repetitions=args.repetitions, seed=args.seed)  # checked before any work
     out = Path(args.output)
     run_dir = out / "run"
-    _drop_stale_demo(run_dir, default_config())
+    _drop_stale_demo(run_dir, default_config(), tell)
     options = PipelineOptions(run_dir=run_dir, detectors=(args.detector,), methods=METHODS, workers=workers(args),
-                              progress=not args.no_progress, command=("deckpose", "demo", "-o", str(out)))
+                              progress=not args.no_progress, command=("deckpose", "demo", "-o", str(out)),
+                              quiet=is_quiet(args))
     # the demo's steps are the pipeline's, then the thesis tables
     pipeline_steps = [0]
 
@@ -93,23 +99,25 @@ def run(args: argparse.Namespace) -> int:
     _step(total - 1, total, "a short approach over sea state 6 (61 frames at 2 Hz, 60 m to 30 m): render with "
                             "detection, estimate (pnp), track, log")
     approach_dir = out / "approach"
-    _drop_stale_demo(approach_dir, approach_demo_config())
+    _drop_stale_demo(approach_dir, approach_demo_config(), tell)
     approach = run_pipeline(
         approach_demo_config(),
         PipelineOptions(run_dir=approach_dir, detectors=(args.detector,), methods=("pnp",), workers=workers(args),
                         progress=not args.no_progress, detect_at_render=True, keep_images=False, track=True,
+                        quiet=is_quiet(args),
                         command=("deckpose", "demo", "-o", str(out))),
         config_label="the embedded approach (configs/approach_small.yaml)",
-        step=lambda n, t, text: print(f"      approach {n}/{t}: {text}", flush=True))
+        step=lambda n, t, text: tell(f"      approach {n}/{t}: {text}"))
     _step(total, total, f"thesis tables 4.2-4.15, {args.repetitions} x 495 images per cell")
     config = thesis_config
     bar = tqdm(total=len(cell_specs()), desc="thesis tables", unit="cell", disable=True if args.no_progress else None)
     md = run_thesis_tables(config, out, lambda done, _total: bar.update(done - bar.n))
     bar.close()
-    print(f"\ndone in {time.perf_counter() - t0:.0f} s.")
-    for label, path in (("report", paths["report"]), ("resolution tables", paths["tables"]),
-                        ("MCAP log", f"{paths['mcap']}  (open in Foxglove with {run_dir / 'foxglove_layout.json'})"),
-                        ("approach log", f"{approach['mcap']}  (tracked; layout {approach_dir / 'foxglove_layout.json'})"),
-                        ("thesis tables", md)):
-        print(f"  {label + ':':19s}{path}")
+    tell(f"\ndone in {time.perf_counter() - t0:.0f} s.")
+    wrote(args, paths["report"], "\n".join(
+        f"  {label + ':':19s}{path}"
+        for label, path in (("report", paths["report"]), ("resolution tables", paths["tables"]),
+                            ("MCAP log", f"{paths['mcap']}  (open in Foxglove with {run_dir / 'foxglove_layout.json'})"),
+                            ("approach log", f"{approach['mcap']}  (tracked; layout {approach_dir / 'foxglove_layout.json'})"),
+                            ("thesis tables", md))))
     return 0

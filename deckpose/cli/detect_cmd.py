@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 
 from deckpose.cli.common_options import add_output, add_workers, workers
+from deckpose.cli.console import say, wrote
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -114,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
     for mod in args.plugin:
         registry.load_plugin(mod)
     if args.list:
-        print("\n".join(registry.names()))
+        print("\n".join(registry.names()))  # what was asked for, also with -q
         return 0
     if args.dataset is None:
         raise ConfigError("no DATASET given: name a dataset folder or a folder of images")
@@ -129,8 +130,8 @@ def run(args: argparse.Namespace) -> int:
                      camera_file=args.camera_info, layout_file=args.layout, progress=not args.no_progress,
                      workers=workers(args))
     frames = res.frames
-    print(res.summary())
+    wrote(args, res.path, res.summary())
     for r in frames.itertuples():
         if not r.ok:
-            print(f"  frame {r.frame_id}: {r.reason}")
+            say(args, f"  frame {r.frame_id}: {r.reason}")
     return frames_exit_code(len(frames), res.n_ok, strict=args.strict)

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from deckpose.cli.common_options import HelpFormatter, add_progress, frame_bar
+from deckpose.cli.console import wrote
 from deckpose.cli.exit_codes import frames_exit_code
 
 if TYPE_CHECKING:
@@ -84,7 +85,10 @@ def run(args: argparse.Namespace) -> int:
 
     spec = _method_spec(args)
     if args.run is not None:
-        with frame_bar(f"estimate ({spec.label})", enabled=not args.no_progress) as bar:
+        from deckpose.run_folder import read_frames, run_paths
+
+        n_frames = len(read_frames(run_paths(args.run)))  # the bar's total (a missing run says so here)
+        with frame_bar(f"estimate ({spec.label})", enabled=not args.no_progress, total=n_frames) as bar:
             res = estimate_run_with_prior(args.run, spec, detector=getattr(args, "detector", None),
                                           sigma_px=args.sigma_px, radius_m=args.radius, prior=not args.no_prior,
                                           max_prior_age_s=args.max_prior_age_s, progress=bar.update)
@@ -109,12 +113,13 @@ def run(args: argparse.Namespace) -> int:
         if table.empty:
             raise InputDataError(f"{args.detections} holds no detections (a header without rows); give a table "
                                  "with one row per detected beacon: frame_id, beacon_id, u_px, v_px")
-        with frame_bar(f"estimate ({spec.label})", enabled=not args.no_progress) as bar:
+        n_frames = table["frame_id"].nunique() if "frame_id" in table.columns else None
+        with frame_bar(f"estimate ({spec.label})", enabled=not args.no_progress, total=n_frames) as bar:
             df = estimate_table(table, camera, layout, spec, sigma_px=args.sigma_px,
                                 source=str(args.detections), progress=bar.update)
         write_table(df, out, "estimates")
         res = EstimateRunResult(out, df)
-    print(res.summary() + _mean_note(res.table))
+    wrote(args, res.path, res.summary() + _mean_note(res.table))
     return frames_exit_code(res.n_frames, res.n_ok, strict=args.strict)
 
 

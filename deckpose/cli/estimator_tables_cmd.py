@@ -12,6 +12,7 @@ from deckpose.cli.common_options import (
     add_workers,
     workers,
 )
+from deckpose.cli.console import wrote
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -58,5 +59,5 @@ def run(args: argparse.Namespace) -> int:
 
     md = write_estimator_tables(args.output, args.methods, args.repetitions, args.seed, workers(args), progress)
     bar.close()
-    print(f"wrote {md}")
+    wrote(args, md, f"wrote {md}")
     return 0

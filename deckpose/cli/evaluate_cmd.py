@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from deckpose.cli.common_options import HelpFormatter
+from deckpose.cli.common_options import HelpFormatter, add_progress, done_of_total, frame_bar
+from deckpose.cli.console import wrote
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -27,6 +28,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--preview-px", type=int, default=PREVIEW_PX,
                    help="long side of the image previews in the log (<= 4096); at the default the render "
                         "stage's previews are used, another size decodes every frame again")
+    add_progress(p)
     p.set_defaults(func=run_evaluate)
     r = sub.add_parser(
         "report",
@@ -35,6 +37,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         formatter_class=HelpFormatter,
     )
     r.add_argument("run", type=Path, help="run folder")
+    add_progress(r)
     r.set_defaults(func=run_report)
 
 
@@ -48,9 +51,10 @@ def run_evaluate(args: argparse.Namespace) -> int:
         claim_output(run.root, what="evaluate")
     command = ["deckpose", "evaluate", str(args.run), *(["--no-mcap"] if args.no_mcap else []),
                "--preview-px", str(args.preview_px)]
-    paths = evaluate_run(run, mcap=not args.no_mcap, preview_px=args.preview_px, command=command)
-    for k, v in paths.items():
-        print(f"{k}: {v}")
+    with frame_bar("evaluate", enabled=not args.no_progress) as bar:
+        paths = evaluate_run(run, mcap=not args.no_mcap, preview_px=args.preview_px, command=command,
+                             progress=done_of_total(bar))
+    wrote(args, paths["errors"], "\n".join(f"{k}: {v}" for k, v in paths.items()))
     return 0
 
 
@@ -62,5 +66,7 @@ def run_report(args: argparse.Namespace) -> int:
     run = run_paths(args.run)
     if run.root.is_dir():
         claim_output(run.root, what="report")
-    print(f"report: {write_report(run)}")
+    with frame_bar("report", enabled=not args.no_progress, unit="figure") as bar:
+        md = write_report(run, progress=done_of_total(bar))
+    wrote(args, md, f"report: {md}")
     return 0

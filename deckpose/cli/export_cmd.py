@@ -6,6 +6,7 @@ import argparse
 from pathlib import Path
 
 from deckpose.cli.common_options import HelpFormatter, add_output, add_progress, frame_bar
+from deckpose.cli.console import wrote
 
 #: The formats ``--format`` takes.
 FORMATS = ("bop", "coco")
@@ -60,12 +61,12 @@ def run_export(args: argparse.Namespace) -> int:
 
             bop = write_bop(run, out, images=images, progress=bar.update)
             scenes = ", ".join(f"{s:06d} = {c}" for s, c in bop.scenes.items())
-            print(f"BOP dataset of {bop.n_images} images written to {bop.root} (scenes {scenes}; "
+            wrote(args, bop.root, f"BOP dataset of {bop.n_images} images written to {bop.root} (scenes {scenes}; "
                   f"model {bop.model})")
         else:
             from deckpose.evaluate.export_coco import write_coco
 
             coco = write_coco(run, out, images=images, progress=bar.update)
-            print(f"COCO keypoints of {coco.n_images} images ({coco.n_annotations} annotations) "
-                  f"written to {coco.annotations}")
+            wrote(args, coco.annotations, f"COCO keypoints of {coco.n_images} images ({coco.n_annotations} "
+                  f"annotations) written to {coco.annotations}")
     return 0

@@ -19,6 +19,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from deckpose.cli.console import say, wrote
 from deckpose.errors import ConfigError
 
 _KNOTS_PER_M_S = 1.94384
@@ -166,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
         out = Path(args.output)
         with atomic_open(out, "w", newline="") as fh:
             thesis_motion_table().to_csv(fh, index=False, float_format="%.17g")
-        print(f"wrote {out} (thesis table, thesis X-Y-Z angles in degrees)")
+        wrote(args, out, f"wrote {out} (thesis table, thesis X-Y-Z angles in degrees)")
         return 0
     series, resolved, title = _series(args)
     angles = "rad" if args.radians else "deg"
@@ -176,12 +177,15 @@ def run(args: argparse.Namespace) -> int:
         cfg = out.with_name(out.stem + ".motion.yaml")
         with atomic_open(cfg, "w") as fh:
             yaml.safe_dump({**resolved, "angles": angles, "samples": len(series)}, fh, sort_keys=False)
-        print(f"wrote {out} ({len(series)} samples) and {cfg}")
+        wrote(args, out, f"wrote {out} ({len(series)} samples) and {cfg}")
     if args.plot:
         from deckpose.motion.plot import plot_series
 
         plot_series(series, args.plot, title=title)
-        print(f"wrote {args.plot}")
+        if args.output:  # the series is the result; the plot a summary line
+            say(args, f"wrote {args.plot}")
+        else:
+            wrote(args, args.plot, f"wrote {args.plot}")
     sig = series_significant_amplitudes(series)
-    print("significant amplitudes (2 sigma): " + ", ".join(f"{k} {v:.2f}" for k, v in sig.items()))
+    say(args, "significant amplitudes (2 sigma): " + ", ".join(f"{k} {v:.2f}" for k, v in sig.items()))
     return 0

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from deckpose.cli.console import say, wrote
+
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     p = subparsers.add_parser(
@@ -34,9 +36,9 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.tables import read_table
 
     res = painted_ring_run(args.run, progress=not args.no_progress, centre_disc=args.centre_disc)
-    print(res.summary())
+    wrote(args, res.estimates, res.summary())
     est = read_table(res.estimates, "estimates")
     for r in est.itertuples():
         if not r.ok:
-            print(f"  frame {r.frame_id}: {r.reason}")
+            say(args, f"  frame {r.frame_id}: {r.reason}")
     return frames_exit_code(res.n_frames, res.n_ok, strict=args.strict)

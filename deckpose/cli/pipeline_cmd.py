@@ -25,8 +25,17 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from deckpose.atomic_io import atomic_open
-from deckpose.cli.common_options import HelpFormatter, add_progress, add_workers, frame_bar, workers
+from deckpose.cli.common_options import (
+    HelpFormatter,
+    add_progress,
+    add_workers,
+    done_of_total,
+    frame_bar,
+    workers,
+)
+from deckpose.cli.console import is_quiet, wrote
 from deckpose.errors import ConfigError, DeckposeError
+from deckpose.shell_command import deckpose_command
 
 if TYPE_CHECKING:
     from deckpose.render.config import RenderConfig
@@ -75,6 +84,8 @@ class PipelineOptions:
         After estimating, track every estimates table over time (``deckpose track``'s default
         tracker and config), so the log plays the filtered and predicted decks; needs frames in
         time (a motion series or an approach).
+    quiet : bool
+        Print nothing (``-q``): no stage lines or summaries; errors are raised.
     """
 
     run_dir: Path
@@ -90,6 +101,7 @@ class PipelineOptions:
     detect_at_render: bool = False
     keep_images: bool = True
     track: bool = False
+    quiet: bool = False
 
     def __post_init__(self) -> None:
         if not self.detectors:
@@ -142,7 +154,7 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="after estimating, track each estimates table over time (deckpose track's default "
                         "tracker); needs frames in time: a motion series or an approach")
     add_progress(p)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, resume_hint="finished frames are kept whole; run the same command again: it renders only the rest")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -154,10 +166,10 @@ def run(args: argparse.Namespace) -> int:
         scheduler=args.scheduler, mcap=not args.no_mcap, progress=not args.no_progress,
         publish_dir=args.publish, from_stage=args.from_stage, command=_canonical_command(args),
         detect_at_render=args.detect_at_render, keep_images=not args.no_images, track=args.track,
+        quiet=is_quiet(args),
     )
     paths = run_pipeline(config, options, config_label=str(args.config))
-    for key, path in paths.items():
-        print(f"  {key}: {path}")
+    wrote(args, paths["report"], "\n".join(f"  {key}: {path}" for key, path in paths.items()))
     return 0
 
 
@@ -244,7 +256,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     from deckpose.evaluate.run import evaluate_run, write_log
     from deckpose.render.dataset import render_dataset
     from deckpose.render.render_detection import RenderDetection
-    from deckpose.run_folder import run_paths
+    from deckpose.run_folder import read_frames, run_paths
     from deckpose.sequence_run import estimate_run_with_prior
 
     check_names(options)
@@ -252,7 +264,11 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         raise ConfigError("--track needs frames in time, and this config renders fixed attitudes (motion source "
                           "'fixed'): give it a motion series (motion.source sea_state, file or thesis) or an "
                           "approach: section, or drop --track")
-    say = step or (lambda n, total, text: print(f"[{n}/{total}] {text}", flush=True))
+    def tell(text: str) -> None:  # a summary line (none with quiet)
+        if not options.quiet:
+            print(text, flush=True)
+
+    say = step or (lambda n, total, text: tell(f"[{n}/{total}] {text}"))
     run_dir = Path(options.run_dir)
     total = 5 + bool(options.mcap) + (options.publish_dir is not None)
     seconds: dict[str, float] = {}
@@ -292,35 +308,38 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         say(2, total, f"detect beacons ({', '.join(options.detectors)})")
         for det in options.detectors:  # a stage whose every frame failed still ran: the report says so
             res = detect_run(run_dir, det, progress=options.progress, workers=options.workers)
-            print(res.summary())
+            tell(res.summary())
         seconds["detect"] = time.perf_counter() - t
         log.info("stage detect: %.1f s", seconds["detect"])
     t = time.perf_counter()
     if runs("estimate"):
         say(3, total, f"estimate the pose ({', '.join(options.methods)})"
                       + (", then track it over time" if options.track else ""))
+        n_frames = len(read_frames(paths))  # the bars' total
         for det in options.detectors:
             for method in options.methods:
                 spec = parse_method(method)
-                with frame_bar(f"estimate ({spec.label})", enabled=options.progress) as b:
+                with frame_bar(f"estimate ({spec.label})", enabled=options.progress, total=n_frames) as b:
                     est = estimate_run_with_prior(run_dir, spec, detector=det, progress=b.update)
-                print(est.summary())
+                tell(est.summary())
                 if options.track:
                     from deckpose.tracking.config import TRACKERS, TrackConfig
                     from deckpose.tracking.run import track_run
 
-                    with frame_bar(f"track ({spec.label})", enabled=options.progress) as b:
+                    with frame_bar(f"track ({spec.label})", enabled=options.progress, total=n_frames) as b:
                         tr = track_run(run_dir, TrackConfig(), tracker=TRACKERS[0], detector=det, method=spec.label,
                                        command=list(options.command), progress=b.update)
-                    print(tr.summary())
+                    tell(tr.summary())
         seconds["estimate"] = time.perf_counter() - t
         log.info("stage estimate: %.1f s", seconds["estimate"])
     t = time.perf_counter()
     if runs("evaluate"):
         say(4, total, "evaluate against the ground truth")
         # (the MCAP log is written after the report, which it attaches)
-        for key, path in evaluate_run(paths, mcap=False, command=options.command).items():
-            print(f"{key}: {path}")
+        with frame_bar("evaluate", enabled=options.progress) as b:
+            evaluated = evaluate_run(paths, mcap=False, command=options.command, progress=done_of_total(b))
+        for key, path in evaluated.items():
+            tell(f"{key}: {path}")
         seconds["evaluate"] = time.perf_counter() - t
         log.info("stage evaluate: %.1f s", seconds["evaluate"])
     previous = _read_record(run_dir)
@@ -342,14 +361,16 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         json.dump(record, fh, indent=2)
     t = time.perf_counter()
     say(5, total, "write the report")
-    print(f"report: {write_report(paths)}")
+    with frame_bar("report", enabled=options.progress, unit="figure") as b:
+        md = write_report(paths, progress=done_of_total(b))
+    tell(f"report: {md}")
     out = {"report": paths.report_dir / "report.md", "tables": paths.evaluation_dir / "resolution_tables.md",
            "errors": paths.errors}
     if options.mcap and runs("evaluate"):
         t_log = time.perf_counter()
         say(6, total, "write the MCAP log (with the report attached)")
         for key, path in write_log(paths, command=options.command).items():
-            print(f"{key}: {path}")
+            tell(f"{key}: {path}")
         record["log_seconds"] = round(time.perf_counter() - t_log, 1)
         with atomic_open(run_dir / PIPELINE_RECORD, "w") as fh:
             json.dump(record, fh, indent=2)
@@ -358,8 +379,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     if options.publish_dir is not None:
         say(total, total, f"publish the report and tables -> {options.publish_dir}")
         out["published"] = publish_report(run_dir, Path(options.publish_dir))
-    print(f"pipeline done in {time.perf_counter() - t_all:.0f} s (report {time.perf_counter() - t:.0f} s)",
-          flush=True)
+    tell(f"pipeline done in {time.perf_counter() - t_all:.0f} s (report {time.perf_counter() - t:.0f} s)")
     return out
 
 
@@ -379,7 +399,7 @@ def publish_report(run_dir: Path, dest: Path) -> Path:
     paths = run_paths(run_dir)
     report = paths.report_dir / "report.md"
     if not report.exists():
-        raise DeckposeError(f"{report} is missing; make it with: deckpose report {run_dir}")
+        raise DeckposeError(f"{report} is missing; make it with: {deckpose_command('report', run_dir)}")
     dest = Path(dest)
     dest.parent.mkdir(parents=True, exist_ok=True)
     tmp = dest.parent / f".{dest.name}.tmp-{os.getpid()}"

@@ -7,6 +7,7 @@ from pathlib import Path
 from typing import Any
 
 from deckpose.cli.common_options import add_output, add_progress, add_workers, workers
+from deckpose.cli.console import say, wrote
 
 
 def _config_keys() -> list[str]:
@@ -48,7 +49,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--no-images", action="store_true",
                    help="keep no frame (previews and tables only); needs --detect")
     add_progress(p)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, resume_hint="finished frames are kept whole; add --resume to the same command to render the rest")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -86,10 +87,10 @@ def run(args: argparse.Namespace) -> int:
     claim_output(out, need_bytes=biggest * 3 * (2 if cfg.sensor.bit_depth > 8 else 1), what="render")
     path = render_dataset(cfg, out, workers=n_workers, resume=args.resume, scheduler=args.scheduler,
                           progress=not args.no_progress, detection=detection)
-    print(f"dataset written to {path}")
+    wrote(args, path, f"dataset written to {path}")
     if detection is not None and detection.detectors:
         from deckpose.run_folder import RunPaths
 
         for name in detection.detectors:
-            print(f"detections at render time: {RunPaths(path).detections(name)}")
+            say(args, f"detections at render time: {RunPaths(path).detections(name)}")
     return 0

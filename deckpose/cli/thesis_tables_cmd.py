@@ -5,7 +5,14 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from deckpose.cli.common_options import HelpFormatter, add_progress, add_workers, workers
+from deckpose.cli.common_options import (
+    HelpFormatter,
+    add_output,
+    add_progress,
+    add_workers,
+    workers,
+)
+from deckpose.cli.console import wrote
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -20,7 +27,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         ),
         formatter_class=HelpFormatter,
     )
-    p.add_argument("-o", "--output", type=Path, default=Path("reports"), help="output folder")
+    # a folder of its own by default: -o reports would replace the committed tables of a clone
+    add_output(p, "output folder; -o reports replaces the committed reports/thesis_tables.*",
+               default=Path("runs/thesis_tables"))
     p.add_argument("--repetitions", type=int, default=500, help="passes over the 495-sample series per cell")
     p.add_argument("--seed", type=int, default=20221, help="random seed (recorded in the manifest)")
     add_workers(p, "Monte Carlo")
@@ -42,5 +51,5 @@ def run(args: argparse.Namespace) -> int:
 
     md = run_thesis_tables(config, args.output, progress)
     bar.close()
-    print(f"wrote {md} (and thesis_tables.csv, thesis_tables.manifest.json)")
+    wrote(args, md, f"wrote {md} (and thesis_tables.csv, thesis_tables.manifest.json)")
     return 0

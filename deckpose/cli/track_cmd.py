@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 
 from deckpose.cli.common_options import HelpFormatter, add_progress, frame_bar
+from deckpose.cli.console import say, wrote
+from deckpose.shell_command import deckpose_command
 
 
 def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
@@ -81,7 +83,8 @@ def run(args: argparse.Namespace) -> int:
         bar.total = n_frames
         res = track_run(run_folder.root, config, tracker=args.method, detector=args.detector,
                         method=args.estimates, command=command, progress=bar.update)
-    print(res.summary())
-    print(f"predictions: {res.predictions_path}")
-    print(f"to play it in Foxglove (filtered and predicted decks, roll against time): deckpose evaluate {run_folder.root}")
+    wrote(args, res.path, res.summary())
+    say(args, f"predictions: {res.predictions_path}")
+    say(args, "to play it in Foxglove (filtered and predicted decks, roll against time): "
+          + deckpose_command("evaluate", run_folder.root))
     return 0

@@ -38,6 +38,7 @@ from deckpose.run_folder import (
     read_manifest,
     run_paths,
 )
+from deckpose.shell_command import deckpose_command
 from deckpose.table_schemas import TRACK_COLUMNS, TRACK_PREDICTION_COLUMNS, pandas_dtype
 from deckpose.tables import write_table
 from deckpose.tracking.config import TRACKERS, TrackConfig, track_config_to_mapping
@@ -198,8 +199,8 @@ def _prediction_rows(ids: NDArray[np.int64], stamps: NDArray[np.int64], horizons
 def _pick_estimates(run: RunPaths, detector: str | None, method: str | None) -> tuple[str, str]:
     pairs = run.estimate_pairs()
     if not pairs:
-        raise InputDataError(f"{run.estimates_dir} holds no estimates; make them with: deckpose estimate --run "
-                             f"{run.root} --method pnp")
+        raise InputDataError(f"{run.estimates_dir} holds no estimates; make them with: "
+                             f"{deckpose_command('estimate', '--run', run.root, '--method', 'pnp')}")
     cand = [(d, m) for d, m in pairs if (detector is None or d == detector) and (method is None or m == method)]
     if len(cand) == 1:
         return cand[0]
@@ -249,7 +250,7 @@ def track_run(run_dir: str | Path, config: TrackConfig, *, tracker: str = "wave-
     det, meth = _pick_estimates(run, detector, method)
     estimates = read_estimates(run, det, meth)
     check_frames_match(frames, estimates, f"{run.estimates(det, meth)}",
-                       f"deckpose estimate --run {run.root} --detector {det} --method {meth}")
+                       deckpose_command("estimate", "--run", run.root, "--detector", det, "--method", meth))
     ensure_writable(run.tracks_dir)
     tracks, predictions = track_table(frames, estimates, config, epoch_ns=epoch,
                                       source=str(run.estimates(det, meth)), progress=progress)

@@ -1,0 +1,61 @@
+"""A folder made by ``deckpose detect -o`` given where a run folder is needed: said what it is, and what to run.
+
+Before, evaluate, estimate --run, track, export and report took it for an unfinished run folder
+and suggested rendering into it.
+"""
+
+from __future__ import annotations
+
+import shlex
+from pathlib import Path
+
+import pytest
+
+from deckpose.cli import exit_codes, main
+
+
+@pytest.fixture(scope="module")
+def detections_folder(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """(dataset, the folder 'deckpose detect DATASET -o' wrote), with spaces in both paths."""
+    from deckpose.detect.synthetic_dataset import SyntheticDatasetConfig, write_synthetic_dataset
+
+    root = tmp_path_factory.mktemp("detfolder")
+    cfg = SyntheticDatasetConfig(cameras=("160x120",), heights_m=(30.0,), frames_per_config=1)
+    dataset = Path(write_synthetic_dataset(cfg, root / "my data"))
+    out = root / "det out"
+    assert main(["detect", str(dataset), "-o", str(out), "--no-progress", "--workers", "0"]) == 0
+    return dataset, out
+
+
+@pytest.mark.parametrize("argv", [["evaluate"], ["estimate", "--run"], ["track"], ["report"],
+                                  ["export", "--format", "coco", "-o", "EXPORT"]])
+def test_a_detections_folder_is_named_with_what_to_run_instead(
+        detections_folder: tuple[Path, Path], argv: list[str], tmp_path: Path,
+        capsys: pytest.CaptureFixture[str]) -> None:
+    dataset, out = detections_folder
+    argv = [str(tmp_path / "export") if a == "EXPORT" else a for a in argv]
+    command = [argv[0], *argv[1:2]] if argv[0] == "estimate" else [argv[0]]
+    assert main([*command, str(out), *argv[len(command):]]) == exit_codes.USAGE
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1
+    assert f"{out} is a detections folder" in err and str(dataset.resolve()) in err
+    assert "deckpose render" not in err  # no longer: render into it
+    # the suggested commands come back from a shell as they were meant: detect into the dataset,
+    # or estimate from the folder's table with its camera
+    detect_cmd = err.split("give the dataset to this command: ", 1)[1].split(" (no -o)", 1)[0]
+    assert shlex.split(detect_cmd) == ["deckpose", "detect", str(dataset.resolve()), "--detector", "cog"]
+    table_cmd = shlex.split(err.split("from its table alone: ", 1)[1])
+    assert table_cmd[:3] == ["deckpose", "estimate", str(out / "detections.parquet")]
+    camera = Path(table_cmd[table_cmd.index("--camera") + 1])
+    assert camera.parent == out / "cameras" and camera.is_file()
+
+
+def test_the_suggested_table_estimate_runs(detections_folder: tuple[Path, Path], tmp_path: Path,
+                                           capsys: pytest.CaptureFixture[str]) -> None:
+    _, out = detections_folder
+    assert main(["evaluate", str(out)]) == exit_codes.USAGE
+    suggested = shlex.split(capsys.readouterr().err.split("from its table alone: ", 1)[1])
+    estimates = tmp_path / "estimates.parquet"
+    suggested[suggested.index("-o") + 1] = str(estimates)
+    assert main([*suggested[1:], "--no-progress"]) == exit_codes.OK
+    assert estimates.is_file()
