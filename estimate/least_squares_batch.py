@@ -167,7 +167,7 @@ def covariance_from_information(H: FloatArray) -> tuple[FloatArray, BoolArray]:
             pass  # some matrix is not positive definite: row by row below
         else:
             cov = np.swapaxes(Linv, 1, 2) @ Linv
-            ok = _rows_ok(cov)
+            ok = np.all(np.isfinite(cov), axis=(1, 2))
             if not ok.all():
                 cov[~ok] = np.nan
             return cov, ok
@@ -432,11 +432,12 @@ def levenberg_marquardt_batch(params0: FloatArray, obs: FrameObservations, *,
     converged = np.zeros(F, dtype=bool)
     active = np.flatnonzero(start_ok)
     everyone = active.size == F  # no frame has stopped: no indexing by ``active``
+    n_everyone = 0  # the iterations of every frame while ``everyone`` (``it`` is set when it ends)
     with np.errstate(invalid="ignore", over="ignore"):
         while active.size:
             if everyone:
                 sub, r_a, J_a, lam_a, cost_a = obs, r, Jw, lam, cost
-                it += 1
+                n_everyone += 1
             else:
                 sub, r_a, J_a, lam_a, cost_a = obs.take(active), r[active], Jw[active], lam[active], cost[active]
                 it[active] += 1
@@ -450,7 +451,9 @@ def levenberg_marquardt_batch(params0: FloatArray, obs: FrameObservations, *,
             cost_new = np.where(front_new, (r_new * r_new).sum(axis=(1, 2)), np.inf)
             small = (np.abs(neg_step) * np.sqrt(dH)).max(axis=1) < STEP_TOL_SIGMA  # dH: sums of squares
             better = cost_new <= cost_a
-            ok = solved & (np.isfinite(cost_new) | np.isfinite(neg_step.sum(axis=1)))  # not blown up
+            finite = np.isfinite(cost_new)
+            # not blown up (a non-finite cost with a finite step is a point behind the camera)
+            ok = solved if finite.all() else solved & (finite | np.isfinite(neg_step.sum(axis=1)))
             accept = ok & better
             if everyone and accept.all():
                 p, r, Jw, res, cost = p_new, r_new, J_new, res_new, cost_new
@@ -466,11 +469,14 @@ def levenberg_marquardt_batch(params0: FloatArray, obs: FrameObservations, *,
                 stop = ~ok | (ok & small) | (reject & ~small & (lam[active] > DAMPING_CEILING))
             if everyone:
                 converged |= ok & small
-                stop |= it >= max_iterations
+                if n_everyone >= max_iterations:
+                    stop = np.ones(F, dtype=bool)
             else:
                 converged[active[ok & small]] = True
                 stop |= it[active] >= max_iterations
             if stop.any():
+                if everyone:
+                    it[:] = n_everyone
                 active = active[~stop]
                 everyone = False
     # The fit at the final parameters from the residuals and Jacobian already there (every

@@ -153,9 +153,9 @@ def pick_batch(cands: BatchCandidates, *, ambiguity_chi2: float) -> PickBatch:
     best_p = cands.fits[0].params if K == 1 else _take(params, kb)
     cov, cov_ok = covariance_from_information(_select(cands.fits, "information", kb))
     unresolved = np.zeros(F, dtype=bool)
-    if K < 2:  # no runner-up
-        return PickBatch(kb, n_good, best_p, cov, cov_ok, np.full((F, 6), np.nan), np.full(F, np.nan),
-                         np.full(F, np.nan), unresolved)
+    if K < 2:  # no runner-up (one NaN column serves both of its read-only fields)
+        nan = np.full(F, np.nan)
+        return PickBatch(kb, n_good, best_p, cov, cov_ok, np.full((F, 6), np.nan), nan, nan, unresolved)
     has_alt = n_good >= 2
     ka = order[:, 1]
     alt_p = _take(params, ka)
@@ -203,64 +203,64 @@ def finish_batch(
     ``n_solutions`` extra.
     """
     F = len(obs)
+    M = obs.xy.shape[1]
     choice = pick_batch(cands, ambiguity_chi2=ambiguity_chi2)
-    kb, n_good, best_p, cov = choice.best, choice.n_good, choice.params, choice.covariance
-    alt_p, dchi2, maha = choice.alt_params, choice.delta_chi2, choice.mahalanobis
-    has_alt = n_good >= 2
-    best_chi2 = _select(cands.fits, "chi2", kb)
-    fallback = cands.fallback | (n_good == 0) | ~choice.covariance_ok | choice.unresolved
+    kb, best_p = choice.best, choice.params
     whitened = _select(cands.fits, "whitened", kb)
     res_px = _select(cands.fits, "residuals_px", kb)
     with np.errstate(invalid="ignore"):
-        pc = (whitened**2).sum(axis=2)
-        max_pc = pc.max(axis=1)
+        pc = (whitened * whitened).sum(axis=2)
         # solution.make_estimate widens the covariance when the residuals exceed it alike
         scale = covariance_scale(pc)
-        rms = np.sqrt((res_px**2).sum(axis=(1, 2)) / res_px.shape[1])
-        fallback |= ~(max_pc <= outlier_chi2)
-        fallback |= ~np.isfinite(rms) | (rms > max_reprojection_rms_px)
-    cov = cov * scale[:, None, None]
-    R_cd, t_cd = relative_from_params_batch(np.where(np.isfinite(best_p), best_p, 0.0), obs.R_world_from_cam)
-    rvec = rotation_vectors(R_cd)
-    sig = np.sqrt(cov.reshape(F, 36)[:, ::7])  # the diagonals (``cov`` is a fresh product)
-    fallback |= ~pose_constrained(best_p, sig)  # the single-frame path flags them not ok
-    M = obs.xy.shape[1]
-    n_points = float(M)
+        rms = np.sqrt((res_px * res_px).sum(axis=(1, 2)) / M)
+        cov = choice.covariance * scale[:, None, None]
+        sig = np.sqrt(cov.reshape(F, 36)[:, ::7])  # the diagonals (``cov`` is a fresh product)
+        # the frames where pick_candidate, solve_robust's first test and make_estimate give an ok
+        # estimate without removing a point (pose_constrained: else the single-frame path flags them)
+        settled = (choice.n_good > 0) & choice.covariance_ok & (pc.max(axis=1) <= outlier_chi2)
+        settled &= np.isfinite(rms) & (rms <= max_reprojection_rms_px) & pose_constrained(best_p, sig)
+        settled &= ~(cands.fallback | choice.unresolved)
+    settled_list = settled.tolist()
+    if not any(settled_list):
+        return [None] * F
+    # (the frames left to the single-frame path may have no finite pose: zeros keep them quiet)
+    p_finite = best_p if all(settled_list) else np.where(np.isfinite(best_p), best_p, 0.0)
+    R_cd, t_cd = relative_from_params_batch(p_finite, obs.R_world_from_cam)
+    # the tail of every record (_TAIL_EXTRAS) as one (F, 15) table, read back as rows of floats
+    tail = np.empty((F, len(_TAIL_EXTRAS)))
+    tail[:, 0] = rms
+    tail[:, 1] = _select(cands.fits, "chi2", kb)
+    tail[:, 2] = 2 * M - 6
+    tail[:, 3:9] = sig
+    tail[:, 9::2] = rotation_vectors(R_cd)
+    tail[:, 10::2] = t_cd
+    tail_rows = tail.tolist()
     ids = tuple(obs.ids.tolist())
-    base_refined = float(refined)
-    dof = float(2 * M - 6)
+    head = {"n_points": float(M), "n_ignored": 0.0, "n_outliers_removed": 0.0, "refined": float(refined)}
     pre = [(e.name, e.values.tolist(), None if e.present is None else e.present.tolist())
            for e in cands.extras]
-    ambiguity = _AMBIGUITY_EXTRAS
-    alt_list = has_alt.tolist()
-    amb_cols = ([dchi2.tolist(), maha.tolist(), alt_p[:, 0].tolist(), alt_p[:, 1].tolist(),
-                 alt_p[:, 2].tolist(), alt_p[:, 5].tolist()] if any(alt_list) else [])
-    tail_names = _TAIL_EXTRAS
-    tail_cols = [rms.tolist(), best_chi2.tolist(), [dof] * F] + [sig[:, j].tolist() for j in range(6)]
-    for j in range(3):
-        tail_cols += [rvec[:, j].tolist(), t_cd[:, j].tolist()]
-    p_list = best_p.tolist()
+    alt_list = (choice.n_good >= 2).tolist()
+    amb_rows = (np.column_stack([choice.delta_chi2, choice.mahalanobis, choice.alt_params[:, :3],
+                                 choice.alt_params[:, 5]]).tolist() if any(alt_list) else [])
     n_ign = n_ignored.tolist()
-    n_sol = n_good.astype(float).tolist()
-    fb = fallback.tolist()
+    n_sol = choice.n_good.tolist()
     scale_list = scale.tolist()
+    p_list = best_p.tolist()
     out: list[PoseEstimate | None] = []
     for i in range(F):
-        if fb[i]:
+        if not settled_list[i]:
             out.append(None)
             continue
-        ex = {"n_points": n_points, "n_ignored": float(n_ign[i]), "n_outliers_removed": 0.0,
-              "refined": base_refined}
+        ex = dict(head)
+        ex["n_ignored"] = float(n_ign[i])
         for name, vals, present in pre:
             if present is None or present[i]:
                 ex[name] = vals[i]
         if pick:
-            ex["n_solutions"] = n_sol[i]
+            ex["n_solutions"] = float(n_sol[i])
         if alt_list[i]:
-            for name, col in zip(ambiguity, amb_cols):
-                ex[name] = col[i]
-        for name, col in zip(tail_names, tail_cols):
-            ex[name] = col[i]
+            ex.update(zip(_AMBIGUITY_EXTRAS, amb_rows[i]))
+        ex.update(zip(_TAIL_EXTRAS, tail_rows[i]))
         if scale_list[i] > 1.0:
             ex["covariance_scale"] = scale_list[i]
         p = p_list[i]
