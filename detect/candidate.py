@@ -197,18 +197,30 @@ class Candidate:
         flux_dn : float
             Windowed flux ``F = sum(window * signal)``, DN.
         """
-        gu, gv = self.surround_grad
-        if (gu == 0.0 and gv == 0.0) or not flux_dn > 0:
-            return np.zeros((2, 2))
-        g2 = max(gu * gu + gv * gv - 2.0 * self.surround_grad_sd**2, 0.0)
-        if g2 == 0.0:
+        if self.surround_tilt2() == 0.0 or not flux_dn > 0:
             return np.zeros((2, 2))
         r2 = du_px * du_px + dv_px * dv_px
         m2 = 0.5 * float((window * (signal_dn > 0) * r2).sum())
         edge = (window > 0) & (window < 1)
         f_eff = flux_dn - 0.5 * float((np.sqrt(r2) * signal_dn)[edge].sum())
         f_eff = f_eff if f_eff > 0.5 * flux_dn else flux_dn
-        return np.eye(2) * (g2 * (m2 / f_eff) ** 2)
+        return self.surround_bias_cov(m2 / f_eff)
+
+    def surround_tilt2(self) -> float:
+        """The surround's squared tilt beyond its noise, ``max(|g|^2 - 2 sd^2, 0)``, (DN/px)^2."""
+        gu, gv = self.surround_grad
+        return max(gu * gu + gv * gv - 2.0 * self.surround_grad_sd**2, 0.0)
+
+    def surround_bias_cov(self, px_per_tilt: float) -> np.ndarray:
+        """Isotropic covariance (2, 2), px^2, of a centre that a unit tilt (1 DN/px) moves ``px_per_tilt``.
+
+        The one rule of :meth:`surround_tilt_cov` (a windowed centroid) and of
+        :func:`~deckpose.detect.core_fit.core_fit` (a least-squares fit, which finds its
+        ``px_per_tilt`` by propagating a tilt through its normal equations): the
+        border's tilt beyond its noise (:meth:`surround_tilt2`), times that response, on
+        both axes.
+        """
+        return np.eye(2) * (self.surround_tilt2() * px_per_tilt**2)
 
     def mask_moments(self) -> tuple[float, float, float]:
         """Binary centroid ``(u, v)`` and Gaussian-equivalent sigma of the mask, pixels."""

@@ -168,9 +168,18 @@ def core_fit(cand: Candidate, start: Row, window_sigma: float = 3.0) -> Row | No
     chi2 = float(np.sum((m[free] - data[free]) ** 2 / var))
     scale = chi2 / max(n_free - 7, 1)
     try:
-        cov = np.linalg.inv((Jf / var[:, None]).T @ Jf)[:2, :2] * scale
+        n_inv = np.linalg.inv((Jf / var[:, None]).T @ Jf)
     except np.linalg.LinAlgError:
         return None
+    cov = n_inv[:2, :2] * scale
+    # The surround's tilt left in the signal (the floor is flat): a tilt t (DN/px) along u
+    # adds t (U - u) to the data and moves the fit by N^-1 J^T W (U - u) t, to first order
+    # (the flat background b takes the constant part). Its bound on the centre goes in as
+    # the windowed centroid's does (Candidate.surround_bias_cov).
+    if cand.surround_tilt2() > 0.0:
+        ramps = np.column_stack([U[free] - u, V[free] - v])
+        response = (n_inv @ ((Jf / var[:, None]).T @ ramps))[:2]  # px per DN/px, (2, 2)
+        cov = cov + cand.surround_bias_cov(float(np.linalg.norm(response, axis=0).max()))
     if not np.all(np.isfinite(cov)):
         return None
     return cand.blob(u, v, flux_dn=F, size_px=size, cov_px2=cov)

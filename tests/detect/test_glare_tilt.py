@@ -14,8 +14,10 @@ import dataclasses
 import math
 
 import numpy as np
+import pytest
 from deckpose.detect.candidate import Candidate
 from deckpose.detect.centroid import cog_centroid
+from deckpose.detect.core_fit import core_fit
 from deckpose.detect.frame_detection import detect_frame
 
 from deckpose.camera import preset
@@ -55,12 +57,12 @@ def _centres(seed: int) -> np.ndarray:
     return np.array([[320.0, 240.0]] + ring) + rng.uniform(-0.5, 0.5, (7, 2))
 
 
-def _measure(glow_fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+def _measure(glow_fraction: float, seed: int, detector: str = "cog") -> tuple[np.ndarray, np.ndarray]:
     """Per found spot: error against its drawn centre (px, (n, 2)) and its reported sd (px, (n, 2))."""
     centres = _centres(seed)
     img = _frame(centres, glow_fraction, seed)
     cam = preset("4mp-thesis").with_size(W, H)
-    fd = detect_frame(Frame(np.repeat(img[..., None], 3, axis=2), cam), "cog", DeckLayout(),
+    fd = detect_frame(Frame(np.repeat(img[..., None], 3, axis=2), cam), detector, DeckLayout(),
                       identify=False)
     pts = fd.detections.points_px
     assert len(pts) == 7, (len(pts), fd.reason)
@@ -72,11 +74,14 @@ def _measure(glow_fraction: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
     return err[ring], sd[ring]
 
 
-def test_glare_bias_is_inside_the_reported_covariance(monkeypatch):
+@pytest.mark.parametrize("detector", ["cog", "gauss"])
+def test_glare_bias_is_inside_the_reported_covariance(monkeypatch, detector):
+    # cog: a windowed centroid; gauss: a censored least-squares fit of the core (core_fit),
+    # which propagates the tilt through its normal equations
     errs, sds, errs0, sds0 = [], [], [], []
     for seed in range(3):
-        e, s = _measure(GLOW_FRACTION, seed)
-        e0, s0 = _measure(0.0, seed)
+        e, s = _measure(GLOW_FRACTION, seed, detector)
+        e0, s0 = _measure(0.0, seed, detector)
         errs.append(e)
         sds.append(s)
         errs0.append(e0)
@@ -92,8 +97,8 @@ def test_glare_bias_is_inside_the_reported_covariance(monkeypatch):
     assert sd.max() < 10 * np.abs(err).max(), (sd.max(), np.abs(err).max())
     # The same detector without the term reports the noise alone, which the glow's bias
     # exceeds many times: that covariance would lie.
-    monkeypatch.setattr(Candidate, "surround_tilt_cov", lambda self, *a: np.zeros((2, 2)))
-    e_n, sd_n = _measure(GLOW_FRACTION, 0)
+    monkeypatch.setattr(Candidate, "surround_bias_cov", lambda self, *a: np.zeros((2, 2)))
+    e_n, sd_n = _measure(GLOW_FRACTION, 0, detector)
     assert np.abs(e_n / sd_n).max() > 3.0, e_n / sd_n
 
 
@@ -139,3 +144,22 @@ def test_a_tilt_within_the_noise_adds_nothing():
     assert row is not None and row_quiet is not None and base is not None
     assert np.allclose(row_quiet[2], base[2])
     assert row[2][0, 0] > base[2][0, 0]
+
+
+def test_core_fit_term_is_the_shift_a_linear_tilt_gives():
+    # The same check for the censored fit (gauss's path for a bright spot): the shift a tilt
+    # along u gives, against the fit without it, equals the term's sd (a round spot moves
+    # alike for a tilt along u or v, so the term's larger response is this one, to ~1 %).
+    g = (0.04, 0.0)
+    cand, _, _ = _spot_candidate(g)
+    ramp = g[0] * (np.arange(121)[None, :] - 60.3)
+    flat = dataclasses.replace(cand, pixels=cand.pixels - ramp)
+    start = cog_centroid(flat, 3.0, above_floor=False)
+    assert start is not None
+    tilted_row, flat_row = core_fit(cand, start), core_fit(flat, start)
+    no_tilt_row = core_fit(dataclasses.replace(cand, surround_grad=(0.0, 0.0)), start)
+    assert tilted_row is not None and flat_row is not None and no_tilt_row is not None
+    shift = math.hypot(tilted_row[0] - flat_row[0], tilted_row[1] - flat_row[1])
+    term = math.sqrt(tilted_row[2][0, 0] - no_tilt_row[2][0, 0])
+    assert shift > 0.005
+    assert abs(term / shift - 1.0) < 0.05, (term, shift)
