@@ -33,7 +33,7 @@ import pandas as pd
 
 from deckpose.camera import CameraModel
 from deckpose.camera_info import camera_to_dict, read_camera_info
-from deckpose.errors import InputDataError
+from deckpose.errors import CameraFileError, InputDataError
 from deckpose.layout import DeckLayout, layout_from_dict, layout_to_dict
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.shell_command import deckpose_command
@@ -277,12 +277,54 @@ def detections_folder_message(root: str | os.PathLike[str], record: dict[str, An
                                else ("--layout", "LAYOUT.yaml")))
     what = (f"{root} is a detections folder: 'deckpose detect -o' wrote {detector}'s detections of "
             f"{source} there; it holds no frames or ground truth, so it is not a run folder")
+    alone = (f"; or estimate from its table alone: {table}" if len(cameras) <= 1 else
+             f" (its frames come from {len(cameras)} cameras, so its table cannot be estimated with one "
+             "--camera)")
     if record.get("source_kind") != "dataset":  # a folder of images: nothing to evaluate against
         return f"{what}. Estimate from its table: {table}"
-    return (f"{what}. Detect into the dataset itself and give the dataset to this command: "
-            f"{deckpose_command('detect', source, '--detector', detector)} (no -o), then e.g. "
-            f"{deckpose_command('estimate', '--run', source, '--detector', detector)}; or estimate "
-            f"from its table alone: {table}")
+    return (f"{what}. Detect into the dataset itself (without -o) and give the dataset to this "
+            f"command, e.g.: {deckpose_command('detect', source, '--detector', detector)} then "
+            f"{deckpose_command('estimate', '--run', source, '--detector', detector)}{alone}")
+
+
+def check_detections_camera(detections: str | os.PathLike[str], camera: CameraModel) -> None:
+    """Refuse ``--camera`` for a detections folder's table whose frames another camera took.
+
+    A table that ``deckpose detect -o`` wrote sits beside its record, which names the cameras
+    of its frames (:data:`DETECT_RECORD`). Estimated with a camera of another image size, or
+    with one camera where there were several, its frames would be solved with the wrong
+    intrinsics and look ok (a 960x540 frame solved as 640x480: 20 m for a true 30 m). Any
+    other table passes (nothing records its camera).
+
+    Raises
+    ------
+    InputDataError
+        The folder's frames come from several cameras, or from one of another image size.
+    """
+    root = Path(detections).parent
+    record = detections_folder_record(root)
+    if record is None:
+        return
+    cameras = record.get("cameras") or {}
+    if len(cameras) > 1:
+        names = ", ".join(sorted(map(str, cameras)))
+        source = str(record.get("source", "SOURCE"))
+        raise InputDataError(
+            f"{detections}: its frames come from {len(cameras)} cameras ({names}), and --camera gives "
+            "one, so the others' frames would be solved with the wrong camera. Detect into the dataset "
+            f"itself and estimate it as a run: {deckpose_command('detect', source)} then "
+            f"{deckpose_command('estimate', '--run', source)}")
+    if len(cameras) == 1:
+        name, rel = next(iter(cameras.items()))
+        try:
+            own = read_camera_info(root / str(rel))
+        except CameraFileError:  # an unreadable record camera: nothing to compare with
+            return
+        if (own.width_px, own.height_px) != (camera.width_px, camera.height_px):
+            raise InputDataError(
+                f"{detections}: its frames are {own.width_px}x{own.height_px} (camera {name}), but "
+                f"--camera is {camera.width_px}x{camera.height_px}; give the camera that took them: "
+                f"--camera {deckpose_command(root / str(rel)).removeprefix('deckpose ')}")
 
 
 def read_manifest(run: RunPaths) -> dict[str, Any]:

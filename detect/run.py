@@ -35,7 +35,7 @@ from deckpose.camera_info import write_camera_info
 from deckpose.errors import ConfigError, InputDataError
 from deckpose.layout import DeckLayout, layout_to_dict
 from deckpose.records import Frame
-from deckpose.run_folder import DETECT_RECORD, DETECTIONS_FORMAT, RunPaths
+from deckpose.run_folder import DETECT_RECORD, DETECTIONS_FORMAT, RunPaths, detections_folder_record
 from deckpose.shell_command import deckpose_command
 
 log = logging.getLogger(__name__)
@@ -138,16 +138,26 @@ def detect_run(
             raise InputDataError(f"{source} keeps no frames (rendered with --no-images), so there is "
                                  f"nothing to detect in; {fix}")
     else:
+        record = detections_folder_record(source)
+        if record is not None:
+            raise InputDataError(
+                f"{source} is a detections folder ('deckpose detect -o' wrote it) and holds no images; "
+                f"detect the frames it came from: {record.get('source', 'their dataset or image folder')}")
         if not camera_file:
             raise ConfigError(
                 f"{source} is not a deckpose dataset (no manifest.json); for a folder of "
-                "images pass --camera CAMERA.yaml (and optionally --layout)"
+                "images pass --camera CAMERA.yaml and -o DIR (and optionally --layout)"
             )
         if not out_dir:
             raise ConfigError("a folder of images needs an output folder: add -o DIR")
         frameset = open_image_folder(source, camera_file, layout_file)
     if options.gain_dn_per_e is None:
         options = dataclasses.replace(options, gain_dn_per_e=declared_gain(frameset.manifest))
+    if out_dir and is_dataset(out_dir):
+        raise ConfigError(
+            f"-o {out_dir} is a rendered dataset; -o writes a detections folder of its own (its tables at "
+            "the top level). To add the detections to a dataset, detect it without -o "
+            f"({deckpose_command('detect', out_dir, '--detector', detector)}); or give -o a new folder")
     # before any frame is detected: the output folder can be written and is no other job's
     # (a dataset's own folder when detections go into it: a render still writing it is refused)
     claim_output(Path(out_dir) if out_dir else frameset.root, what="detect")

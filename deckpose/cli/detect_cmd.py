@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 
 from deckpose.cli.common_options import add_output, add_workers, workers
-from deckpose.cli.console import say, wrote
+from deckpose.cli.console import failures, wrote
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
@@ -131,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
                      workers=workers(args))
     frames = res.frames
     wrote(args, res.path, res.summary())
-    for r in frames.itertuples():
-        if not r.ok:
-            say(args, f"  frame {r.frame_id}: {r.reason}")
-    return frames_exit_code(len(frames), res.n_ok, strict=args.strict)
+    code = frames_exit_code(len(frames), res.n_ok, strict=args.strict)
+    failures(args, (f"  frame {r.frame_id}: {r.reason}" for r in frames.itertuples() if not r.ok),
+             failing=code != 0)
+    return code

@@ -7,7 +7,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from deckpose.cli.common_options import HelpFormatter, add_progress, frame_bar
-from deckpose.cli.console import wrote
+from deckpose.cli.console import failures, wrote
 from deckpose.cli.exit_codes import frames_exit_code
 
 if TYPE_CHECKING:
@@ -80,6 +80,7 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.estimate.run import EstimateRunResult, estimate_table
     from deckpose.layout import DeckLayout, read_layout
     from deckpose.output_folder import ensure_writable
+    from deckpose.run_folder import check_detections_camera
     from deckpose.sequence_run import estimate_run_with_prior
     from deckpose.tables import read_table, write_table
 
@@ -107,6 +108,7 @@ def run(args: argparse.Namespace) -> int:
                     "give the ring's radius in metres, or a --layout file")
             layout = dataclasses.replace(layout, radius_m=float(args.radius))
         camera = read_camera_info(args.camera)
+        check_detections_camera(args.detections, camera)
         out = Path(args.output)
         ensure_writable(out.parent)  # before the work, not after it
         table = read_table(args.detections, "detections")
@@ -120,7 +122,25 @@ def run(args: argparse.Namespace) -> int:
         write_table(df, out, "estimates")
         res = EstimateRunResult(out, df)
     wrote(args, res.path, res.summary() + _mean_note(res.table))
-    return frames_exit_code(res.n_frames, res.n_ok, strict=args.strict)
+    code = frames_exit_code(res.n_frames, res.n_ok, strict=args.strict)
+    failures(args, _failure_lines(res.table), failing=code != 0)
+    return code
+
+
+#: At most this many distinct reasons are listed for the frames that were not ok.
+MAX_REASONS = 8
+
+
+def _failure_lines(df: pd.DataFrame) -> list[str]:
+    """The frames that were not ok, counted by reason (most frequent first)."""
+    if "ok" not in df.columns or "reason" not in df.columns:
+        return []
+    counts = df.loc[~df["ok"].astype(bool), "reason"].fillna("").astype(str).value_counts()
+    lines = [f"  {n} frame{'s' if n != 1 else ''}: {reason or 'no reason given'}"
+             for reason, n in counts.head(MAX_REASONS).items()]
+    if len(counts) > MAX_REASONS:
+        lines.append(f"  ... and {len(counts) - MAX_REASONS} other reasons (the table's reason column)")
+    return lines
 
 
 def _mean_note(df: pd.DataFrame) -> str:

@@ -34,7 +34,7 @@ def register(subparsers: Any) -> None:
                    help="render config YAML (see configs/); default: the embedded smoke config")
     p.add_argument("out", type=Path, nargs="?", default=None,
                    help="dataset folder (default: datasets/<config name>); or give it with -o")
-    add_output(p, "dataset folder, as on every command that writes (the same as OUT)", metavar="DIR")
+    add_output(p, "dataset folder (the same as OUT; -o as on detect, estimate and export)", metavar="DIR")
     add_workers(p, "local render", zero="render in this process")
     p.add_argument("--backend", choices=["egl", "osmesa"], default=None,
                    help="headless GL backend (overrides the config)")

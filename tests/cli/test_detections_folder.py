@@ -42,7 +42,7 @@ def test_a_detections_folder_is_named_with_what_to_run_instead(
     assert "deckpose render" not in err  # no longer: render into it
     # the suggested commands come back from a shell as they were meant: detect into the dataset,
     # or estimate from the folder's table with its camera
-    detect_cmd = err.split("give the dataset to this command: ", 1)[1].split(" (no -o)", 1)[0]
+    detect_cmd = err.split("to this command, e.g.: ", 1)[1].split(" then ", 1)[0]
     assert shlex.split(detect_cmd) == ["deckpose", "detect", str(dataset.resolve()), "--detector", "cog"]
     table_cmd = shlex.split(err.split("from its table alone: ", 1)[1])
     assert table_cmd[:3] == ["deckpose", "estimate", str(out / "detections.parquet")]
@@ -59,3 +59,61 @@ def test_the_suggested_table_estimate_runs(detections_folder: tuple[Path, Path],
     suggested[suggested.index("-o") + 1] = str(estimates)
     assert main([*suggested[1:], "--no-progress"]) == exit_codes.OK
     assert estimates.is_file()
+
+
+@pytest.fixture(scope="module")
+def two_camera_folder(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
+    """(dataset of two cameras of different sizes, the folder 'deckpose detect DATASET -o' wrote)."""
+    from deckpose.detect.synthetic_dataset import SyntheticDatasetConfig, write_synthetic_dataset
+
+    root = tmp_path_factory.mktemp("detfolder2")
+    cfg = SyntheticDatasetConfig(cameras=("160x120", "320x240"), heights_m=(30.0,), frames_per_config=1)
+    dataset = Path(write_synthetic_dataset(cfg, root / "two cams"))
+    out = root / "det out"
+    assert main(["detect", str(dataset), "-o", str(out), "--no-progress", "--workers", "0"]) == 0
+    return dataset, out
+
+
+def test_a_table_of_two_cameras_is_not_estimated_with_one(
+        two_camera_folder: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # With one --camera, the other camera's frames were solved with the wrong intrinsics and
+    # looked ok (a 960x540 frame as 640x480: 20 m for a true 30 m); now it is refused.
+    _, out = two_camera_folder
+    for cam in sorted((out / "cameras").glob("*.yaml")):
+        code = main(["estimate", str(out / "detections.parquet"), "--camera", str(cam),
+                     "-o", str(tmp_path / "e.parquet"), "--no-progress"])
+        err = capsys.readouterr().err
+        assert code == exit_codes.USAGE and "2 cameras" in err, err
+        assert not (tmp_path / "e.parquet").exists()
+    # the folder's message offers no table estimate then
+    assert main(["evaluate", str(out)]) == exit_codes.USAGE
+    err = capsys.readouterr().err
+    assert "2 cameras" in err and "from its table alone" not in err
+
+
+def test_a_camera_of_another_size_is_refused(detections_folder: tuple[Path, Path], tmp_path: Path,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    from deckpose.camera import preset
+    from deckpose.camera_info import write_camera_info
+
+    _, out = detections_folder
+    other = tmp_path / "other.yaml"
+    write_camera_info(preset("4mp-thesis").with_size(320, 240), other)
+    code = main(["estimate", str(out / "detections.parquet"), "--camera", str(other),
+                 "-o", str(tmp_path / "e.parquet"), "--no-progress"])
+    err = capsys.readouterr().err
+    assert code == exit_codes.USAGE and "are 160x120" in err and "--camera is 320x240" in err, err
+
+
+def test_detect_names_a_detections_folder_and_refuses_a_dataset_as_output(
+        detections_folder: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    dataset, out = detections_folder
+    assert main(["detect", str(out), "--no-progress"]) == exit_codes.USAGE
+    err = capsys.readouterr().err
+    assert "is a detections folder" in err and str(dataset.resolve()) in err
+    # -o into a rendered dataset wrote its tables beside the dataset's own: refused, nothing written
+    before = sorted(p.name for p in dataset.iterdir())
+    assert main(["detect", str(dataset), "-o", str(dataset), "--no-progress", "--workers", "0"]) == exit_codes.USAGE
+    err = capsys.readouterr().err
+    assert "is a rendered dataset" in err and "without -o" in err
+    assert sorted(p.name for p in dataset.iterdir()) == before

@@ -56,3 +56,31 @@ def test_motion_with_q_prints_the_series_path_only(tmp_path: Path, capsys: pytes
     code, out, err = _run(["-q", "motion", "regular", "-o", str(out_file)], capsys)
     assert code == exit_codes.OK, err
     assert out == f"{out_file}\n" and out_file.is_file()
+
+
+def test_failed_frames_that_fail_the_command_are_errors_also_with_q(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # -q hid why `detect --strict` exited 4 (it printed only the path); the failed frames are
+    # now printed on stderr when they fail the command, and not when it succeeds
+    import shutil
+
+    from deckpose.detect.synthetic_dataset import SyntheticDatasetConfig, write_synthetic_dataset
+
+    cfg = SyntheticDatasetConfig(cameras=("160x120",), heights_m=(30.0,), frames_per_config=2)
+    ds = Path(write_synthetic_dataset(cfg, tmp_path / "ds"))
+    image = sorted((ds / "images").iterdir())[0]
+    image.write_bytes(b"not an image")
+    code, out, err = _run(["-q", "detect", str(ds), "--workers", "0", "--strict"], capsys)
+    assert code == exit_codes.SOME_FAILED
+    assert out.strip() == str(ds / "detections" / "cog.parquet")
+    assert "frame 0:" in err and "cannot decode" in err, err
+    code, out, err = _run(["-q", "detect", str(ds), "--workers", "0"], capsys)  # not failing: quiet
+    assert code == exit_codes.OK and err == "", err
+    # estimate lists its failed frames by reason (it printed only the counts), and with -q when
+    # they fail the command
+    shutil.rmtree(ds / "estimates", ignore_errors=True)
+    code, out, err = _run(["estimate", "--run", str(ds), "--method", "pnp", "--no-progress", "--strict"], capsys)
+    assert code == exit_codes.SOME_FAILED
+    assert "1 frame: " in out, out
+    code, out, err = _run(["-q", "estimate", "--run", str(ds), "--method", "pnp", "--strict"], capsys)
+    assert code == exit_codes.SOME_FAILED and "1 frame: " in err, (out, err)
