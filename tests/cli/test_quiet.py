@@ -68,7 +68,7 @@ def test_failed_frames_that_fail_the_command_are_errors_also_with_q(
 
     cfg = SyntheticDatasetConfig(cameras=("160x120",), heights_m=(30.0,), frames_per_config=2)
     ds = Path(write_synthetic_dataset(cfg, tmp_path / "ds"))
-    image = sorted((ds / "images").iterdir())[0]
+    image = min((ds / "images").iterdir())
     image.write_bytes(b"not an image")
     code, out, err = _run(["-q", "detect", str(ds), "--workers", "0", "--strict"], capsys)
     assert code == exit_codes.SOME_FAILED
