@@ -194,6 +194,8 @@ _SECTIONS: dict[str, Any] = {
 
 def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
     """Validate a parsed YAML mapping into a :class:`RenderConfig`."""
+    if doc is None:
+        raise ConfigError(f"{source}: the config is empty; start from one in configs/ (e.g. configs/smoke.yaml)")
     if not isinstance(doc, dict):
         raise ConfigError(f"{source}: expected a YAML mapping at the top level")
     if "approach" in doc:

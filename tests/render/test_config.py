@@ -156,3 +156,12 @@ def test_frame_ids_and_seeds_are_a_function_of_the_config() -> None:
     assert [f.frame_id for f in a] == list(range(len(a))) == [f.frame_id for f in b]
     assert [f.seed for f in a] == [f.seed for f in b]
     assert len({f.seed for f in a}) == len(a)
+
+
+def test_an_empty_config_says_it_is_empty(tmp_path: Path) -> None:
+    # it said "expected a YAML mapping at the top level", which does not tell an empty file
+    empty = tmp_path / "empty.yaml"
+    empty.write_text("")
+    with pytest.raises(ConfigError, match="the config is empty"):
+        load_config(empty)
+    assert (REPO / "configs" / "smoke.yaml").is_file()  # the config the message names
