@@ -34,7 +34,7 @@ import functools
 import math
 
 import numpy as np
-from deckpose.detect.background import MAD_TO_SIGMA
+from deckpose.detect.background import MAD_TO_SIGMA, noise_floor_dn
 from scipy.special import erf
 
 __all__ = ["COLOUR_SIGMAS", "LEAST_SHARE", "SIGMA_MIN_PX", "min_neighbour_ratio", "point_defects"]
@@ -156,7 +156,14 @@ def point_defects(image: np.ndarray, centres_px: np.ndarray, search_px: int = 2)
     # faint spot's peak pixel is a noise spike, and its neighbours' deficit is noise too
     half = 0.5 * min_neighbour_ratio(SIGMA_MIN_PX)
     s_border = border.sum(axis=2)
-    sigma_s = MAD_TO_SIGMA * np.median(np.abs(s_border - np.median(s_border, axis=1, keepdims=True)), axis=1)
+    # at least the thresholds' noise floor (an integer image: 1 DN per channel): on a quantised
+    # dark background most border pixels hold the same value, their MAD is 0, and every faint
+    # beacon's noisy peak pixel looked sharp (an 8-bit frame of the independent generator lost
+    # 3 beacons of 1,900-3,700 e that way)
+    floor_dn = noise_floor_dn(image)
+    sigma_s = np.maximum(
+        MAD_TO_SIGMA * np.median(np.abs(s_border - np.median(s_border, axis=1, keepdims=True)), axis=1),
+        floor_dn)
     sharp = (half * peak - neighbours) > SHARP_SIGMAS * sigma_s * math.sqrt(half**2 + 8.0)
     if excess.shape[3] == 1:
         return sharp
@@ -177,7 +184,7 @@ def point_defects(image: np.ndarray, centres_px: np.ndarray, search_px: int = 2)
     # window border, over the template's norm). A faint or broad spot's colour is too noisy
     # to judge: it stays a spot.
     mad = np.median(np.abs(border - np.median(border, axis=1, keepdims=True)), axis=1)  # (n, C)
-    var_c = (MAD_TO_SIGMA * mad) ** 2
+    var_c = np.maximum((MAD_TO_SIGMA * mad) ** 2, floor_dn**2 / excess.shape[3])  # the floor per channel
     var_own = var_c[np.arange(n), strongest]
     var_others = var_c.sum(axis=1) - var_own
     # The template is itself noisy, which biases every slope toward 0 (toward "one colour")

@@ -288,3 +288,27 @@ def test_a_failure_after_a_cut_says_so() -> None:
                        options=DetectorOptions(gain_dn_per_e=1.0, max_blobs=20))
     assert not res.ok
     assert "max_blobs=20: kept the 20 most significant" in res.reason, res.reason
+
+
+
+def test_a_faint_spot_on_a_quantised_background_is_no_defect():
+    # An 8-bit frame whose dark background is 2 DN with under half a DN of noise: most border
+    # pixels hold the same value, so their MAD (the noise estimate) was 0, and a faint, broad
+    # beacon's noisy profile looked sharp or one-coloured (the independent generator's 8-bit
+    # frames lost 3 beacons of 1,900-3,700 e that way; here 10 of 20 draws were called
+    # defects). The noise is now at least the thresholds' floor (1 DN per channel on an
+    # integer image); a real hot pixel beside it still is one, in every draw.
+    H, W = 64, 96
+    vv, uu = np.mgrid[0:H, 0:W]
+    spot = 0.8 * np.exp(-((uu - 30.3) ** 2 + (vv - 31.6) ** 2) / (2 * 2.0**2))  # peak 0.8 DN, sigma 2 px
+    called = []
+    for seed in range(20):
+        rng = np.random.default_rng(seed)
+        img = np.empty((H, W, 3))
+        for ch, level in enumerate((1.0, 1.0, 0.9)):  # a white ring beacon's colour
+            img[..., ch] = 2.0 + level * spot + rng.normal(0.0, 0.3, (H, W))
+        img = np.clip(np.round(img), 0, 255).astype(np.uint8)
+        # a hot green photosite at (70, 30), bilinearly demosaiced: its 3x3 in one channel only
+        img[29:32, 69:72, 1] = np.array([[40, 80, 40], [80, 160, 80], [40, 80, 40]], np.uint8)
+        called.append(point_defects(img, np.array([[30.0, 32.0], [70.0, 30.0]])).tolist())
+    assert all(c == [False, True] for c in called), called
