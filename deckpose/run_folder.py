@@ -24,6 +24,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import shlex
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -324,7 +325,7 @@ def check_detections_camera(detections: str | os.PathLike[str], camera: CameraMo
             raise InputDataError(
                 f"{detections}: its frames are {own.width_px}x{own.height_px} (camera {name}), but "
                 f"--camera is {camera.width_px}x{camera.height_px}; give the camera that took them: "
-                f"--camera {deckpose_command(root / str(rel)).removeprefix('deckpose ')}")
+                f"--camera {shlex.quote(os.fspath(root / str(rel)))}")
 
 
 def read_manifest(run: RunPaths) -> dict[str, Any]:
