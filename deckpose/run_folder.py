@@ -35,7 +35,7 @@ import pandas as pd
 from deckpose.camera import CameraModel
 from deckpose.camera_info import camera_to_dict, read_camera_info
 from deckpose.errors import CameraFileError, InputDataError
-from deckpose.layout import DeckLayout, layout_from_dict, layout_to_dict
+from deckpose.layout import DeckLayout, layout_from_dict
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.shell_command import deckpose_command
 from deckpose.table_schemas import (
@@ -257,6 +257,54 @@ def detections_folder_record(root: str | os.PathLike[str]) -> dict[str, Any] | N
     return record if isinstance(record, dict) and record.get("format") == DETECTIONS_FORMAT else None
 
 
+@dataclass(frozen=True)
+class DetectionsFolder:
+    """A detections folder (``deckpose detect -o DIR``) as its record describes it.
+
+    Attributes
+    ----------
+    root : Path
+        The folder.
+    detections : Path
+        Its detections table.
+    camera_files : dict of str to Path
+        Each camera's camera_info file, by camera name (one per camera its frames came from).
+    layout : DeckLayout
+        The deck layout the frames were identified with.
+    detector, source, source_kind : str
+        The detector, the folder or dataset it detected, and ``"dataset"`` or ``"images"``.
+    """
+
+    root: Path
+    detections: Path
+    camera_files: dict[str, Path]
+    layout: DeckLayout
+    detector: str
+    source: str
+    source_kind: str
+
+
+def read_detections_folder(root: str | os.PathLike[str]) -> DetectionsFolder | None:
+    """The detections folder at ``root``; None where ``root`` holds no :data:`DETECT_RECORD`.
+
+    Raises
+    ------
+    ConfigError
+        The record's layout is not a valid layout.
+    """
+    record = detections_folder_record(root)
+    if record is None:
+        return None
+    root = Path(root)
+    cameras = record.get("cameras") or {}
+    return DetectionsFolder(
+        root=root, detections=root / str(record.get("detections", "detections.parquet")),
+        camera_files={str(name): root / str(rel) for name, rel in cameras.items()},
+        layout=layout_from_dict(record.get("layout"), f"{root / DETECT_RECORD}: layout"),
+        detector=str(record.get("detector", "cog")), source=str(record.get("source", "SOURCE")),
+        source_kind=str(record.get("source_kind", "")))
+
+
 def detections_folder_message(root: str | os.PathLike[str], record: dict[str, Any]) -> str:
     """What a detections folder is, and what to run instead of giving it where a run folder is needed.
 
@@ -271,11 +319,7 @@ def detections_folder_message(root: str | os.PathLike[str], record: dict[str, An
     detector = str(record.get("detector", "cog"))
     source = str(record.get("source", "SOURCE"))
     cameras = record.get("cameras") or {}
-    camera = (root / str(next(iter(cameras.values())))) if len(cameras) == 1 else root / "cameras" / "CAMERA.yaml"
-    table = deckpose_command("estimate", root / str(record.get("detections", "detections.parquet")),
-                             "--camera", camera, "-o", "estimates.parquet",
-                             *(() if record.get("layout") in (None, layout_to_dict(DeckLayout()))
-                               else ("--layout", "LAYOUT.yaml")))
+    table = deckpose_command("estimate", root)
     what = (f"{root} is a detections folder: 'deckpose detect -o' wrote {detector}'s detections of "
             f"{source} there; it holds no frames or ground truth, so it is not a run folder")
     alone = (f"; or estimate from its table alone: {table}" if len(cameras) <= 1 else
@@ -286,6 +330,15 @@ def detections_folder_message(root: str | os.PathLike[str], record: dict[str, An
     return (f"{what}. Detect into the dataset itself (without -o) and give the dataset to this "
             f"command, e.g.: {deckpose_command('detect', source, '--detector', detector)} then "
             f"{deckpose_command('estimate', '--run', source, '--detector', detector)}{alone}")
+
+
+def several_cameras_message(folder: DetectionsFolder) -> str:
+    """Why a detections folder of several cameras' frames cannot be estimated as one table, and what to run."""
+    names = ", ".join(sorted(folder.camera_files))
+    return (f"{folder.root}: its frames come from {len(folder.camera_files)} cameras ({names}), and one "
+            "table estimate takes one camera, so the others' frames would be solved with the wrong camera. "
+            f"Detect into the dataset itself and estimate it as a run: {deckpose_command('detect', folder.source)} "
+            f"then {deckpose_command('estimate', '--run', folder.source)}")
 
 
 def check_detections_camera(detections: str | os.PathLike[str], camera: CameraModel) -> None:
@@ -302,30 +355,22 @@ def check_detections_camera(detections: str | os.PathLike[str], camera: CameraMo
     InputDataError
         The folder's frames come from several cameras, or from one of another image size.
     """
-    root = Path(detections).parent
-    record = detections_folder_record(root)
-    if record is None:
+    folder = read_detections_folder(Path(detections).parent)
+    if folder is None:
         return
-    cameras = record.get("cameras") or {}
-    if len(cameras) > 1:
-        names = ", ".join(sorted(map(str, cameras)))
-        source = str(record.get("source", "SOURCE"))
-        raise InputDataError(
-            f"{detections}: its frames come from {len(cameras)} cameras ({names}), and --camera gives "
-            "one, so the others' frames would be solved with the wrong camera. Detect into the dataset "
-            f"itself and estimate it as a run: {deckpose_command('detect', source)} then "
-            f"{deckpose_command('estimate', '--run', source)}")
-    if len(cameras) == 1:
-        name, rel = next(iter(cameras.items()))
+    if len(folder.camera_files) > 1:
+        raise InputDataError(several_cameras_message(folder))
+    if len(folder.camera_files) == 1:
+        name, path = next(iter(folder.camera_files.items()))
         try:
-            own = read_camera_info(root / str(rel))
+            own = read_camera_info(path)
         except CameraFileError:  # an unreadable record camera: nothing to compare with
             return
         if (own.width_px, own.height_px) != (camera.width_px, camera.height_px):
             raise InputDataError(
                 f"{detections}: its frames are {own.width_px}x{own.height_px} (camera {name}), but "
                 f"--camera is {camera.width_px}x{camera.height_px}; give the camera that took them: "
-                f"--camera {shlex.quote(os.fspath(root / str(rel)))}")
+                f"--camera {shlex.quote(os.fspath(path))}")
 
 
 def read_manifest(run: RunPaths) -> dict[str, Any]:

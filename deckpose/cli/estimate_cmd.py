@@ -33,7 +33,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         ),
         formatter_class=HelpFormatter,
     )
-    p.add_argument("detections", type=Path, nargs="?", help="detections table (.csv or .parquet)")
+    p.add_argument("detections", type=Path, nargs="?",
+                   help="detections table (.csv or .parquet), or a folder 'deckpose detect -o' wrote (its table, "
+                   "its camera and its layout; the estimates go to FOLDER/estimates.parquet unless -o says)")
     p.add_argument("--camera", type=Path, help="the camera: a ROS camera_info YAML, a 'ros2 topic echo' "
                    "CameraInfo or an OpenCV FileStorage YAML; models plumb_bob, rational_polynomial and "
                    "equidistant (fisheye; in FileStorage: fisheye_model: 1)")
@@ -80,7 +82,11 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.estimate.run import EstimateRunResult, estimate_table
     from deckpose.layout import DeckLayout, read_layout
     from deckpose.output_folder import ensure_writable
-    from deckpose.run_folder import check_detections_camera
+    from deckpose.run_folder import (
+        check_detections_camera,
+        read_detections_folder,
+        several_cameras_message,
+    )
     from deckpose.sequence_run import estimate_run_with_prior
     from deckpose.tables import read_table, write_table
 
@@ -96,9 +102,28 @@ def run(args: argparse.Namespace) -> int:
     else:
         if args.no_prior:
             raise ConfigError("--no-prior applies to --run RUN (a table alone has no time sequence); drop it")
-        if args.detections is None or args.camera is None or args.output is None:
-            raise ConfigError("give DETECTIONS --camera CAMERA.yaml -o OUTPUT, or --run RUN --detector NAME")
-        layout = read_layout(args.layout) if getattr(args, "layout", None) else DeckLayout()
+        detections, camera_file, output = args.detections, args.camera, args.output
+        folder = None
+        if detections is not None and detections.is_dir():
+            folder = read_detections_folder(detections)
+            if folder is None:
+                raise InputDataError(_not_a_detections_folder(detections))
+            detections = folder.detections
+            if camera_file is None:
+                if len(folder.camera_files) > 1:
+                    raise InputDataError(several_cameras_message(folder))
+                camera_file = next(iter(folder.camera_files.values()), None)
+            output = folder.root / "estimates.parquet" if output is None else output
+        elif detections is not None:  # a table beside its folder's record: the folder's layout
+            folder = read_detections_folder(detections.parent)
+            folder = folder if folder is not None and folder.detections.name == detections.name else None
+        if detections is None or camera_file is None or output is None:
+            raise ConfigError("give DETECTIONS --camera CAMERA.yaml -o OUTPUT (or a folder 'deckpose detect -o' "
+                              "wrote), or --run RUN --detector NAME")
+        if getattr(args, "layout", None):
+            layout = read_layout(args.layout)
+        else:  # the layout the folder's frames were identified with, else the default
+            layout = folder.layout if folder is not None else DeckLayout()
         if args.radius is not None:
             if not args.radius > 0:
                 raise ConfigError(f"--radius must be positive, got {args.radius}")
@@ -107,24 +132,36 @@ def run(args: argparse.Namespace) -> int:
                     f"--radius {args.radius:g} m is not larger than a beacon ({layout.beacon_radius_m:g} m); "
                     "give the ring's radius in metres, or a --layout file")
             layout = dataclasses.replace(layout, radius_m=float(args.radius))
-        camera = read_camera_info(args.camera)
-        check_detections_camera(args.detections, camera)
-        out = Path(args.output)
+        camera = read_camera_info(camera_file)
+        check_detections_camera(detections, camera)
+        out = Path(output)
         ensure_writable(out.parent)  # before the work, not after it
-        table = read_table(args.detections, "detections")
+        table = read_table(detections, "detections")
         if table.empty:
-            raise InputDataError(f"{args.detections} holds no detections (a header without rows); give a table "
+            raise InputDataError(f"{detections} holds no detections (a header without rows); give a table "
                                  "with one row per detected beacon: frame_id, beacon_id, u_px, v_px")
         n_frames = table["frame_id"].nunique() if "frame_id" in table.columns else None
         with frame_bar(f"estimate ({spec.label})", enabled=not args.no_progress, total=n_frames) as bar:
             df = estimate_table(table, camera, layout, spec, sigma_px=args.sigma_px,
-                                source=str(args.detections), progress=bar.update)
+                                source=str(detections), progress=bar.update)
         write_table(df, out, "estimates")
         res = EstimateRunResult(out, df)
     wrote(args, res.path, res.summary() + _mean_note(res.table))
     code = frames_exit_code(res.n_frames, res.n_ok, strict=args.strict)
     failures(args, _failure_lines(res.table), failing=code != 0)
     return code
+
+
+def _not_a_detections_folder(path: Path) -> str:
+    """What to give instead of a folder that 'deckpose detect -o' did not write."""
+    from deckpose.run_folder import DETECT_RECORD, run_paths
+    from deckpose.shell_command import deckpose_command
+
+    if run_paths(path).manifest.is_file():
+        return (f"{path} is a run folder, not a detections table: estimate it as a run, "
+                f"{deckpose_command('estimate', '--run', path)}")
+    return (f"{path} is a folder without {DETECT_RECORD}, so not one 'deckpose detect -o' wrote; give a "
+            "detections table (.csv or .parquet) with --camera CAMERA.yaml -o OUTPUT, or that folder")
 
 
 #: At most this many distinct reasons are listed for the frames that were not ok.

@@ -9,6 +9,7 @@ from __future__ import annotations
 import shlex
 from pathlib import Path
 
+import pandas as pd
 import pytest
 
 from deckpose.cli import exit_codes, main
@@ -41,13 +42,10 @@ def test_a_detections_folder_is_named_with_what_to_run_instead(
     assert f"{out} is a detections folder" in err and str(dataset.resolve()) in err
     assert "deckpose render" not in err  # no longer: render into it
     # the suggested commands come back from a shell as they were meant: detect into the dataset,
-    # or estimate from the folder's table with its camera
+    # or estimate from the folder (its table, camera and layout)
     detect_cmd = err.split("to this command, e.g.: ", 1)[1].split(" then ", 1)[0]
     assert shlex.split(detect_cmd) == ["deckpose", "detect", str(dataset.resolve()), "--detector", "cog"]
-    table_cmd = shlex.split(err.split("from its table alone: ", 1)[1])
-    assert table_cmd[:3] == ["deckpose", "estimate", str(out / "detections.parquet")]
-    camera = Path(table_cmd[table_cmd.index("--camera") + 1])
-    assert camera.parent == out / "cameras" and camera.is_file()
+    assert shlex.split(err.split("from its table alone: ", 1)[1]) == ["deckpose", "estimate", str(out)]
 
 
 def test_the_suggested_table_estimate_runs(detections_folder: tuple[Path, Path], tmp_path: Path,
@@ -55,10 +53,75 @@ def test_the_suggested_table_estimate_runs(detections_folder: tuple[Path, Path],
     _, out = detections_folder
     assert main(["evaluate", str(out)]) == exit_codes.USAGE
     suggested = shlex.split(capsys.readouterr().err.split("from its table alone: ", 1)[1])
-    estimates = tmp_path / "estimates.parquet"
-    suggested[suggested.index("-o") + 1] = str(estimates)
+    estimates = out / "estimates.parquet"  # the folder form's default output
+    estimates.unlink(missing_ok=True)
     assert main([*suggested[1:], "--no-progress"]) == exit_codes.OK
     assert estimates.is_file()
+    # the same as the table form with the folder's camera
+    camera = next((out / "cameras").glob("*.yaml"))
+    explicit = tmp_path / "explicit.parquet"
+    assert main(["estimate", str(out / "detections.parquet"), "--camera", str(camera), "-o", str(explicit),
+                 "--no-progress"]) == exit_codes.OK
+    pd.testing.assert_frame_equal(pd.read_parquet(estimates), pd.read_parquet(explicit))
+
+
+def test_a_folder_is_estimated_with_the_layout_its_frames_had(tmp_path: Path) -> None:
+    # A detections folder of a deck whose ring is 6 m, not the default 10 m: given the folder (or its
+    # table), estimate uses the recorded layout. Before, the table alone was solved on the default
+    # ring, which scales the pose: the heights came out 10/6 too large and ok.
+    import yaml
+
+    from deckpose.detect.synthetic_dataset import SyntheticDatasetConfig, write_synthetic_dataset
+    from deckpose.layout import DeckLayout, layout_to_dict
+
+    layout = DeckLayout(radius_m=6.0)
+    cfg = SyntheticDatasetConfig(cameras=("320x240",), heights_m=(30.0,), frames_per_config=2, layout=layout)
+    dataset = Path(write_synthetic_dataset(cfg, tmp_path / "ds"))
+    out = tmp_path / "det"
+    assert main(["detect", str(dataset), "-o", str(out), "--no-progress", "--workers", "0"]) == exit_codes.OK
+    assert main(["estimate", str(out), "--no-progress"]) == exit_codes.OK
+    folder = pd.read_parquet(out / "estimates.parquet")
+    camera = next((out / "cameras").glob("*.yaml"))
+    layout_file = tmp_path / "layout.yaml"
+    layout_file.write_text(yaml.safe_dump(layout_to_dict(layout)))
+    runs = {}
+    for name, extra in (("explicit", ["--layout", str(layout_file)]), ("table", []),
+                        ("default", ["--layout", str(_default_layout_file(tmp_path))])):
+        path = tmp_path / f"{name}.parquet"
+        assert main(["estimate", str(out / "detections.parquet"), "--camera", str(camera), "-o", str(path),
+                     "--no-progress", *extra]) == exit_codes.OK
+        runs[name] = pd.read_parquet(path)
+    assert folder["ok"].all()
+    pd.testing.assert_frame_equal(folder, runs["explicit"])
+    pd.testing.assert_frame_equal(runs["table"], runs["explicit"])
+    # the default ring gives heights scaled by the radii's ratio (the check above can fail)
+    ratio = runs["default"]["height_m"].to_numpy() / folder["height_m"].to_numpy()
+    assert ratio == pytest.approx(10.0 / 6.0, rel=1e-3)
+
+
+def _default_layout_file(tmp_path: Path) -> Path:
+    import yaml
+
+    from deckpose.layout import DeckLayout, layout_to_dict
+
+    path = tmp_path / "default_layout.yaml"
+    path.write_text(yaml.safe_dump(layout_to_dict(DeckLayout())))
+    return path
+
+
+def test_estimate_names_a_folder_that_is_not_a_detections_folder(
+        detections_folder: tuple[Path, Path], tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    dataset, _ = detections_folder
+    assert main(["estimate", str(dataset), "--no-progress"]) == exit_codes.USAGE
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "is a run folder" in err
+    assert shlex.split(err.split("estimate it as a run, ", 1)[1]) == ["deckpose", "estimate", "--run", str(dataset)]
+    empty = tmp_path / "empty dir"
+    empty.mkdir()
+    assert main(["estimate", str(empty), "--no-progress"]) == exit_codes.USAGE
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "without detect_run.json" in err
+    assert not list(empty.iterdir())
 
 
 @pytest.fixture(scope="module")
@@ -85,6 +148,10 @@ def test_a_table_of_two_cameras_is_not_estimated_with_one(
         err = capsys.readouterr().err
         assert code == exit_codes.USAGE and "2 cameras" in err, err
         assert not (tmp_path / "e.parquet").exists()
+    # nor given as the folder, without a camera
+    assert main(["estimate", str(out), "--no-progress"]) == exit_codes.USAGE
+    err = capsys.readouterr().err
+    assert "2 cameras" in err and not (out / "estimates.parquet").exists()
     # the folder's message offers no table estimate then
     assert main(["evaluate", str(out)]) == exit_codes.USAGE
     err = capsys.readouterr().err
