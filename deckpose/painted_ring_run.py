@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from deckpose.counted import counted
 from deckpose.errors import InputDataError
 from deckpose.painted_ring import PaintedRing, painted_ring_from_dict
 from deckpose.run_folder import RING_DETECTOR, RunPaths, read_cameras, read_frames
@@ -51,7 +52,7 @@ class PaintedRingRunResult:
     n_ok: int
 
     def summary(self) -> str:
-        return (f"painted ring: {self.n_detected} of {self.n_frames} frames detected, {self.n_ok} estimated ok; "
+        return (f"painted ring: {self.n_detected} of {counted(self.n_frames, 'frame')} detected, {self.n_ok} estimated ok; "
                 f"{self.estimates}")
 
 

@@ -32,6 +32,7 @@ from deckpose.detect.tables import detection_rows, write_tables
 from deckpose.atomic_io import atomic_open
 from deckpose.camera import CameraModel
 from deckpose.camera_info import write_camera_info
+from deckpose.counted import counted
 from deckpose.errors import ConfigError, InputDataError
 from deckpose.layout import DeckLayout, layout_to_dict
 from deckpose.records import Frame
@@ -69,7 +70,7 @@ class DetectRunResult:
 
     def summary(self) -> str:
         """One line: frames, how many ok, detections, where they went."""
-        return f"{len(self.frames)} frames, {self.n_ok} ok, {len(self.detections)} detections -> {self.path}"
+        return f"{counted(len(self.frames), 'frame')}, {self.n_ok} ok, {counted(len(self.detections), 'detection')} -> {self.path}"
 
 
 def detect_run(

@@ -21,6 +21,7 @@ from deckpose.estimate.registry import EstimateOptions, MethodSpec
 from deckpose.estimate.results_table import estimates_frame
 
 from deckpose.camera import CameraModel
+from deckpose.counted import counted
 from deckpose.errors import ConfigError, InputDataError
 from deckpose.layout import DeckLayout
 from deckpose.records import Detections, PoseEstimate
@@ -61,7 +62,7 @@ class EstimateRunResult:
 
     def summary(self) -> str:
         """One line: frames, how many ok and failed, where they went."""
-        return f"{self.n_frames} frames, {self.n_ok} ok, {self.n_frames - self.n_ok} failed -> {self.path}"
+        return f"{counted(self.n_frames, 'frame')}, {self.n_ok} ok, {self.n_frames - self.n_ok} failed -> {self.path}"
 
 
 def method_options(spec: MethodSpec, sigma_px: float = 1.0) -> EstimateOptions:

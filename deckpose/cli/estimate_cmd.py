@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 from deckpose.cli.common_options import HelpFormatter, add_progress, frame_bar
 from deckpose.cli.console import failures, wrote
 from deckpose.cli.exit_codes import frames_exit_code
+from deckpose.counted import counted
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -173,7 +174,7 @@ def _failure_lines(df: pd.DataFrame) -> list[str]:
     if "ok" not in df.columns or "reason" not in df.columns:
         return []
     counts = df.loc[~df["ok"].astype(bool), "reason"].fillna("").astype(str).value_counts()
-    lines = [f"  {n} frame{'s' if n != 1 else ''}: {reason or 'no reason given'}"
+    lines = [f"  {counted(n, 'frame')}: {reason or 'no reason given'}"
              for reason, n in counts.head(MAX_REASONS).items()]
     if len(counts) > MAX_REASONS:
         lines.append(f"  ... and {len(counts) - MAX_REASONS} other reasons (the table's reason column)")

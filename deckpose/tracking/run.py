@@ -26,6 +26,7 @@ from numpy.typing import NDArray
 
 from deckpose.atomic_io import atomic_open
 from deckpose.capture_time import capture_epoch, log_stamps
+from deckpose.counted import counted
 from deckpose.errors import ConfigError, InputDataError
 from deckpose.output_folder import ensure_writable
 from deckpose.records import POSE_PARAMS
@@ -76,7 +77,7 @@ class TrackRunResult:
         """One line: frames and sequences, how the estimates were used, where they went."""
         st = self.table["status"].value_counts()
         n_seq = self.table["sequence"].nunique()
-        return (f"{len(self.table)} frames in {n_seq} sequence(s): {int(st.get('updated', 0))} updated, "
+        return (f"{counted(len(self.table), 'frame')} in {counted(n_seq, 'sequence')}: {int(st.get('updated', 0))} updated, "
                 f"{int(st.get('gated', 0))} gated out, {int(st.get('skipped', 0))} skipped (no usable estimate) "
                 f"-> {self.path}")
 

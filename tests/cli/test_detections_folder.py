@@ -68,10 +68,10 @@ def test_the_suggested_table_estimate_runs(detections_folder: tuple[Path, Path],
 def test_a_folder_is_estimated_with_the_layout_its_frames_had(tmp_path: Path) -> None:
     # A detections folder of a deck whose ring is 6 m, not the default 10 m: given the folder (or its
     # table), estimate uses the recorded layout. Before, the table alone was solved on the default
-    # ring, which scales the pose: the heights came out 10/6 too large and ok.
+    # ring, which scales the pose: the heights came out 10/6 too large.
     import yaml
-
     from deckpose.detect.synthetic_dataset import SyntheticDatasetConfig, write_synthetic_dataset
+
     from deckpose.layout import DeckLayout, layout_to_dict
 
     layout = DeckLayout(radius_m=6.0)

@@ -16,7 +16,7 @@ def test_track_writes_what_the_api_computes(tmp_path, capsys):
     frames, est = write_run(tmp_path / "run", duration_s=5.0, not_ok=(7,))
     assert main(["track", str(tmp_path / "run"), "--no-progress", "--horizons", "1,3"]) == 0
     out = capsys.readouterr().out
-    assert "51 frames in 1 sequence(s): 50 updated, 0 gated out, 1 skipped" in out
+    assert "51 frames in 1 sequence: 50 updated, 0 gated out, 1 skipped" in out
     paths = run_paths(tmp_path / "run")
     got = read_table(paths.tracks("cog", "pnp", "wave-bank"), "tracks")
     want, want_pred = track_table(frames, est, TrackConfig(horizons_s=(1.0, 3.0)))

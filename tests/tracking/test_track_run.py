@@ -74,7 +74,7 @@ def test_track_run_writes_the_tables_and_the_record(tmp_path):
     # the record's config reads back as the same config
     (tmp_path / "again.yaml").write_text(json.dumps(rec["config"]))
     assert load_track_config(tmp_path / "again.yaml") == TrackConfig()
-    assert "51 frames in 1 sequence(s): 51 updated" in res.summary()
+    assert "51 frames in 1 sequence: 51 updated" in res.summary()
 
 
 def test_which_estimates_and_bad_configs_are_one_line_errors(tmp_path):
