@@ -12,4 +12,10 @@ if command -v node >/dev/null 2>&1; then
 else
   echo "[deckpose] node (Node.js) not found: skipping the pyright type check (scripts/typecheck.sh)" >&2
 fi
+# one pytest worker per core, up to 4 (pytest-xdist; a module's tests stay on one worker, so its
+# module-scoped fixtures are built once); DECKPOSE_TEST_WORKERS=0 runs them in this process
+workers="${DECKPOSE_TEST_WORKERS:-$(.venv/bin/python -c 'import os; print(min(4, len(os.sched_getaffinity(0))))')}"
+if [ "$workers" -gt 1 ] && .venv/bin/python -c "import xdist" 2>/dev/null; then
+  exec .venv/bin/python -m pytest -n "$workers" --dist loadscope "$@"
+fi
 exec .venv/bin/python -m pytest "$@"

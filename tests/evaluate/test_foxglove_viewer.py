@@ -37,8 +37,8 @@ pytestmark = pytest.mark.skipif(
 def _view(run: Path, out: Path):
     env = {**os.environ, "CHROMIUM": str(CHROMIUM)}
     r = subprocess.run([str(NODE), str(TOOL / "view.mjs"), str(run / "log.mcap"),
-                        str(run / "foxglove_layout.json"), str(out), "--timeout-s", "60"],
-                       capture_output=True, text=True, timeout=150, check=False, env=env)
+                        str(run / "foxglove_layout.json"), str(out), "--timeout-s", "150"],
+                       capture_output=True, text=True, timeout=300, check=False, env=env)
     assert r.returncode == 0, r.stdout + r.stderr
     report = json.loads((out / "report.json").read_text())
     shot = cv2.imread(str(out / "screenshot.png"), cv2.IMREAD_COLOR)
