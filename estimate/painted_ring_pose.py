@@ -14,7 +14,7 @@
    lies at ``r_inner - w / 2``, the outer at ``r_outer + w / 2``, ``w`` the width's excess
    over its nominal value. Painted lines are not exactly their nominal width, and the model
    fit of the edge pixels places both edges of a ring on a textured deck slightly toward
-   the paint (on average up to 0.14-0.19 of a point's bound by day at 1 and 8 MP,
+   the paint (on average up to 0.14 of a point's bound by day at 1 and 8 MP,
    0.002-0.005 px at 1 MP; under 0.04 of a bound on a flat deck; reports/painted_circle):
    with the width fixed, the bow gap (the edges' arcs are not whole) passes that narrowing
    into pitch and surge, and the two edges' opposite offsets into height. With it free, neither moves them; it costs the pose's bound under
