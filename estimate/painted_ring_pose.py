@@ -10,6 +10,15 @@
    residual is ``(rho - r_edge) / |grad rho|``, its distance from the projected edge circle in
    pixels to first order (``grad rho`` in metres per pixel, taken at the linearisation pose);
    the bow mark adds the mean deck angle of its two ends (0 at the bow) over its sigma.
+   The line's width is a seventh, nuisance parameter (:data:`FREE_WIDTH`): the inner edge
+   lies at ``r_inner - w / 2``, the outer at ``r_outer + w / 2``, ``w`` the width's excess
+   over its nominal value. Painted lines are not exactly their nominal width, and the model
+   fit of the edge pixels places both edges of a ring on a textured deck slightly toward
+   the paint (on average up to 0.14 of a point's bound by day at 1 and 8 MP,
+   0.002-0.005 px at 1 MP; under 0.04 of a bound on a flat deck; reports/painted_circle):
+   with the width fixed, the bow gap (the edges' arcs are not whole) passes that narrowing
+   into pitch and surge, and the two edges' opposite offsets into height. With it free, neither moves them; it costs the pose's bound under
+   0.5 % (the width is fixed by the two edges' difference, nearly orthogonal to the pose).
    Each point's residual is whitened by its sigma: its own Cramér–Rao bound
    (:attr:`RingDetection.inner_crb_px <deckpose.ring_detection.RingDetection>`, the model fit
    of its pixels) times its edge's measured excess, the RMS of the points' distances from
@@ -71,6 +80,8 @@ FloatArray = NDArray[np.float64]
 METHOD = "painted-ring"
 #: A second candidate this close in chi-square at a distinct pose makes the tilt ambiguous.
 AMBIGUITY_CHI2 = 25.0
+#: Whether :func:`estimate_painted_ring` fits the painted line's width (module docstring, step 2).
+FREE_WIDTH = True
 #: Edge points the refinement needs per edge.
 MIN_POINTS = 20
 #: Centre-disc edge points the fit needs to use the disc.
@@ -147,12 +158,18 @@ def _grad_norm(camera: CameraModel, params: FloatArray, R_wc: FloatArray, points
 
 def _residuals(p: FloatArray, R_wc: FloatArray, edges: list[_Edge], end_rays: FloatArray, sig_phi: float
                ) -> FloatArray:
-    """Whitened residuals: each edge point's pixel distance from its edge circle, then the bow angle."""
+    """Whitened residuals: each edge point's pixel distance from its edge circle, then the bow angle.
+
+    ``p`` holds the six pose parameters and, when the line width is free, a seventh: the
+    line's width minus its nominal width, metres (each ring edge moves by half of it).
+    """
+    pose = p[:6]
+    width_m = float(p[6]) if len(p) > 6 else 0.0
     res = []
     for e in edges:
-        xy = _deck_xy(p, R_wc, e.rays)
-        res.append((np.hypot(xy[:, 0], xy[:, 1]) - e.radius_m) / e.m_per_px / e.sigma_px)
-    e_xy = _deck_xy(p, R_wc, end_rays)
+        xy = _deck_xy(pose, R_wc, e.rays)
+        res.append((np.hypot(xy[:, 0], xy[:, 1]) - e.radius_m - e.width_side * width_m) / e.m_per_px / e.sigma_px)
+    e_xy = _deck_xy(pose, R_wc, end_rays)
     ang = np.arctan2(e_xy[:, 1], e_xy[:, 0])
     phi = math.atan2(float(np.sin(ang).sum()), float(np.cos(ang).sum()))  # mean angle of the two ends
     res.append(np.array([phi / sig_phi]))
@@ -169,9 +186,11 @@ class _Edge:
     sigma_px: FloatArray      # (N,) the points' sigma (measured scatter)
     bound_px: FloatArray      # (N,) their Cramér–Rao bound
     m_per_px: FloatArray      # (N,) |grad rho| at the linearisation pose
+    width_side: float = 0.0   # how the edge's radius moves with the line's width: -1/2 inner, +1/2 outer
 
     def at(self, m_per_px: FloatArray) -> _Edge:
-        return _Edge(self.points_px, self.rays, self.radius_m, self.sigma_px, self.bound_px, m_per_px)
+        return _Edge(self.points_px, self.rays, self.radius_m, self.sigma_px, self.bound_px, m_per_px,
+                     self.width_side)
 
 
 def _edges(det: RingDetection, camera: CameraModel, ring: PaintedRing) -> list[_Edge]:
@@ -187,7 +206,7 @@ def _edges(det: RingDetection, camera: CameraModel, ring: PaintedRing) -> list[_
         bnd = [o * det.edge_crb_px / math.sqrt(det.spacing_px[k]) for k, o in enumerate(ones)]
     for k, r in enumerate(ring.edge_radii_m):
         pts = det.edges_px[k]
-        out.append(_Edge(pts, _normalised(camera, pts), r, sig[k], bnd[k], ones[k]))
+        out.append(_Edge(pts, _normalised(camera, pts), r, sig[k], bnd[k], ones[k], (-0.5, 0.5)[k]))
     if (ring.centre_mark is CentreMark.DISC and len(det.disc_px) >= MIN_DISC_POINTS
             and math.isfinite(det.disc_sigma_scale)):
         out.append(_Edge(det.disc_px, _normalised(camera, det.disc_px), ring.centre_radius_m,
@@ -219,7 +238,7 @@ def _failed(det: RingDetection, reason: str) -> PaintedRingPose:
 
 
 def estimate_painted_ring(det: RingDetection, camera: CameraModel, ring: PaintedRing,
-                          R_world_from_cam: FloatArray) -> PaintedRingPose:
+                          R_world_from_cam: FloatArray, *, free_width: bool = FREE_WIDTH) -> PaintedRingPose:
     """Ship pose from a :class:`~deckpose.ring_detection.RingDetection` (module docstring).
 
     Parameters
@@ -229,6 +248,8 @@ def estimate_painted_ring(det: RingDetection, camera: CameraModel, ring: Painted
     ring : PaintedRing
     R_world_from_cam : (3, 3) array of float
         The camera's attitude (known, as for every estimator of deckpose).
+    free_width : bool, keyword-only
+        Fit the painted line's width as a nuisance parameter (module docstring, step 2).
 
     Returns
     -------
@@ -243,10 +264,10 @@ def estimate_painted_ring(det: RingDetection, camera: CameraModel, ring: Painted
     edges = _edges(det, camera, ring)
     if not all(np.all(e.sigma_px > 0) for e in edges):
         return _failed(det, "edge points without scatter: no noise to weigh them by")
-    with_disc = _fit(det, camera, ring, R_wc, edges)
+    with_disc = _fit(det, camera, ring, R_wc, edges, free_width)
     if len(edges) == 2 or not with_disc.estimate.ok:
         return with_disc
-    ring_only = _fit(det, camera, ring, R_wc, edges[:2])
+    ring_only = _fit(det, camera, ring, R_wc, edges[:2], free_width)
     if not ring_only.estimate.ok:
         return with_disc
     stat, dof = disc_consistency(ring_only.estimate, with_disc.estimate)
@@ -285,16 +306,16 @@ def disc_consistency(ring_only: PoseEstimate, with_disc: PoseEstimate) -> tuple[
 
 
 def _fit(det: RingDetection, camera: CameraModel, ring: PaintedRing, R_wc: FloatArray,
-         edges: list[_Edge]) -> PaintedRingPose:
-    """The refinement on ``edges`` (module docstring, steps 1-3)."""
+         edges: list[_Edge], free_width: bool) -> PaintedRingPose:
+    """The refinement on ``edges`` (module docstring, steps 1-3); ``free_width`` adds the line's width."""
     end_rays = _normalised(camera, det.bow_ends_px)
 
     def solve(x0: FloatArray) -> tuple[FloatArray, FloatArray, float, FloatArray]:
         x = x0
         J, cost, r = np.zeros((0, 6)), math.inf, np.zeros(0)
         for _ in range(2):  # the pixel scales at the start, then at the first optimum
-            fit_edges = [e.at(_grad_norm(camera, x, R_wc, e.points_px, "rho")) for e in edges]
-            g_phi = _grad_norm(camera, x, R_wc, det.bow_ends_px, "phi")
+            fit_edges = [e.at(_grad_norm(camera, x[:6], R_wc, e.points_px, "rho")) for e in edges]
+            g_phi = _grad_norm(camera, x[:6], R_wc, det.bow_ends_px, "phi")
             sig_phi = float(det.bow_sigma_px * np.mean(g_phi) / math.sqrt(2.0))
             sol = least_squares(_residuals, x, method="lm", x_scale="jac", args=(R_wc, fit_edges, end_rays, sig_phi))
             x, J, cost = np.asarray(sol.x, np.float64), np.asarray(sol.jac, np.float64), float(sol.cost)
@@ -304,7 +325,8 @@ def _fit(det: RingDetection, camera: CameraModel, ring: PaintedRing, R_wc: Float
     cands = _candidates(det, camera, ring, R_wc)
     if not cands:
         return _failed(det, "the outer edge's conic is not the image of a circle in front of the camera")
-    sols = sorted((solve(c) for c in cands), key=lambda s: s[2])
+    extra = [0.0] if free_width else []
+    sols = sorted((solve(np.concatenate([c, extra])) for c in cands), key=lambda s: s[2])
     x, J, chi2, r = sols[0]
     n_res = sum(len(e.points_px) for e in edges) + 1
     # the bounds' rows: the same Jacobian, each edge row at its point's bound (the bow row unchanged)
@@ -313,11 +335,13 @@ def _fit(det: RingDetection, camera: CameraModel, ring: PaintedRing, R_wc: Float
         cov, bound_corr = _correlated_covariances(J, r, [len(e.points_px) for e in edges], ratio)
     except np.linalg.LinAlgError:
         return _failed(det, "singular normal matrix: the edges do not fix the pose")
-    sig = np.sqrt(np.diag(cov))
+    # the pose's block: the line width, when free, is a nuisance whose uncertainty the pose's includes
+    cov, bound_corr = cov[:6, :6], bound_corr[:6, :6]
+    sig = np.sqrt(np.maximum(np.diag(cov), 0.0))  # (exact points: a variance of roundoff, either sign)
     if len(sols) > 1 and sols[1][2] - chi2 < AMBIGUITY_CHI2:
-        d = sols[1][0] - x
+        d = sols[1][0][:6] - x[:6]
         d[:3] = wrap_angle_rad(d[:3])
-        if np.any(np.abs(d) > 5 * sig):
+        if np.any(np.abs(d) > 5 * sig[:6]):
             return _failed(det, f"ambiguous: both deck planes fit the edges (chi2 {chi2:.0f} and {sols[1][2]:.0f})")
     bound = _bound(J, ratio)
     known = det.known_levels_ratio
@@ -364,11 +388,11 @@ def _correlated_covariances(J: FloatArray, r: FloatArray, sizes: list[int], rati
 
 
 def _bound(J: FloatArray, ratio: FloatArray) -> FloatArray | None:
-    """``(J^T J)^-1`` with each whitened row scaled by ``ratio`` (its sigma over its bound), or None."""
+    """The pose block of ``(J^T J)^-1`` with each whitened row scaled by ``ratio`` (its sigma over its bound), or None."""
     if not np.all(np.isfinite(ratio) & (ratio > 0)):
         return None
     Jb = J * ratio[:, None]
     try:
-        return np.asarray(np.linalg.inv(Jb.T @ Jb), dtype=np.float64)
+        return np.asarray(np.linalg.inv(Jb.T @ Jb)[:6, :6], dtype=np.float64)
     except np.linalg.LinAlgError:
         return None
