@@ -391,18 +391,20 @@ def spot_pedestal(
     fv, fu = np.nonzero(far)
     ang = np.arctan2(fv - vv.mean(), fu - uu.mean())
     sector = ((ang + np.pi) * (PEDESTAL_SECTORS / (2 * np.pi))).astype(int) % PEDESTAL_SECTORS
-    # each sector's percentile, interpolated as np.percentile's default does: the values
-    # sorted by sector and then by value (one lexsort for all the sectors; a partition per
-    # sector cost more in its calls than in its work), each sector's lo-th and hi-th
-    # smallest read at its offset
+    # each sector's percentile, interpolated as np.percentile's default does, by a
+    # partial sort of the sector's values (np.percentile's own overhead was most of the
+    # time for the 13 windows of a frame)
     vals = np.asarray(pixels[fv, fu], float)
-    by = vals[np.lexsort((vals, sector))]
+    order = np.argsort(sector, kind="stable")
     counts = np.bincount(sector, minlength=PEDESTAL_SECTORS)
-    start = np.cumsum(counts) - counts
-    full = counts > 0
-    pos = (PEDESTAL_PERCENTILE / 100.0) * (counts[full] - 1)
-    lo = np.floor(pos).astype(np.intp)
-    hi = np.minimum(lo + 1, counts[full] - 1)
-    v_lo, v_hi = by[start[full] + lo], by[start[full] + hi]
-    levels = v_lo + (v_hi - v_lo) * (pos - lo)
-    return max(border_level_dn, float(levels.max()))
+    groups = np.split(vals[order], np.cumsum(counts)[:-1])
+    levels = []
+    for g in groups:
+        if g.size == 0:
+            continue
+        pos = (PEDESTAL_PERCENTILE / 100.0) * (g.size - 1)
+        lo = math.floor(pos)
+        hi = min(lo + 1, g.size - 1)
+        part = np.partition(g, (lo, hi))
+        levels.append(part[lo] + (part[hi] - part[lo]) * (pos - lo))
+    return max(border_level_dn, float(max(levels)))
