@@ -395,11 +395,9 @@ def spot_pedestal(
     # partial sort of the sector's values (np.percentile's own overhead was most of the
     # time for the 13 windows of a frame)
     vals = np.asarray(pixels[fv, fu], float)
-    order = np.argsort(sector, kind="stable")
-    counts = np.bincount(sector, minlength=PEDESTAL_SECTORS)
-    groups = np.split(vals[order], np.cumsum(counts)[:-1])
     levels = []
-    for g in groups:
+    for k in range(PEDESTAL_SECTORS):
+        g = vals[sector == k]
         if g.size == 0:
             continue
         pos = (PEDESTAL_PERCENTILE / 100.0) * (g.size - 1)
