@@ -130,7 +130,9 @@ def difference_noise(
     return max(s / math.sqrt(2.0), MIN_NOISE_DN)
 
 
-def frame_stats(image: np.ndarray, *, samples: int = 30_000) -> FrameStats:
+def frame_stats(
+    image: np.ndarray, *, samples: int = 30_000, difference_noise_dn: float | None = None
+) -> FrameStats:
     """Background, noise and saturation of a frame from a strided subsample.
 
     Parameters
@@ -138,6 +140,8 @@ def frame_stats(image: np.ndarray, *, samples: int = 30_000) -> FrameStats:
     image : (H, W) or (H, W, 3) array
     samples : int
         About how many pixels to sample.
+    difference_noise_dn : float, optional
+        ``difference_noise(image, samples=samples)`` when the caller has it already, DN.
 
     Returns
     -------
@@ -150,7 +154,9 @@ def frame_stats(image: np.ndarray, *, samples: int = 30_000) -> FrameStats:
     m = mono(sub)
     saturated = (sub >= sat).any(axis=2) if sub.ndim == 3 else sub >= sat
     bg, _ = robust_stats(m)
-    noise = max(difference_noise(image, samples=samples), noise_floor_dn(image))
+    if difference_noise_dn is None:
+        difference_noise_dn = difference_noise(image, samples=samples)
+    noise = max(difference_noise_dn, noise_floor_dn(image))
     return FrameStats(bg, noise, sat, float(saturated.mean()), float(m.max()))
 
 

@@ -225,9 +225,12 @@ class Candidate:
     def mask_moments(self) -> tuple[float, float, float]:
         """Binary centroid ``(u, v)`` and Gaussian-equivalent sigma of the mask, pixels."""
         vv, uu = np.nonzero(self.mask)
-        area = uu.size
-        sigma = math.sqrt(max(area, 1) / math.pi) / 2.0 + 0.3
-        return float(uu.mean() + self.u0), float(vv.mean() + self.v0), sigma
+        return float(uu.mean() + self.u0), float(vv.mean() + self.v0), self.mask_sigma()
+
+    def mask_sigma(self) -> float:
+        """Gaussian-equivalent sigma of the mask, pixels: half its equivalent radius plus 0.3."""
+        area = int(np.count_nonzero(self.mask))
+        return math.sqrt(max(area, 1) / math.pi) / 2.0 + 0.3
 
     def blob(
         self,
@@ -243,7 +246,7 @@ class Candidate:
         The default covariance is that of an intensity-weighted centroid of a
         Gaussian spot of ``size_px`` under this window's noise model.
         """
-        size = self.mask_moments()[2] if size_px is None else float(size_px)
+        size = self.mask_sigma() if size_px is None else float(size_px)
         area = int(self.mask.sum())
         score = float(flux_dn / (self.noise_dn * math.sqrt(max(area, 1))))
         if cov_px2 is None:

@@ -262,7 +262,12 @@ def search_candidates(
     if min(image.shape[:2]) < MIN_FRAME_SIDE_PX:
         return [], (f"image is {image.shape[1]}x{image.shape[0]} px: too small to find beacons in "
                     f"(each side at least {MIN_FRAME_SIDE_PX} px)"), ""
-    st = frame_stats(image)
+    # On an integer mono frame the channel sum is the peak channel, value for value: the
+    # frame statistics' background and difference noise are the bright-spot search's too
+    # (one estimate of each; a float32 frame's peak-channel median is taken in float32)
+    mono_int = image.ndim == 2 and image.dtype.type in (np.uint8, np.uint16, np.int16)
+    shared_noise = difference_noise(image) if mono_int else None
+    st = frame_stats(image, difference_noise_dn=shared_noise)
     problem = frame_problem(st)
     if problem:
         return [], problem, ""
@@ -275,7 +280,8 @@ def search_candidates(
         if options.background_kernel_px > 0:
             search = tophat_spot_search(image, options)
         else:
-            search = spot_search(image, options)
+            search = spot_search(image, options, noise_dn=shared_noise,
+                                 background_dn=st.background_dn if mono_int else None)
         spot_thr, spot_noise = search.threshold_dn, search.noise_dn
     # a 12-bit frame stored in 16 bits clips at 4095, not at the dtype maximum
     sat_dn = st.saturation_dn if search is None else search.saturation_dn

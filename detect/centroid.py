@@ -69,6 +69,7 @@ def cog_centroids(
     tol_px: float = 1e-4,
     *,
     above_floor: bool = True,
+    covariance: bool = True,
 ) -> list[Row | None]:
     """Iterated, soft-windowed intensity centroid of each candidate, (K,) rows (``None`` if degenerate).
 
@@ -89,7 +90,9 @@ def cog_centroids(
     the first pass's, so lit deck reaching into a window around a small housing
     cannot widen the window without end. ``above_floor=False`` keeps the first pass.
     An unclipped spot found by its significance (not ``clip_signal``) is measured
-    through a Gaussian window instead (:func:`_matched_centroid`).
+    through a Gaussian window instead (:func:`_matched_centroid`). ``covariance=False``
+    leaves the disc-window rows' covariances NaN (for a caller that reads the centres,
+    fluxes and sizes alone: they are the same either way).
     """
     if max_iter < 0:
         raise ValueError(f"max_iter must be >= 0, got {max_iter}")
@@ -114,11 +117,16 @@ def cog_centroids(
         sigma_max = 0.5 * min(h, w) / window_sigma + 1.0
         disc.append(i)
         signals.append(s_full)
-        starts.append((u, v, cand.mask_moments()[2], sigma_max))
+        starts.append((u, v, cand.mask_sigma(), sigma_max))
     if not disc:
         return rows
+    # a first pass that a second one replaces (below) needs no covariance
+    measured_again = [above_floor and cands[i].clip_signal and not cands[i].saturated[cands[i].mask].any()
+                      for i in disc]
     first = _windowed_centroids([cands[i] for i in disc], signals, np.array(starts),
-                                window_sigma, max_iter, tol_px)
+                                window_sigma, max_iter, tol_px,
+                                with_cov=covariance and not all(measured_again),
+                                cov_of=np.array([covariance and not a for a in measured_again]))
     again: list[int] = []
     floors: list[np.ndarray] = []
     restarts: list[tuple[float, float, float, float]] = []
@@ -133,7 +141,7 @@ def cog_centroids(
         again.append(i)
     if again:
         second = _windowed_centroids([cands[i] for i in again], floors, np.array(restarts),
-                                     window_sigma, max_iter, tol_px)
+                                     window_sigma, max_iter, tol_px, with_cov=covariance)
         for i, row in zip(again, second):
             rows[i] = row
     return rows
@@ -191,6 +199,9 @@ def _windowed_centroids(
     window_sigma: float,
     max_iter: int,
     tol_px: float,
+    *,
+    with_cov: bool = True,
+    cov_of: np.ndarray | None = None,
 ) -> list[Row | None]:
     """The iteration of :func:`cog_centroids` on the signal of each candidate, all together.
 
@@ -203,6 +214,10 @@ def _windowed_centroids(
         Start ``u, v`` (pixels), start spot sigma and the largest sigma, pixels.
     window_sigma, max_iter, tol_px
         As :func:`cog_centroids`.
+    with_cov : bool
+        Compute the covariances (else NaN: the centres, fluxes and sizes do not depend on them).
+    cov_of : (K,) array of bool, optional
+        With ``with_cov``, the candidates whose covariance is computed (default all).
 
     Returns
     -------
@@ -281,6 +296,10 @@ def _windowed_centroids(
         done = good & ((np.hypot(su, sv) < tol_px) | (it == max_iter))
         for j in np.flatnonzero(done):
             cand = cands[act[j]]
+            if not with_cov or (cov_of is not None and not cov_of[act[j]]):
+                rows[act[j]] = cand.blob(ua[j] + su[j], va[j] + sv[j], flux_dn=float(F[j]),
+                                         size_px=float(sa[j]), cov_px2=np.full((2, 2), np.nan))
+                continue
             inside = r_in[j][:, None] & c_in[j][None, :]
             duj, dvj = du[j] - su[j], dv[j] - sv[j]
             var = cand.variance(s[j]) * win[j] ** 2 * inside

@@ -30,7 +30,7 @@ def estimate_gain(cands: list[Candidate], window_sigma: float = 3.0, max_blobs: 
     unclipped = [c for c in cands if not c.saturated[c.mask].any()]
     by_size = sorted(unclipped, key=lambda c: -int(c.mask.sum()))
     used = by_size[:max_blobs]
-    for c, row in zip(used, cog_centroids(used, window_sigma, above_floor=False)):
+    for c, row in zip(used, cog_centroids(used, window_sigma, above_floor=False, covariance=False)):
         if row is None:
             continue
         u, v, _, flux, sigma_mom, _ = row

@@ -91,7 +91,10 @@ def block_sum(image: np.ndarray, factor: int) -> np.ndarray:
     if a.ndim == 3:
         s = cv2.transform(a.astype(np.float32, copy=False), np.full((1, 3), f2, np.float32))
     else:
-        s = np.multiply(a, f2, dtype=np.float32)
+        # a float32 copy scaled in place: the same values as np.multiply(a, f2,
+        # dtype=np.float32), whose mixed-type loop on an integer image costs 3x more
+        s = a.astype(np.float32)
+        s *= f2
     return np.asarray(s, np.float32).reshape(a.shape[:2])
 
 
@@ -215,7 +218,7 @@ def box_means(G: np.ndarray, ys: np.ndarray, xs: np.ndarray, half: int) -> np.nd
 
 
 def significant_spots(
-    image: np.ndarray, significance_sigma: float, max_spots: int
+    image: np.ndarray, significance_sigma: float, max_spots: int, *, screen: bool = True
 ) -> tuple[np.ndarray, np.ndarray, str, str]:
     """Centres and sizes of the frame's significant compact spots.
 
@@ -232,6 +235,11 @@ def significant_spots(
         Threshold, in local noise sigmas of the smoothed coarse image.
     max_spots : int
         At most this many spots are returned.
+    screen : bool
+        Narrow the peaks by the cheap necessary conditions first (:func:`_ring_screen`).
+        ``False`` runs every ring's full test on every local maximum: the same spots
+        (the screen is a bound), slowly on a lit sea; the reference the screen is
+        tested against.
 
     Returns
     -------
@@ -260,7 +268,7 @@ def significant_spots(
     val_all: list[float] = []
     for n_scale, smooth_px in enumerate(SMOOTH_PX):
         found = _spots_at_scale(S, max(0.5, smooth_px / f), noise_S, significance_sigma,
-                                RING_RADII[n_scale:])
+                                RING_RADII[n_scale:], screen=screen)
         if isinstance(found, str):
             return np.zeros((0, 2)), np.zeros(0), found, ""
         pts, rad, val = found
@@ -294,7 +302,7 @@ def significant_spots(
 
 def _spots_at_scale(
     S: np.ndarray, sigma_c: float, noise_S: float, significance_sigma: float,
-    radii: tuple[float, ...],
+    radii: tuple[float, ...], *, screen: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray] | str:
     """The significant spots of block sums ``S`` smoothed by a Gaussian of ``sigma_c`` px.
 
@@ -308,94 +316,60 @@ def _spots_at_scale(
     h, w = G.shape
     step = max(1, int(math.sqrt(h * w / 30_000)))
     bg = float(np.median(G[::step, ::step]))
-    # Prefilter (cheap): above the frame's background; a local maximum; above the local
-    # mean of a box as wide as the largest ring by PREFILTER_FRACTION of the threshold in
-    # the frame's noise, then in its tile's small-scale texture noise. A lit deck's noise
-    # peaks fail here instead of in the ring test, which costs per peak. Each test after
-    # the first runs on the pixels that passed the ones before (a flat index, np.nonzero
-    # on a whole 2-D mask costs 10x more).
+    ys, xs = _local_maxima(G, bg + significance_sigma * sigma_G)
+    # A spot is a local maximum above the frame's background that passes (a) the prefilter:
+    # above the local mean of a box as wide as the largest ring by PREFILTER_FRACTION of the
+    # threshold in the frame's noise, then in its tile's small-scale texture noise; and (b)
+    # the ring test on some ring k: it stands significance_sigma above the ring's highest
+    # sample in the largest of three noises (the pixel noise sigma_G, the spread of the
+    # ring's samples, the tile's texture at the ring's scale) and the ring inside (k - 1) is
+    # round. Every test is a necessary condition, so the order they run in does not change
+    # which peaks pass: the cheapest and most selective run first, on all the peaks (the
+    # screen, _ring_screen: a few samples per ring against the pixel noise, then the same
+    # few against the tile's texture, which a lit sea's ~20,000 bumps fail), and the dear
+    # ones (the prefilter's box means and the full rings' statistics) on the few left.
+    # The frame fails when more than MAX_PEAKS maxima pass the prefilter: that count needs
+    # the prefilter on every maximum, which only a frame with more maxima than that runs.
     thr = PREFILTER_FRACTION * significance_sigma
-    flat_g = G.ravel()
-    above = flat_g > bg + significance_sigma * sigma_G
-    if np.count_nonzero(above) > h * w // 16:  # a bright frame: one dilation beats gathers
-        is_max = cv2.compare(G, cv2.dilate(G, np.ones((3, 3), np.uint8)), cv2.CMP_GE)
-        idx = np.flatnonzero(above & (is_max.ravel() != 0))
-    else:
-        idx = np.flatnonzero(above)
-        ys, xs = np.divmod(idx, w)
-        top = np.full(idx.size, -np.inf, np.float32)
-        for dy in (-1, 0, 1):
-            for dx in (-1, 0, 1):
-                if dy or dx:
-                    yy = np.clip(ys + dy, 0, h - 1)
-                    xx = np.clip(xs + dx, 0, w - 1)
-                    np.maximum(top, G[yy, xx], out=top)
-        idx = idx[flat_g[idx] >= top]
-    ys, xs = np.divmod(idx, w)
-    if ys.size:
-        local = box_means(G, ys, xs, int(radii[-1]))
-        rise = G[ys, xs] - local
-        keep = rise > thr * sigma_G
-        ys, xs, rise = ys[keep], xs[keep], rise[keep]
-        if ys.size:
-            pre_tiles, pre_of = tiles_of(ys, xs, w)
-            tex2 = texture_noise(G, 2, pre_tiles)[pre_of]
-            keep = rise > thr * np.maximum(sigma_G, tex2)
-            ys, xs = ys[keep], xs[keep]
+    textures = _TileTextures(G)
     if ys.size > MAX_PEAKS:
-        return (
-            f"{ys.size} local maxima above the significance threshold: "
-            "a flat bright or noisy frame (glare?)"
-        )
+        ys, xs = _prefilter(G, ys, xs, thr, sigma_G, int(radii[-1]), textures)
+        if ys.size > MAX_PEAKS:
+            return (
+                f"{ys.size} local maxima above the significance threshold: "
+                "a flat bright or noisy frame (glare?)"
+            )
     if ys.size == 0:
         return np.zeros((0, 2)), np.zeros(0), np.zeros(0)
+    rings = [_ring_offsets(r) for r in radii]
     gp = G[ys, xs].astype(np.float64)
-    # A peak passes ring k when it stands significance_sigma above the ring's highest sample
-    # in the largest of three noises (the pixel noise sigma_G, the spread of the ring's
-    # samples, the tile's texture at the ring's scale) and the ring inside (k - 1) is round.
-    # Each is a necessary condition, so the peaks are narrowed from the cheapest test to
-    # the dearest: a few samples per ring (pass 0), the whole ring against sigma_G and its
-    # own spread with the roundness (pass 1), and only then the texture (pass 2: the
-    # sea's thousands of bumps, which pass the pixel noise on the larger rings, cost a
-    # texture per tile there, where they reached it before). Samples are gathered from a
-    # copy of G with a replicated border (the same samples as clipped coordinates) by flat
-    # offsets.
-    pad = math.ceil(max(radii)) + 1
-    Gp = cv2.copyMakeBorder(G, pad, pad, pad, pad, cv2.BORDER_REPLICATE).ravel()
-    wp = w + 2 * pad
-    offsets = []
-    for r in radii:
-        n_s = max(RING_SAMPLES, math.ceil(2 * math.pi * r / RING_SPACING_PX))
-        ang = 2 * np.pi * np.arange(n_s) / n_s
-        offsets.append(np.rint(r * np.sin(ang)).astype(np.intp) * wp
-                       + np.rint(r * np.cos(ang)).astype(np.intp))
-    # Pass 0, on a few samples of each ring (their highest is at most the whole ring's, so
-    # a peak that fails here fails the full ring too): the sea's broad bumps go here.
-    base = (ys + pad) * wp + (xs + pad)
-    s_thr = significance_sigma * sigma_G
-    pass0 = np.zeros((len(radii), ys.size), bool)
-    for k, off in enumerate(offsets):
-        few = off[:: max(1, off.size // PASS0_SAMPLES)]
-        pass0[k] = (gp - ring_max(Gp, base, few)) > s_thr
+    if screen:
+        pass0 = _ring_screen(G, ys, xs, gp, rings, radii, significance_sigma, sigma_G, textures)
+    else:
+        pass0 = np.ones((len(rings), ys.size), bool)
     sel = np.flatnonzero(pass0.any(axis=0))
-    ys, xs, gp, base, pass0 = ys[sel], xs[sel], gp[sel], base[sel], pass0[:, sel]
-    # Pass 1: each ring in full where pass 0 let it pass: its highest sample against sigma_G;
-    # then, where that holds, the ring's spread (median absolute deviation of RING_SAMPLES
-    # of its samples) and the roundness of the ring inside it (whose samples are gathered
-    # for those peaks alone).
+    ys, xs, gp, pass0 = ys[sel], xs[sel], gp[sel], pass0[:, sel]
+    if ys.size:
+        keep = _prefilter(G, ys, xs, thr, sigma_G, int(radii[-1]), textures, mask=True)
+        ys, xs, gp, pass0 = ys[keep], xs[keep], gp[keep], pass0[:, keep]
+    # Pass 1: each ring in full where the screen let it pass: its highest sample against
+    # sigma_G; then, where that holds, the ring's spread (median absolute deviation of
+    # RING_SAMPLES of its samples) and the roundness of the ring inside it (whose samples
+    # are gathered for those peaks alone).
+    s_thr = significance_sigma * sigma_G
     n_r = len(radii)
     rise = np.full((n_r, ys.size), -np.inf)  # centre minus the ring's highest sample
-    for k, off in enumerate(offsets):
+    for k, (dy, dx) in enumerate(rings):
         at = np.flatnonzero(pass0[k])
         if at.size:
-            rise[k, at] = gp[at] - ring_max(Gp, base[at], off)
+            rise[k, at] = gp[at] - ring_samples(G, ys[at], xs[at], dy, dx).max(axis=1)
     may = rise > s_thr
     spreads = np.zeros((n_r, ys.size))
     for k in range(n_r):
         at = np.flatnonzero(may[k])
         if at.size == 0:
             continue
-        _top, _med, spread = _ring_stats(Gp, base[at], offsets[k])
+        _top, _med, spread = _ring_stats(G, ys[at], xs[at], rings[k])
         # the same division as pass 2's by a smaller divisor: a peak that passes there
         # passes here
         ok = rise[k, at] / np.maximum(spread, sigma_G) > significance_sigma
@@ -403,20 +377,18 @@ def _spots_at_scale(
             # round: no sample of the ring inside near the centre's level unless all are (a
             # bar or a line through the centre reaches it on two sides and leaves the rest
             # dark)
-            top_in, med_in, _spread = _ring_stats(Gp, base[at], offsets[k - 1])
+            top_in, med_in, _spread = _ring_stats(G, ys[at], xs[at], rings[k - 1])
             ok &= (top_in - med_in) < MAX_RING_ASYMMETRY * np.maximum(gp[at] - med_in, 1e-12)
         may[k, at] = ok
         spreads[k, at] = spread
-    # Pass 2: the texture on each ring's scale (pixel pairs r apart), in the tiles of the
-    # peaks that may pass that ring (per tile, so the same as over every tile); the smallest
-    # ring passed is the spot's radius.
+    # Pass 2: the texture on each ring's scale (pixel pairs r apart), in the peak's tile; the
+    # smallest ring passed is the spot's radius.
     radius = np.zeros(ys.size)
     for k, r in enumerate(radii):
         at = np.flatnonzero(may[k] & (radius == 0))
         if at.size == 0:
             continue
-        tiles, tile_of = tiles_of(ys[at], xs[at], w)
-        floor = np.maximum(sigma_G, texture_noise(G, max(2, round(r)), tiles)[tile_of])
+        floor = np.maximum(sigma_G, textures.at(_texture_step(r), ys[at], xs[at]))
         z = rise[k, at] / np.maximum(spreads[k, at], floor)
         radius[at[z > significance_sigma]] = r
     ok = radius > 0
@@ -436,31 +408,191 @@ def _spots_at_scale(
     return pts[kept_a], rad[kept_a], (val[kept_a] - bg) / sigma_G
 
 
+def _local_maxima(G: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray]:
+    """Rows and columns of the pixels of ``G`` above ``level`` that are 3x3 local maxima.
+
+    A pixel equal to its largest neighbour counts (a plateau gives several). Row-major
+    order. Where more than a sixteenth of the pixels are above the level (a lit sea), one
+    dilation of the whole image beats gathering the neighbours of each.
+    """
+    h, w = G.shape
+    flat_g = G.ravel()
+    above = flat_g > level
+    if np.count_nonzero(above) > h * w // 16:
+        is_max = cv2.compare(G, cv2.dilate(G, np.ones((3, 3), np.uint8)), cv2.CMP_GE)
+        idx = np.flatnonzero(above & (is_max.ravel() != 0))
+    else:
+        idx = np.flatnonzero(above)
+        ys, xs = np.divmod(idx, w)
+        top = np.full(idx.size, -np.inf, np.float32)
+        for dy in (-1, 0, 1):
+            for dx in (-1, 0, 1):
+                if dy or dx:
+                    yy = np.clip(ys + dy, 0, h - 1)
+                    xx = np.clip(xs + dx, 0, w - 1)
+                    np.maximum(top, G[yy, xx], out=top)
+        idx = idx[flat_g[idx] >= top]
+    ys, xs = np.divmod(idx, w)
+    return ys, xs
+
+
+def _prefilter(
+    G: np.ndarray, ys: np.ndarray, xs: np.ndarray, thr: float, sigma_G: float, half: int,
+    textures: _TileTextures, *, mask: bool = False,
+) -> tuple[np.ndarray, np.ndarray] | np.ndarray:
+    """The peaks that rise ``thr`` noise sigmas above the mean of their ``2 half + 1`` box.
+
+    In the frame's noise ``sigma_G`` and in the tile's texture noise at a 2-px scale. Returns
+    the peaks that pass (rows, columns), or with ``mask`` which do, (n,) bool.
+    """
+    keep = np.zeros(ys.size, bool)
+    if ys.size:
+        rise = G[ys, xs] - box_means(G, ys, xs, half)
+        at = np.flatnonzero(rise > thr * sigma_G)
+        if at.size:
+            tex2 = textures.at(2, ys[at], xs[at])
+            keep[at[rise[at] > thr * np.maximum(sigma_G, tex2)]] = True
+    return keep if mask else (ys[keep], xs[keep])
+
+
+def _texture_step(radius: float) -> int:
+    """Pixel-pair distance of the texture noise a ring of ``radius`` coarse px is judged in."""
+    return max(2, round(radius))
+
+
+def _ring_offsets(radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """Row and column offsets of a ring's samples, (m,) each, int.
+
+    :data:`RING_SAMPLES` samples at least, one every :data:`RING_SPACING_PX` coarse px of
+    the circle, rounded to the pixel grid.
+    """
+    n_s = max(RING_SAMPLES, math.ceil(2 * math.pi * radius / RING_SPACING_PX))
+    ang = 2 * np.pi * np.arange(n_s) / n_s
+    return (np.rint(radius * np.sin(ang)).astype(np.intp),
+            np.rint(radius * np.cos(ang)).astype(np.intp))
+
+
+def _screen_offsets(dy: np.ndarray, dx: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The :data:`PASS0_SAMPLES` (about) evenly spaced samples of a ring the screen uses."""
+    few = slice(None, None, max(1, dy.size // PASS0_SAMPLES))
+    return dy[few], dx[few]
+
+
+def _ring_screen(
+    G: np.ndarray, ys: np.ndarray, xs: np.ndarray, gp: np.ndarray,
+    rings: list[tuple[np.ndarray, np.ndarray]], radii: tuple[float, ...],
+    significance_sigma: float, sigma_G: float, textures: _TileTextures,
+) -> np.ndarray:
+    """Which peaks may pass which ring, (n_rings, n) bool: a bound, no peak that passes is lost.
+
+    A peak can pass ring k only if it stands ``significance_sigma`` above the ring's highest
+    sample in ``sigma_G`` (pass 1) and in ``max(sigma_G, texture_k)`` (pass 2 divides by at
+    least that), and the ring's highest sample is at least that of any subset of its
+    samples. So it must stand that far above each of a few samples
+    (:func:`_screen_offsets`), tested sample by sample on the peaks left: a lit sea's
+    ~20,000 bumps, whose tile texture is several sigma_G, fail on the first one or two,
+    and only a few peaks cost a sample per ring. The texture threshold is lowered by 1e-9
+    of itself, so that rounding cannot make this product test stricter than pass 2's
+    quotient.
+    """
+    h, w = G.shape
+    flat = G.ravel()
+    s_thr = significance_sigma * sigma_G
+    out = np.zeros((len(rings), ys.size), bool)
+    reach = max(int(max(np.abs(dy).max(), np.abs(dx).max())) for dy, dx in rings)
+    inner = (ys >= reach) & (ys < h - reach) & (xs >= reach) & (xs < w - reach)
+    i_in, i_out = np.flatnonzero(inner), np.flatnonzero(~inner)
+    base_in, gp_in = ys[i_in] * w + xs[i_in], gp[i_in]
+    tile = textures.tile_of(ys, xs)
+    tiles = np.flatnonzero(np.bincount(tile))
+    tile_in = tile[i_in]
+    for k, (dy, dx) in enumerate(rings):
+        fy, fx = _screen_offsets(dy, dx)
+        tex = textures.of_tiles(_texture_step(radii[k]), tiles)  # per tile
+        need = np.maximum(s_thr, (significance_sigma * (1.0 - 1e-9)) * np.maximum(sigma_G, tex))
+        # peaks inside the frame by the ring's reach: one flat gather per sample, of the
+        # peaks still standing (ndarray.take: G[index]'s values, 5x faster on a 1-D array)
+        at, b, g, t = i_in, base_in, gp_in, need.take(tile_in)
+        for off in fy * w + fx:
+            keep = (g - flat.take(b + off)) > t
+            at, b, g, t = at[keep], b[keep], g[keep], t[keep]
+            if at.size == 0:
+                break
+        out[k, at] = True
+        if i_out.size:  # the few at the frame's edge: clipped coordinates
+            top = ring_samples(G, ys[i_out], xs[i_out], fy, fx).max(axis=1)
+            out[k, i_out[(gp[i_out] - top) > need[tile[i_out]]]] = True
+    return out
+
+
+class _TileTextures:
+    """:func:`texture_noise` of an image per step and :data:`TEXTURE_TILE_PX` tile, each once."""
+
+    def __init__(self, G: np.ndarray) -> None:
+        self.G = G
+        self.n_cols = -(-G.shape[1] // TEXTURE_TILE_PX)
+        self.n_tiles = -(-G.shape[0] // TEXTURE_TILE_PX) * self.n_cols
+        self.done: dict[int, np.ndarray] = {}
+
+    def tile_of(self, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+        """Flat index (row-major) of the tile of each point ``(ys, xs)``, coarse px; (n,) int."""
+        return (ys // TEXTURE_TILE_PX) * self.n_cols + xs // TEXTURE_TILE_PX
+
+    def of_tiles(self, step_px: int, tiles: np.ndarray) -> np.ndarray:
+        """Texture noise at ``step_px`` of every tile, (n_tiles,): those in ``tiles`` (flat
+        indices) computed, the others NaN unless asked for before."""
+        vals = self.done.setdefault(step_px, np.full(self.n_tiles, np.nan))
+        todo = np.unique(tiles[np.isnan(vals[tiles])])
+        if todo.size:
+            rc = np.column_stack([todo // self.n_cols, todo % self.n_cols])
+            vals[todo] = texture_noise(self.G, step_px, rc)
+        return vals
+
+    def at(self, step_px: int, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
+        """Texture noise of the tile of each point ``(ys, xs)`` (coarse px) at ``step_px``, (n,)."""
+        tile = self.tile_of(ys, xs)
+        return self.of_tiles(step_px, tile)[tile]
+
+
 def _ring_stats(
-    Gp: np.ndarray, base: np.ndarray, offsets: np.ndarray
+    G: np.ndarray, ys: np.ndarray, xs: np.ndarray, ring: tuple[np.ndarray, np.ndarray]
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Highest sample, and median and spread of :data:`RING_SAMPLES` samples, of one ring per peak.
 
-    ``Gp`` is the padded smoothed image, flat; ``base`` the peaks' flat indices in it (n,);
-    ``offsets`` the ring's flat offsets. The spread is ``1.4826`` times the median absolute
-    deviation. Returns three (n,) arrays of float.
+    ``ring`` holds the ring's row and column offsets (:func:`_ring_offsets`). The spread is
+    ``1.4826`` times the median absolute deviation. Returns three (n,) arrays of float.
     """
-    sub = Gp[base[:, None] + offsets[:: max(1, offsets.size // RING_SAMPLES)][None, :]]
-    sub = sub.astype(np.float64)
+    dy, dx = ring
+    few = slice(None, None, max(1, dy.size // RING_SAMPLES))
+    sub = ring_samples(G, ys, xs, dy[few], dx[few]).astype(np.float64)
     med = row_median(sub)
     spread = 1.4826 * row_median(np.abs(sub - med[:, None]))
-    return ring_max(Gp, base, offsets).astype(np.float64), med, spread
+    top = ring_samples(G, ys, xs, dy, dx).max(axis=1).astype(np.float64)
+    return top, med, spread
 
 
-def ring_max(Gp: np.ndarray, base: np.ndarray, offsets: np.ndarray) -> np.ndarray:
-    """Highest sample of one ring per peak, (n,), ``Gp``'s dtype.
+def ring_samples(
+    G: np.ndarray, ys: np.ndarray, xs: np.ndarray, dy: np.ndarray, dx: np.ndarray
+) -> np.ndarray:
+    """Values of ``G`` at ``(ys + dy, xs + dx)`` for each point and offset, (n, m), ``G``'s dtype.
 
-    ``Gp`` is the padded smoothed image, flat; ``base`` the peaks' flat indices in it (n,);
-    ``offsets`` the ring's flat offsets (m,). The element-wise maximum of one gather per
-    offset: the same values as the maximum over an (n, m) gather's rows, a reduction over
-    the short sample axis that costs about 4x more.
+    Coordinates beyond the image are clipped to it (the replicated border). Points at
+    least the largest offset inside the image are gathered by flat index, the others
+    (few) by clipped coordinates; no padded copy of the image is made.
     """
-    top = Gp[base + offsets[0]]
-    for off in offsets[1:]:
-        np.maximum(top, Gp[base + off], out=top)
-    return top
+    h, w = G.shape
+    out = np.empty((ys.size, dy.size), G.dtype)
+    if ys.size == 0 or dy.size == 0:
+        return out
+    r = int(max(np.abs(dy).max(), np.abs(dx).max()))
+    inner = (ys >= r) & (ys < h - r) & (xs >= r) & (xs < w - r)
+    i_in = np.flatnonzero(inner)
+    if i_in.size:
+        base = ys[i_in] * w + xs[i_in]
+        out[i_in] = G.ravel().take(base[:, None] + (dy * w + dx)[None, :])
+    i_out = np.flatnonzero(~inner)
+    if i_out.size:
+        yy = np.clip(ys[i_out, None] + dy[None, :], 0, h - 1)
+        xx = np.clip(xs[i_out, None] + dx[None, :], 0, w - 1)
+        out[i_out] = G.ravel().take(yy * w + xx)
+    return out

@@ -226,23 +226,34 @@ def clip_level(dtype: np.dtype, bright_dn: float) -> float:
     return top
 
 
-def spot_search(image: np.ndarray, options: DetectorOptions) -> SpotSearch:
+def spot_search(
+    image: np.ndarray, options: DetectorOptions, *, background_dn: float | None = None,
+    noise_dn: float | None = None,
+) -> SpotSearch:
     """Block maxima and the spot levels of a frame's peak channel (:class:`SpotSearch`).
 
     The threshold lies ``options.spot_level`` of the way from the background to the
     bright-spot level, and at least ``threshold_sigma`` noise sigmas above the
-    background (noise of the peak-channel image from pixel differences).
+    background (noise of the peak-channel image from pixel differences). A caller that
+    has the peak channel's background (the median of the 30,000-sample strided grid) and
+    difference noise (:func:`~deckpose.detect.background.difference_noise`, before any
+    floor) passes them as ``background_dn`` and ``noise_dn``: on a mono frame they are the
+    frame statistics' own.
     """
     from deckpose.detect.background import MIN_NOISE_DN, difference_noise
 
     H, W = image.shape[:2]
     f = coarse_factor((H, W), options.coarse_max_px)
     small = peak_block_max(image, f)
-    step = max(1, int(math.sqrt(H * W / 30_000)))
-    bg = float(np.median(peak_channel(image[::step, ::step])))
+    if background_dn is None:
+        step = max(1, int(math.sqrt(H * W / 30_000)))
+        background_dn = float(np.median(peak_channel(image[::step, ::step])))
+    bg = background_dn
     bright = bright_level(image, small, f)
+    if noise_dn is None:
+        noise_dn = difference_noise(image, signal=peak_channel)
     # floor: the quantisation noise of one channel, 1/sqrt(12) DN
-    noise = max(difference_noise(image, signal=peak_channel), MIN_NOISE_DN)
+    noise = max(noise_dn, MIN_NOISE_DN)
     thr = max(bg + options.spot_level * (bright - bg), bg + options.threshold_sigma * noise)
     return SpotSearch(image, small, f, thr, bg, bright, noise, clip_level(image.dtype, bright))
 
@@ -384,11 +395,9 @@ def spot_pedestal(
     # partial sort of the sector's values (np.percentile's own overhead was most of the
     # time for the 13 windows of a frame)
     vals = np.asarray(pixels[fv, fu], float)
-    order = np.argsort(sector, kind="stable")
-    counts = np.bincount(sector, minlength=PEDESTAL_SECTORS)
-    groups = np.split(vals[order], np.cumsum(counts)[:-1])
     levels = []
-    for g in groups:
+    for k in range(PEDESTAL_SECTORS):
+        g = vals[sector == k]
         if g.size == 0:
             continue
         pos = (PEDESTAL_PERCENTILE / 100.0) * (g.size - 1)

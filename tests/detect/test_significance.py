@@ -10,7 +10,7 @@ from deckpose.detect.background import row_median
 from deckpose.detect.significance import (
     TEXTURE_TILE_PX,
     box_means,
-    ring_max,
+    ring_samples,
     texture_noise,
     tiles_of,
 )
@@ -77,16 +77,19 @@ def test_box_means_are_the_means_of_boxes_shifted_inside(n: int) -> None:
 
 
 @pytest.mark.parametrize("n", [0, 1, 500])
-def test_ring_max_is_the_largest_of_each_peaks_samples(n: int) -> None:
+def test_ring_samples_are_the_image_at_clipped_offsets(n: int) -> None:
     rng = np.random.default_rng(n)
-    Gp = rng.normal(0, 1, 5000).astype(np.float32)
-    base = rng.integers(100, 4900, n)
-    offsets = np.array([-37, -12, 0, 5, 41, 90])
-    got = ring_max(Gp, base, offsets)
-    # the reference: every sample of a peak's ring in a loop, the largest of them
-    want = np.array([max(Gp[b + o] for o in offsets) for b in base], np.float32)
-    assert got.dtype == Gp.dtype
-    np.testing.assert_array_equal(got, want)  # a maximum is exact
+    G = rng.normal(0, 1, (60, 80)).astype(np.float32)
+    # points anywhere, the frame's edge included (clipped there), and offsets of a ring
+    ys, xs = rng.integers(0, 60, n), rng.integers(0, 80, n)
+    dy = np.array([-7, -3, 0, 2, 7, 5])
+    dx = np.array([0, 6, -7, 3, 1, -5])
+    got = ring_samples(G, ys, xs, dy, dx)
+    # the reference: each sample in a loop, its coordinates clipped to the image
+    want = np.array([[G[min(max(y + a, 0), 59), min(max(x + b, 0), 79)] for a, b in zip(dy, dx)]
+                     for y, x in zip(ys, xs)], np.float32).reshape(n, dy.size)
+    assert got.dtype == G.dtype
+    np.testing.assert_array_equal(got, want)  # the same pixels
 
 
 @pytest.mark.parametrize("n", [0, 1, 7, 4000])

@@ -115,3 +115,36 @@ def test_pedestal_rises_to_a_marking_on_one_side() -> None:
     sigma_core = r_core / np.sqrt(2 * np.log(1 / 0.8))
     ped = spot_pedestal(img, core, 100.0, 3.0 * sigma_core - r_core)
     assert ped > 100.0 + 2000.0 - 4 * 5.0
+
+
+def test_pedestal_is_the_highest_sector_percentile_as_numpy_takes_it() -> None:
+    """The pedestal is the largest of the sectors' PEDESTAL_PERCENTILE percentiles (np.percentile's
+    linear interpolation) of the pixels beyond the wings, and at least the border level: the rule
+    written out with np.percentile per sector, on random windows (ties included), equal exactly."""
+    import math
+
+    from deckpose.detect.spots import PEDESTAL_PERCENTILE, PEDESTAL_SECTORS, spot_pedestal
+
+    rng = np.random.default_rng(5)
+    for t in range(60):
+        h, w = (int(v) for v in rng.integers(15, 50, 2))
+        pix = rng.normal(100.0, 10.0, (h, w))
+        if t % 2:
+            pix = np.rint(pix)  # ties
+        core = np.zeros((h, w), bool)
+        r = int(rng.integers(1, 4))
+        core[h // 2 - r : h // 2 + r + 1, w // 2 - r : w // 2 + r + 1] = True
+        wings, border = float(rng.uniform(1.0, 8.0)), float(rng.uniform(80.0, 120.0))
+        got = spot_pedestal(pix, core, border, wings)
+        r_px = math.ceil(max(wings, 2.0 * math.sqrt(core.sum() / math.pi) + 2.0))
+        dist = cv2.distanceTransform((~core).astype(np.uint8), cv2.DIST_L2, cv2.DIST_MASK_PRECISE)
+        fv, fu = np.nonzero(dist > r_px)
+        if fv.size == 0:
+            assert got == border
+            continue
+        vv, uu = np.nonzero(core)
+        ang = np.arctan2(fv - vv.mean(), fu - uu.mean())
+        sector = ((ang + np.pi) * (PEDESTAL_SECTORS / (2 * np.pi))).astype(int) % PEDESTAL_SECTORS
+        levels = [float(np.percentile(pix[fv, fu][sector == k], PEDESTAL_PERCENTILE))
+                  for k in range(PEDESTAL_SECTORS) if (sector == k).any()]
+        assert got == max(border, max(levels))
