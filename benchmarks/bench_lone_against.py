@@ -14,7 +14,8 @@ It exports the other commit's ``deckpose`` (with ``estimate/``, ``detect/``, ``e
 * ``base batch`` and ``batch``: one ``estimate_batch`` call on all frames, each tree.
 
 It prints the medians (thread CPU µs a frame, one BLAS and one OpenCV thread) and the
-medians of the per-round ratios against the other commit, with the load before and after.
+medians of the per-round ratios against the other commit (for ``lone`` also their first
+and third quartiles: the ratio's own spread), with the load before and after.
 A ratio above 1 for ``lone`` fails the gate; ``of-one`` says whether routing a lone frame
 through the batch would.
 
@@ -111,6 +112,15 @@ def _ratio(t: dict[str, list[float]], a: str, b: str) -> float:
     return statistics.median(x / y for x, y in zip(t[a], t[b], strict=True))
 
 
+def _quartiles(t: dict[str, list[float]], a: str, b: str) -> str:
+    """The first and third quartile of the paired ratios ``t[a] / t[b]``, as ``q1-q3``."""
+    r = [x / y for x, y in zip(t[a], t[b], strict=True)]
+    if len(r) < 2:
+        return "-"
+    q1, _, q3 = statistics.quantiles(r, n=4, method="inclusive")
+    return f"{q1:.2f}-{q3:.2f}"
+
+
 def _load() -> str:
     return " ".join(f"{x:.2f}" for x in os.getloadavg())
 
@@ -134,8 +144,8 @@ def main(argv: list[str] | None = None) -> int:
         n = len(dets)
         print(f"# {n} frames, 8mp, 30 m, sigma 0.5 px; thread CPU us/frame, medians of {args.rounds} rounds, "
               f"this tree against {args.commit} in one process; load before {_load()}")
-        print(f"{'variant':>14} {'base lone':>9} {'lone':>7} {'of-one':>7} {'lone/base':>9} {'one/base':>8} "
-              f"{'base batch':>10} {'batch':>7} {'batch/base':>10}")
+        print(f"{'variant':>14} {'base lone':>9} {'lone':>7} {'of-one':>7} {'lone/base':>9} {'quartiles':>9} "
+              f"{'one/base':>8} {'base batch':>10} {'batch':>7} {'batch/base':>10}")
         for label, name, over in VARIANTS:
             if label not in args.variants:
                 continue
@@ -157,7 +167,8 @@ def main(argv: list[str] | None = None) -> int:
             med = {k: 1e6 * statistics.median(v) for k, v in t.items()}
 
             print(f"{label:>14} {med['base']:>9.0f} {med['lone']:>7.0f} {med['one']:>7.0f} "
-                  f"{_ratio(t, 'lone', 'base'):>9.2f} {_ratio(t, 'one', 'base'):>8.2f} {med['base_batch']:>10.1f} "
+                  f"{_ratio(t, 'lone', 'base'):>9.2f} {_quartiles(t, 'lone', 'base'):>9} "
+                  f"{_ratio(t, 'one', 'base'):>8.2f} {med['base_batch']:>10.1f} "
                   f"{med['batch']:>7.1f} {_ratio(t, 'batch', 'base_batch'):>10.2f}", flush=True)
         print(f"# load after {_load()}")
     return 0

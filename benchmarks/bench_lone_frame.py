@@ -13,10 +13,11 @@ one OpenCV thread), with the machine's load average before and after. A noisy sh
 machine moves the absolute figures; the ratios of interleaved medians move less.
 
 ``--save FILE`` writes every variant's batched results (ok, reason, the six pose
-values, their sigmas) as ``.npz``; ``--compare FILE`` checks the current tree's
-results against such a file and prints, per variant, how many frames differ (ok,
-reason, or a value by more than 1e-9 relative) and the largest change of a pose value
-in units of its sigma — to show a refactoring left the estimates as they were
+values, their sigmas) and its lone results (``run_estimator`` on the ``--lone`` frames)
+as ``.npz``; ``--compare FILE`` checks the current tree's results against such a file
+and prints, per variant, how many frames differ (ok, reason, or a value by more than
+``--rtol``, default 1e-9, relative) and the largest change of a pose value in units of
+its sigma, for the batch and (``lone differ``) for the frames alone — to show a refactoring left the estimates as they were
 (Levenberg–Marquardt stops at 1e-3 sigma, so a start that moves by rounding can move
 the optimum by up to that much).
 
@@ -78,6 +79,20 @@ def _fingerprint(ests: list[PoseEstimate]) -> tuple[np.ndarray, np.ndarray, np.n
     return ok, reason, vals
 
 
+def _differ(ok: np.ndarray, reason: np.ndarray, vals: np.ndarray, r_ok: np.ndarray, r_reason: np.ndarray,
+            r_vals: np.ndarray, what: str, rtol: float) -> str:
+    """How many frames differ from the reference (ok, reason, a value by ``rtol`` relative), as printed."""
+    with np.errstate(invalid="ignore"):
+        close = (np.abs(vals - r_vals) <= rtol * (1 + np.abs(r_vals))) | (np.isnan(vals) & np.isnan(r_vals))
+    differ = (ok != r_ok) | (reason != r_reason) | ~close.all(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        in_sigmas = np.abs(vals[:, :6] - r_vals[:, :6]) / r_vals[:, 6:]
+    worst = float(np.nanmax(in_sigmas, initial=0.0))
+    return (f"  {what}: {int(differ.sum())}/{len(ok)} "
+            f"(ok or reason: {int(((ok != r_ok) | (reason != r_reason)).sum())}; "
+            f"largest pose change {worst:.1g} of its sigma)")
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--frames", type=int, default=1000, help="frames of the big batch")
@@ -87,6 +102,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--variants", nargs="+", default=[v[0] for v in VARIANTS])
     ap.add_argument("--save", type=Path, default=None, help="write the batched results to this .npz")
     ap.add_argument("--compare", type=Path, default=None, help="compare the batched results with this .npz")
+    ap.add_argument("--rtol", type=float, default=1e-9,
+                    help="a value differs when it moves by more than this, relative (default 1e-9)")
     args = ap.parse_args(argv)
     camera, layout = preset("8mp"), DeckLayout()
     dets, _, _ = make_cell(0.5, 30.0, "8mp", load_attitudes(None), args.frames,
@@ -103,10 +120,10 @@ def main(argv: list[str] | None = None) -> int:
         opts = dataclasses.replace(EstimateOptions(sigma_px=0.5), **over)
         t: dict[str, list[float]] = {"lone": [], "one": [], "batch": []}
         ests: list[PoseEstimate] = []
+        lone_ests: list[PoseEstimate] = []
         for _ in range(args.repeats):
             t0 = time.thread_time()
-            for d in lone:
-                run_estimator(name, d, camera, layout, opts)
+            lone_ests = [run_estimator(name, d, camera, layout, opts) for d in lone]
             t["lone"].append((time.thread_time() - t0) / len(lone))
             t0 = time.thread_time()
             for d in lone:
@@ -118,19 +135,13 @@ def main(argv: list[str] | None = None) -> int:
         m = {k: 1e6 * statistics.median(v) for k, v in t.items()}
         line = (f"{label:>14} {m['lone']:>8.0f} {m['one']:>8.0f} {m['batch']:>8.1f} "
                 f"{m['one'] / m['lone']:>12.2f} {m['lone'] / m['batch']:>11.1f}")
-        ok, reason, vals = _fingerprint(ests)
-        saved.update({f"{label}/ok": ok, f"{label}/reason": reason, f"{label}/vals": vals})
-        if ref is not None and f"{label}/ok" in ref:
-            r_ok, r_reason, r_vals = ref[f"{label}/ok"], ref[f"{label}/reason"], ref[f"{label}/vals"]
-            with np.errstate(invalid="ignore"):
-                close = (np.abs(vals - r_vals) <= 1e-9 * (1 + np.abs(r_vals))) | (np.isnan(vals) & np.isnan(r_vals))
-            differ = (ok != r_ok) | (reason != r_reason) | ~close.all(axis=1)
-            with np.errstate(invalid="ignore", divide="ignore"):
-                in_sigmas = np.abs(vals[:, :6] - r_vals[:, :6]) / r_vals[:, 6:]
-            worst = float(np.nanmax(in_sigmas, initial=0.0))
-            line += (f"  differ from reference: {int(differ.sum())}/{len(ests)} "
-                     f"(ok or reason: {int(((ok != r_ok) | (reason != r_reason)).sum())}; "
-                     f"largest pose change {worst:.1g} of its sigma)")
+        for tag, got in (("", ests), ("lone_", lone_ests)):
+            ok, reason, vals = _fingerprint(got)
+            saved.update({f"{label}/{tag}ok": ok, f"{label}/{tag}reason": reason, f"{label}/{tag}vals": vals})
+            if ref is not None and f"{label}/{tag}ok" in ref:
+                line += _differ(ok, reason, vals, ref[f"{label}/{tag}ok"], ref[f"{label}/{tag}reason"],
+                                ref[f"{label}/{tag}vals"], "lone differ" if tag else "differ from reference",
+                                args.rtol)
         print(line, flush=True)
     print(f"# load after {_load()}")
     if args.save:

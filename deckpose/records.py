@@ -235,3 +235,15 @@ class PoseEstimate:
         out = copy.copy(self)
         object.__setattr__(out, "frame_id", int(frame_id))
         return out
+
+    def relabelled(self, method: str, extras: Mapping[str, float]) -> PoseEstimate:
+        """This estimate under ``method`` with ``extras`` instead: a new record sharing the frozen fields.
+
+        (A shallow copy, as :meth:`for_frame`: the refinement relabels every refined
+        record with its estimator's name and extras, and :func:`dataclasses.replace`
+        would validate and freeze every other field again.)
+        """
+        out = copy.copy(self)
+        object.__setattr__(out, "method", str(method))
+        object.__setattr__(out, "extras", MappingProxyType(dict(extras)))
+        return out

@@ -9,11 +9,13 @@ maximum-likelihood refinement when ``options.refine`` is set, and
 :func:`estimate_batch` estimates many frames at once: ``conic``, ``pnp`` and
 ``thesis`` (and the refinement) run as stacked array operations over all frames
 that share a beacon set, which costs a small fraction of one call per frame.
-``thesis`` has one implementation (a lone frame is a batch of one of
-:func:`~deckpose.estimate.thesis.estimate_thesis_frames`). For ``conic`` and
-``pnp``, frames the batched path cannot settle (an outlier to remove, an
-unresolved ambiguity, any failure) are still re-estimated by the single-frame
-path, so every result is the one :func:`run_estimator` gives, to rounding.
+``thesis``, ``pnp`` and the refinement have one implementation each (a lone
+frame is a batch of one of :func:`~deckpose.estimate.thesis.estimate_thesis_frames`,
+:func:`~deckpose.estimate.pnp.estimate_pnp_frames` and
+:func:`~deckpose.estimate.refine.refine_estimates`). For ``conic``, frames the
+batched path cannot settle (an outlier to remove, an unresolved ambiguity, any
+failure) are still re-estimated by the single-frame path, so every result is the
+one :func:`run_estimator` gives, to rounding.
 """
 
 from __future__ import annotations
@@ -25,10 +27,10 @@ from functools import partial
 import numpy as np
 from deckpose.estimate import registry
 from deckpose.estimate.conic_batch import conic_candidates_batch
-from deckpose.estimate.pnp_batch import pnp_candidates_batch
+from deckpose.estimate.pnp import estimate_pnp_frames
 from deckpose.estimate.pose_checks import check_poses
 from deckpose.estimate.posterior_mean import apply_posterior_mean
-from deckpose.estimate.refine import refine_estimate, refine_estimates_batch
+from deckpose.estimate.refine import refine_estimate, refine_estimates
 from deckpose.estimate.registry import EstimateOptions
 from deckpose.estimate.solution_batch import settle_batch
 from deckpose.estimate.thesis import estimate_thesis_frames
@@ -141,7 +143,7 @@ def estimate_batch(
             got = settle_batch(name, partial(conic_candidates_batch, layout=layout, options=options), chunk,
                                camera, layout, options, R_chunk, refined=options.refine)
         elif name == "pnp":
-            got = settle_batch(name, pnp_candidates_batch, chunk, camera, layout, options, R_chunk, refined=True)
+            got = list(estimate_pnp_frames(chunk, camera, layout, options, R_chunk))
         elif name == "thesis":
             got = list(estimate_thesis_frames(chunk, camera, layout, R_chunk))
         else:
@@ -161,8 +163,8 @@ def estimate_batch(
                 for i, e in zip(fresh, flagged):
                     ests[i] = e
         if options.refine and name not in ("conic", "pnp"):
-            ests = refine_estimates_batch(ests, chunk, camera, layout, options, R_chunk,
-                                          skip=set(todo))
+            ests = refine_estimates(ests, chunk, camera, layout, options, R_chunk,
+                                    skip=set(todo))
         if options.posterior_mean:  # the single-frame results in ``todo`` have theirs already
             single = set(todo)
             fresh = [i for i in range(len(ests)) if i not in single]

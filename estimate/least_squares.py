@@ -22,6 +22,7 @@ from deckpose.estimate.least_squares_batch import (
     DAMPING_UP,
     MAX_ITERATIONS,
     STEP_TOL_SIGMA,
+    FitBatch,
 )
 from deckpose.estimate.observations import Observations
 from deckpose.estimate.pose_model import project_normalised
@@ -194,3 +195,9 @@ def levenberg_marquardt(
             if lam > DAMPING_CEILING:
                 break
     return evaluate_fit(p, obs, R_world_from_cam, it, converged)
+
+
+def fit_of_row(fits: FitBatch, i: int) -> Fit:
+    """Frame ``i`` of a batch of fits as a :class:`Fit` (views, no copies)."""
+    return Fit(fits.params[i], float(fits.chi2[i]), fits.information[i], fits.whitened[i],
+               fits.residuals_px[i], fits.gradient[i], int(fits.iterations[i]), bool(fits.converged[i]))

@@ -18,7 +18,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Literal, overload
+from typing import Literal, cast, overload
 
 import cv2
 import numpy as np
@@ -167,9 +167,10 @@ def covariance_from_information(H: FloatArray) -> tuple[FloatArray, BoolArray]:
             pass  # some matrix is not positive definite: row by row below
         else:
             cov = np.swapaxes(Linv, 1, 2) @ Linv
+            if np.isfinite(cov).all():  # (the usual case: no test per matrix)
+                return cov, np.ones(F, dtype=bool)
             ok = np.all(np.isfinite(cov), axis=(1, 2))
-            if not ok.all():
-                cov[~ok] = np.nan
+            cov[~ok] = np.nan
             return cov, ok
     cov = np.full(H.shape, np.nan)
     ok = _rows_ok(H)
@@ -373,7 +374,7 @@ def _whitened(params: FloatArray, obs: FrameObservations, jacobian: bool = True
     """Whitened residuals (F, M, 2), whitened Jacobian (F, M, 2, 6), all-in-front (F,), raw residuals (F, M, 2)."""
     xy, J, Z = _project(params, obs.points_deck_m, obs.R_cam_from_world,
                         obs.translation_jacobian if jacobian else None)
-    front = np.all(Z > 0, axis=1)
+    front = cast(BoolArray, (Z > 0).all(axis=1))  # (the method: np.all's wrapper costs as much on a lone frame)
     res = xy - obs.xy
     r = (obs.sqrt_info @ res[:, :, :, None])[:, :, :, 0]
     if J is None:
@@ -527,6 +528,9 @@ def rotation_vectors(R: FloatArray) -> FloatArray:
     than the closed form's ufuncs. NaN where a matrix is not finite.
     """
     if R.shape[0] <= RODRIGUES_LOOP_MAX:
+        if np.isfinite(R).all():  # (the usual case: no test per matrix)
+            return np.array([cv2.Rodrigues(np.ascontiguousarray(r))[0].ravel() for r in R],
+                            dtype=np.float64).reshape(-1, 3)
         out = np.full((R.shape[0], 3), np.nan)
         for i in range(R.shape[0]):
             if np.isfinite(R[i]).all():

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from deckpose.estimate.least_squares_batch import FrameObservations
-from deckpose.estimate.observations import distortion_jacobian, layout_positions_m
+from deckpose.estimate.observations import Observations, distortion_jacobian, layout_positions_m
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -268,3 +268,19 @@ def group_observations(
         out.append(ObservationGroup(fr, obs, stacked.counts[fr] - used[fr]))
     return out
 
+
+def stack_one(obs: Observations, R_world_from_cam: FloatArray) -> FrameObservations:
+    """One frame's observations as a batch of one (no copies).
+
+    Parameters
+    ----------
+    obs : Observations
+    R_world_from_cam : (3, 3) array of float
+
+    Returns
+    -------
+    FrameObservations
+        ``F = 1``.
+    """
+    return FrameObservations(obs.ids, obs.points_deck_m, obs.xy[None], obs.sqrt_info[None],
+                             obs.px_from_norm[None], np.asarray(R_world_from_cam, dtype=float)[None])

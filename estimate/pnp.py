@@ -7,22 +7,54 @@ solution is refined by minimising the (covariance-weighted) reprojection error;
 the better one wins, and the result reports IPPE's second solution, the ratio
 of IPPE's two reprojection errors and whether the ambiguity is resolved. EPnP is
 not used: it fails on this coplanar layout even without noise.
+
+Batch-first (a lone frame is a batch of one): OpenCV's IPPE and SQPnP run frame
+by frame (about 20 and 40 µs); everything after them — the starts' poses, their
+chi-square, the Levenberg–Marquardt refinements and the tests that decide which
+starts compete — is stacked over the frames that share a beacon set
+(:func:`pnp_candidates`). Frames the batch cannot settle (an outlier to remove,
+an unresolved ambiguity, any failure) go through the robust search of
+:mod:`~estimate.solution`, which solves each subset as a batch of one.
 """
 
 from __future__ import annotations
 
+import math
+from collections.abc import Sequence
+from typing import cast
+
 import cv2
 import numpy as np
-from deckpose.estimate.least_squares import Fit, chi2_at, levenberg_marquardt
+from deckpose.estimate.least_squares_batch import (
+    RODRIGUES_LOOP_MAX,
+    FitBatch,
+    FrameObservations,
+    chi2_batch,
+    levenberg_marquardt_batch,
+    params_from_relative_batch,
+)
 from deckpose.estimate.observations import Observations
-from deckpose.estimate.pose_model import params_from_relative
+from deckpose.estimate.observations_batch import stack_one
 from deckpose.estimate.registry import EstimateOptions, register
 from deckpose.estimate.solution import Candidate, estimate_robustly, pick_candidate
+from deckpose.estimate.solution_batch import (
+    BatchCandidates,
+    Extra,
+    candidates_of_one,
+    scatter_fit,
+    settle_batch,
+)
+from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
 from deckpose.records import Detections, PoseEstimate
 from deckpose.rotation import wrap_angle_rad
+
+FloatArray = NDArray[np.float64]
+BoolArray = NDArray[np.bool_]
+
+METHOD = "pnp"
 
 #: Identified beacons PnP needs (IPPE's minimum for a planar target).
 MIN_BEACONS = 4
@@ -33,9 +65,14 @@ ALT_MARGIN_CHI2 = 100.0
 
 
 def params_from_rodrigues(rvec: np.ndarray, tvec: np.ndarray, R_world_from_cam: np.ndarray) -> np.ndarray:
-    """Pose parameters (6,) from an OpenCV ``rvec, tvec`` (``T_cam_from_deck``) and the camera attitude."""
-    R = np.asarray(cv2.Rodrigues(rvec)[0], dtype=np.float64)
-    return params_from_relative(R, np.asarray(tvec, dtype=float).ravel(), R_world_from_cam)
+    """Pose parameters (6,) from an OpenCV ``rvec, tvec`` (``T_cam_from_deck``) and the camera attitude.
+
+    A batch of one of the starts of :func:`pnp_candidates` (:func:`rotation_matrices`,
+    :func:`~estimate.least_squares_batch.params_from_relative_batch`).
+    """
+    R = rotation_matrices(np.asarray(rvec, dtype=float).reshape(1, 3))
+    t = np.asarray(tvec, dtype=float).reshape(1, 3)
+    return params_from_relative_batch(R, t, np.asarray(R_world_from_cam, dtype=float)[None])[0]
 
 
 #: Two pose solutions are one when every angle, and every translation relative to the height,
@@ -58,77 +95,236 @@ def poses_close(a: np.ndarray, b: np.ndarray, tol: float) -> np.ndarray:
     Returns
     -------
     (...) array of bool
-        False where a value is NaN.
+        False where a value is NaN (comparisons with NaN raise no warning).
     """
     d = np.abs(a - b)
-    d[..., :3] = np.abs(wrap_angle_rad(d[..., :3]))  # (comparisons with NaN raise no warning)
-    return np.logical_and((d[..., :3] < tol).all(axis=-1), (d[..., 3:] < tol * (1 + np.abs(a[..., 5:6]))).all(axis=-1))
+    angles_close = (np.abs(wrap_angle_rad(d[..., :3])) < tol).all(axis=-1)
+    return np.logical_and(angles_close, (d[..., 3:] < tol * (1 + np.abs(a[..., 5:6]))).all(axis=-1))
 
 
-def _same(a: np.ndarray, b: np.ndarray) -> bool:
-    return bool(poses_close(a[None], b[None], SAME_TOL)[0])
+def rotation_matrices(rvec: FloatArray) -> FloatArray:
+    """Rotation matrices (F, 3, 3) of Rodrigues vectors (F, 3), as ``cv2.Rodrigues`` gives them.
+
+    ``R = cos(t) I + (1 - cos(t)) k k^T + sin(t) [k]x`` with ``t = |rvec|``, ``k = rvec / t``
+    (the identity for ``t = 0``), written out: a few ufuncs on (F,) columns, no per-call objects;
+    up to :data:`RODRIGUES_LOOP_MAX` vectors (a lone frame's three starts) by ``cv2.Rodrigues``
+    itself. NaN where a vector is not finite.
+    """
+    n = rvec.shape[0]
+    if n <= RODRIGUES_LOOP_MAX:
+        R = np.full((n, 3, 3), np.nan)
+        for i, v in enumerate(rvec.tolist()):
+            if math.isfinite(v[0] + v[1] + v[2]):
+                R[i] = cv2.Rodrigues(np.array(v))[0]
+        return R
+    x, y, z = rvec[:, 0], rvec[:, 1], rvec[:, 2]
+    t = np.sqrt(x * x + y * y + z * z)
+    zero = t == 0
+    with np.errstate(invalid="ignore", divide="ignore"):
+        inv = np.where(zero, 0.0, 1.0 / t)
+    kx, ky, kz = x * inv, y * inv, z * inv
+    c, s = np.cos(t), np.sin(t)
+    c1 = 1.0 - c
+    R = np.empty((n, 3, 3))
+    R[:, 0, 0] = c + c1 * kx * kx
+    R[:, 0, 1] = c1 * kx * ky - s * kz
+    R[:, 0, 2] = c1 * kx * kz + s * ky
+    R[:, 1, 0] = c1 * ky * kx + s * kz
+    R[:, 1, 1] = c + c1 * ky * ky
+    R[:, 1, 2] = c1 * ky * kz - s * kx
+    R[:, 2, 0] = c1 * kz * kx - s * ky
+    R[:, 2, 1] = c1 * kz * ky + s * kx
+    R[:, 2, 2] = c + c1 * kz * kz
+    return R
 
 
-def _near(a: np.ndarray, b: np.ndarray) -> bool:
-    return bool(poses_close(a[None], b[None], BASIN_TOL)[0])
+#: Columns of :func:`_opencv_starts`' table: three slots (SQPnP, IPPE 1, IPPE 2) of rvec and
+#: tvec (18), IPPE's two reprojection errors (2), the number of IPPE solutions (-1: failed).
+_N_COLUMNS = 21
 
 
-def pnp_candidates(obs: Observations, R_world_from_cam: np.ndarray) -> tuple[list[Fit], dict[str, float]] | str:
-    """SQPnP and both IPPE solutions, each refined by weighted least squares."""
+def _opencv_starts(obs: FrameObservations, *, raise_errors: bool = False
+                   ) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """SQPnP's and IPPE's two solutions of each frame.
+
+    Returns
+    -------
+    rt : (F, 3, 6) array of float
+        rvec and tvec of the slots SQPnP, IPPE 1, IPPE 2; NaN where a solver gave none.
+    errs : (F, 2) array of float
+        IPPE's reprojection errors (NaN unless it gave two solutions).
+    n_ippe : (F,) array of float
+        IPPE's solutions; -1 where OpenCV raised (or, with ``raise_errors``, the error propagates).
+    """
+    F = len(obs)
+    obj = np.ascontiguousarray(obs.points_deck_m, dtype=np.float64)
+    xy = np.ascontiguousarray(obs.xy)
+    rows: list[list[float]] = []
+    for i in range(F):
+        row = [math.nan] * _N_COLUMNS  # (one table row per frame: a lone frame makes no arrays here)
+        try:
+            n, rvecs, tvecs, e = cv2.solvePnPGeneric(obj, xy[i], K_NORMALISED, None, flags=cv2.SOLVEPNP_IPPE)
+            ok, rv, tv = cv2.solvePnP(obj, xy[i], K_NORMALISED, None, flags=cv2.SOLVEPNP_SQPNP)
+        except cv2.error:
+            if raise_errors:
+                raise
+            row[20] = -1.0
+            rows.append(row)
+            continue
+        for j in range(min(int(n), 2)):
+            row[6 + 6 * j:9 + 6 * j] = rvecs[j].ravel().tolist()
+            row[9 + 6 * j:12 + 6 * j] = tvecs[j].ravel().tolist()
+        if n >= 2:
+            row[18:20] = np.asarray(e, dtype=float).ravel()[:2].tolist()
+        if ok:
+            row[0:3] = rv.ravel().tolist()
+            row[3:6] = tv.ravel().tolist()
+        row[20] = float(n)
+        rows.append(row)
+    table = np.array(rows).reshape(F, _N_COLUMNS)
+    return table[:, :18].reshape(F, 3, 6), table[:, 18:20], table[:, 20]
+
+
+#: Rank of the second and third start: a frame has one to compete with only if it has more valid starts.
+_ALT_RANKS = np.array([1, 2])
+
+
+def pnp_candidates(obs: FrameObservations, *, raise_errors: bool = False) -> BatchCandidates:
+    """SQPnP and both IPPE solutions of each frame, each refined by weighted least squares.
+
+    Slots in order: the refinement of the start with the lowest chi2, then the others
+    that could compete (their unrefined chi2 within :data:`ALT_MARGIN_CHI2` of the best
+    refined one, not in its basin, :data:`BASIN_TOL`) and do not converge to a solution
+    already listed (:data:`SAME_TOL`). SQPnP's start joins unless it repeats an IPPE one.
+    NaN starts and comparisons with NaN are expected: call it under
+    ``np.errstate(invalid="ignore")`` (:func:`~estimate.solution_batch.settle_batch` and
+    :func:`~estimate.solution.estimate_robustly` do).
+
+    Parameters
+    ----------
+    obs : FrameObservations
+        ``F`` frames of one beacon set.
+    raise_errors : bool, keyword-only
+        Let an OpenCV error propagate instead of marking the frame ``fallback``.
+
+    Returns
+    -------
+    BatchCandidates
+        With IPPE's error ratio and second solution as extras (where IPPE gave two).
+    """
+    F = len(obs)
+    if len(obs.ids) < MIN_BEACONS or F == 0:
+        return BatchCandidates((), np.zeros((F, 0), dtype=bool), np.ones(F, dtype=bool))
+    rt, errs, n_ippe = _opencv_starts(obs, raise_errors=raise_errors)
+    # The three starts of every frame as 3F rows (NaN where a solver gave none: NaN propagates).
+    Rwc3 = np.repeat(obs.R_world_from_cam, 3, axis=0)
+    flat = params_from_relative_batch(rotation_matrices(rt[:, :, :3].reshape(-1, 3)), rt[:, :, 3:].reshape(-1, 3),
+                                      Rwc3)
+    starts = flat.reshape(F, 3, 6)
+    n_ippe2 = n_ippe >= 2
+    ratio = np.where(errs[:, 0] > 0, errs[:, 1] / errs[:, 0], np.inf)
+    extras = (Extra("ippe_error_ratio", ratio, n_ippe2),
+              Extra("ippe_alt_roll_rad", starts[:, 2, 0], n_ippe2),
+              Extra("ippe_alt_pitch_rad", starts[:, 2, 1], n_ippe2),
+              Extra("ippe_alt_yaw_rad", starts[:, 2, 2], n_ippe2),
+              Extra("ippe_alt_height_m", starts[:, 2, 5], n_ippe2))
+    # Non-finite starts drop out; SQPnP joins (in front) unless it repeats an IPPE solution
+    # (both IPPE slots against SQPnP's in one call; an absent slot is NaN and repeats nothing).
+    valid = cast(BoolArray, np.isfinite(flat).all(axis=1)).reshape(F, 3)
+    valid[:, 0] &= ~poses_close(starts[:, :1], starts[:, 1:], SAME_TOL).any(axis=1)
+    # Every start's chi2 in one stacked call (the frames repeated per slot), ordered (stable).
+    obs3 = FrameObservations(obs.ids, obs.points_deck_m, np.repeat(obs.xy, 3, axis=0),
+                             np.repeat(obs.sqrt_info, 3, axis=0), np.repeat(obs.px_from_norm, 3, axis=0), Rwc3)
+    chi_raw = np.where(valid, chi2_batch(flat, obs3).reshape(F, 3), np.inf)
+    order = np.argsort(chi_raw, axis=1, kind="stable")
+    n_valid = valid.sum(axis=1)
+    ar = np.arange(F)
+    has_start = n_valid >= 1
+    rows0 = ar if has_start.all() else np.flatnonzero(has_start)
+    fit0 = _refine_rows(F, rows0, starts[rows0, order[rows0, 0]], obs)
+    # Which of the second and third starts compete with the refined best (both in one call).
+    alt_slots = order[:, 1:]  # (F, 2)
+    alt_raw = starts[ar[:, None], alt_slots]  # (F, 2, 6)
+    competing = ((n_valid[:, None] > _ALT_RANKS) & ~poses_close(alt_raw, fit0.params[:, None], BASIN_TOL)
+                 & (chi_raw[ar[:, None], alt_slots] < (fit0.chi2 + ALT_MARGIN_CHI2)[:, None]))
+    failed = (n_ippe < 0) | (n_valid == 0)
+    if not competing.any():  # no frame has a start to compete: one slot
+        return BatchCandidates((fit0,), has_start[:, None], failed, extras)
+    fits = [fit0]
+    kept = [has_start]
+    for pos in (1, 2):
+        compete = competing[:, pos - 1]
+        if not compete.any():
+            continue  # no frame has a competing start here: no slot (the single-frame method lists none)
+        rows = np.flatnonzero(compete)
+        f = _refine_rows(F, rows, alt_raw[rows, pos - 1], obs)
+        new = compete.copy()
+        for g, k in zip(fits, kept):
+            new &= ~(k & poses_close(f.params, g.params, SAME_TOL))
+        fits.append(f)
+        kept.append(new)
+    return BatchCandidates(tuple(fits), np.stack(kept, axis=1), failed, extras)
+
+
+def _refine_rows(n_frames: int, rows: NDArray[np.int64], starts: FloatArray, obs: FrameObservations) -> FitBatch:
+    """Levenberg–Marquardt from ``starts`` for frames ``rows``, scattered into ``n_frames`` frames."""
+    if rows.size == n_frames:  # every frame: no gather, no scatter
+        return levenberg_marquardt_batch(starts, obs)
+    return scatter_fit(n_frames, rows, levenberg_marquardt_batch(starts, obs.take(rows)))
+
+
+def _solve_one(obs: Observations, R_world_from_cam: FloatArray, options: EstimateOptions) -> Candidate | str:
+    """One frame's (or subset's) solutions as a batch of one, and the choice between them."""
     if len(obs) < MIN_BEACONS:
         return f"too few identified beacons for PnP: {len(obs)}, need at least {MIN_BEACONS}"
-    obj = np.ascontiguousarray(obs.points_deck_m, dtype=np.float64)
-    img = np.ascontiguousarray(obs.xy, dtype=np.float64)
-    starts: list[np.ndarray] = []
-    extras: dict[str, float] = {}
-    n_ippe, rvecs, tvecs, errs = cv2.solvePnPGeneric(obj, img, K_NORMALISED, None, flags=cv2.SOLVEPNP_IPPE)
-    for rv, tv in zip(rvecs[:n_ippe], tvecs[:n_ippe]):
-        starts.append(params_from_rodrigues(rv, tv, R_world_from_cam))
-    if n_ippe >= 2:
-        e = np.asarray(errs, dtype=float).ravel()
-        extras["ippe_error_ratio"] = float(e[1] / e[0]) if e[0] > 0 else float("inf")
-        extras["ippe_alt_roll_rad"], extras["ippe_alt_pitch_rad"], extras["ippe_alt_yaw_rad"] = (
-            float(v) for v in starts[1][:3])
-        extras["ippe_alt_height_m"] = float(starts[1][5])
-    ok, rv, tv = cv2.solvePnP(obj, img, K_NORMALISED, None, flags=cv2.SOLVEPNP_SQPNP)
-    if ok:
-        p = params_from_rodrigues(rv, tv, R_world_from_cam)
-        if not (starts and poses_close(np.broadcast_to(p, (len(starts), 6)), np.array(starts), SAME_TOL).any()):
-            starts.insert(0, p)
-    starts = [s for s in starts if np.all(np.isfinite(s))]
-    if not starts:
+    cands = pnp_candidates(stack_one(obs, R_world_from_cam), raise_errors=True)
+    if cands.fallback[0]:
         return "PnP found no pose (degenerate beacon configuration)"
-    # Refine the start with the lowest chi2 first; refine another only if it could compete
-    # (its unrefined chi2 within ALT_MARGIN_CHI2 of the best refined one) and is not the same basin.
-    # (the starts' chi2 alone: no Jacobian is needed to rank them)
-    raw = sorted(((chi2_at(s, obs, R_world_from_cam), s) for s in starts), key=lambda cs: cs[0])
-    fits: list[Fit] = [levenberg_marquardt(raw[0][1], obs, R_world_from_cam)]
-    for chi2_0, p0 in raw[1:]:
-        if _near(p0, fits[0].params) or not chi2_0 < fits[0].chi2 + ALT_MARGIN_CHI2:
-            continue
-        f = levenberg_marquardt(p0, obs, R_world_from_cam)
-        if not any(_same(f.params, g.params) for g in fits):
-            fits.append(f)
-    return fits, extras
+    fits, extras = candidates_of_one(cands)
+    return pick_candidate(fits, ambiguity_chi2=options.ambiguity_chi2,
+                          assume_level_deck=options.assume_level_deck, extras=extras)
 
 
-@register("pnp")
+def estimate_pnp_frames(
+    detections: Sequence[Detections], camera: CameraModel, layout: DeckLayout, options: EstimateOptions,
+    R_world_from_cam: FloatArray,
+) -> list[PoseEstimate]:
+    """Estimate many frames' deck poses by PnP (see module docstring).
+
+    Parameters
+    ----------
+    detections : sequence of F Detections
+    camera : CameraModel
+    layout : DeckLayout
+    options : EstimateOptions
+    R_world_from_cam : (F, 3, 3) array of float
+        Each frame's camera attitude (instead of ``options.R_world_from_cam``).
+
+    Returns
+    -------
+    list of F PoseEstimate
+        Failures are falsy with a reason. The refinement always weights residuals by the
+        detections' covariances (or ``sigma_px``), so each is the maximum-likelihood
+        estimate with or without ``options.refine``.
+    """
+    got = settle_batch(METHOD, pnp_candidates, detections, camera, layout, options, R_world_from_cam,
+                       refined=True)
+    out: list[PoseEstimate] = []
+    for d, R, e in zip(detections, R_world_from_cam, got, strict=True):
+        if e is None:  # an outlier to remove, an unresolved ambiguity or a failure: the robust search
+            e = estimate_robustly(METHOD, lambda o, R_wc: _solve_one(o, R_wc, options), d, camera, layout,
+                                  options, R_world_from_cam=R, min_points=MIN_BEACONS, refined=True)
+        out.append(e)
+    return out
+
+
+@register(METHOD)
 def estimate_pnp(
     detections: Detections, camera: CameraModel, layout: DeckLayout, options: EstimateOptions
 ) -> PoseEstimate:
-    """Estimate the deck pose by PnP on identified beacons (see module docstring).
+    """Estimate one frame's deck pose by PnP: a batch of one of :func:`estimate_pnp_frames`.
 
-    Needs at least 4 identified beacons. The refinement always weights residuals
-    by the detections' covariances (or ``sigma_px``), so it is the maximum-likelihood
-    estimate with or without ``options.refine``.
+    Needs at least 4 identified beacons.
     """
-    def solve(o: Observations, R_wc: np.ndarray) -> Candidate | str:
-        res = pnp_candidates(o, R_wc)
-        if isinstance(res, str):
-            return res
-        fits, extras = res
-        return pick_candidate(fits, ambiguity_chi2=options.ambiguity_chi2,
-                              assume_level_deck=options.assume_level_deck, extras=extras)
-
-    return estimate_robustly("pnp", solve, detections, camera, layout, options,
-                             min_points=MIN_BEACONS, refined=True)
+    R = np.asarray(options.R_world_from_cam, dtype=float)[None]
+    return estimate_pnp_frames([detections], camera, layout, options, R)[0]

@@ -1,22 +1,29 @@
-"""Maximum-likelihood refinement of any estimator's result (``--refine``).
+"""Maximum-likelihood refinement of any estimator's result (``--refine``), batch-first.
 
 Starting from an estimate (the thesis's, which has no surge or sway, starts
 them at 0: the deck centre under the camera), minimise the reprojection error
 of the identified beacons weighted by the detections' covariances, with the
 same outlier removal, covariance and flags as the package's own estimators.
+:func:`refine_estimates` runs one stacked Levenberg–Marquardt per beacon set; a
+lone frame (:func:`refine_estimate`) is a batch of one. Frames the batch cannot
+settle (an outlier to remove, any failure) go through the robust search of
+:mod:`~estimate.solution`, which refines each subset of their points as a batch
+of one.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from collections.abc import Collection, Sequence
 
 import numpy as np
-from deckpose.estimate.least_squares import levenberg_marquardt
+from deckpose.estimate.least_squares import fit_of_row
+from deckpose.estimate.least_squares_batch import levenberg_marquardt_batch
 from deckpose.estimate.observations import Observations
+from deckpose.estimate.observations_batch import group_observations, stack_detections, stack_one
 from deckpose.estimate.registry import EstimateOptions
 from deckpose.estimate.solution import Candidate, estimate_robustly
+from deckpose.estimate.solution_batch import BatchCandidates, finish_batch
 
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
@@ -42,7 +49,7 @@ def refine_estimate(
     layout: DeckLayout,
     options: EstimateOptions,
 ) -> PoseEstimate:
-    """Refine ``estimate`` to the maximum-likelihood pose.
+    """Refine ``estimate`` to the maximum-likelihood pose: a batch of one of :func:`refine_estimates`.
 
     Parameters
     ----------
@@ -57,18 +64,19 @@ def refine_estimate(
         Same ``method``; ``extras["refined"] = 1`` plus the original extras
         (the original values under ``unrefined_*``).
     """
-    if not estimate.ok:
-        return estimate
-    p0 = initial_params(estimate)
-    if p0 is None:
-        return estimate
+    R = np.asarray(options.R_world_from_cam, dtype=float)[None]
+    return refine_estimates([estimate], [detections], camera, layout, options, R)[0]
 
+
+def _refine_robustly(estimate: PoseEstimate, p0: np.ndarray, detections: Detections, camera: CameraModel,
+                     layout: DeckLayout, options: EstimateOptions, R_world_from_cam: np.ndarray) -> PoseEstimate:
+    """One frame the batch left open, through the robust search (each subset a batch of one)."""
     def solve(o: Observations, R_wc: np.ndarray) -> Candidate | str:
-        return Candidate(levenberg_marquardt(p0, o, R_wc))
+        return Candidate(fit_of_row(levenberg_marquardt_batch(p0[None], stack_one(o, R_wc)), 0))
 
     refined = estimate_robustly(estimate.method, solve, detections, camera, layout, options,
                                 min_points=MIN_BEACONS, refined=True,
-                                failure_prefix="refinement failed numerically")
+                                failure_prefix="refinement failed numerically", R_world_from_cam=R_world_from_cam)
     if not refined.ok and refined.reason.startswith("refinement failed numerically"):
         return refined
     return _merge(estimate, refined)
@@ -80,10 +88,10 @@ def _merge(estimate: PoseEstimate, refined: PoseEstimate) -> PoseEstimate:
     for name in ("roll_rad", "pitch_rad", "yaw_rad", "height_m", "surge_m", "sway_m"):
         extras["unrefined_" + name] = float(getattr(estimate, name))
     extras.update(refined.extras)
-    return dataclasses.replace(refined, method=estimate.method, extras=extras)
+    return refined.relabelled(estimate.method, extras)
 
 
-def refine_estimates_batch(
+def refine_estimates(
     estimates: Sequence[PoseEstimate],
     detections: Sequence[Detections],
     camera: CameraModel,
@@ -93,7 +101,7 @@ def refine_estimates_batch(
     *,
     skip: Collection[int] = (),
 ) -> list[PoseEstimate]:
-    """:func:`refine_estimate` for many frames: one stacked Levenberg–Marquardt per beacon set.
+    """Refine many frames' estimates: one stacked Levenberg–Marquardt per beacon set.
 
     Parameters
     ----------
@@ -101,7 +109,7 @@ def refine_estimates_batch(
         Any estimator's results, one per frame.
     detections : sequence of Detections
     camera, layout, options
-        As for :func:`refine_estimate`.
+        As for the estimator that produced them.
     R_world_from_cam : (F, 3, 3) array of float
         Each frame's camera attitude.
     skip : collection of int, keyword-only
@@ -110,22 +118,23 @@ def refine_estimates_batch(
     Returns
     -------
     list of PoseEstimate
-        What :func:`refine_estimate` returns frame by frame, to rounding; frames
-        the batch cannot settle (outliers, failures) go through it.
+        Same ``method`` each; ``extras["refined"] = 1`` plus the original extras (the
+        original values under ``unrefined_*``). A failed or already refined estimate
+        comes back unchanged.
     """
-    from deckpose.estimate.least_squares_batch import levenberg_marquardt_batch
-    from deckpose.estimate.observations_batch import group_observations, stack_detections
-    from deckpose.estimate.solution_batch import BatchCandidates, finish_batch
-
     out = list(estimates)
-    todo = [i for i, e in enumerate(estimates)
-            if i not in skip and e.ok and not e.extras.get("refined", 0.0)]
-    p0 = {i: initial_params(estimates[i]) for i in todo}
-    todo = [i for i in todo if p0[i] is not None]
+    p0: dict[int, np.ndarray] = {}
+    for i, e in enumerate(estimates):
+        p = initial_params(e) if i not in skip and e.ok and not e.extras.get("refined", 0.0) else None
+        if p is not None:
+            p0[i] = p
+    todo = list(p0)
     if not todo:
         return out
-    sub = [detections[i] for i in todo]
-    groups = group_observations(stack_detections(sub), camera, layout, R_world_from_cam[todo],
+    every = len(todo) == len(estimates)  # (a lone frame): no gathers
+    sub = detections if every else [detections[i] for i in todo]
+    groups = group_observations(stack_detections(sub), camera, layout,
+                                R_world_from_cam if every else R_world_from_cam[todo],
                                 sigma_px=options.sigma_px,
                                 use_detection_covariance=options.use_detection_covariance)
     done: dict[int, PoseEstimate] = {}
@@ -148,9 +157,7 @@ def refine_estimates_batch(
     for i in todo:
         if i in done:
             out[i] = done[i]
-        else:
-            R = R_world_from_cam[i]
-            opts = options if np.array_equal(R, options.R_world_from_cam) else dataclasses.replace(
-                options, R_world_from_cam=R)
-            out[i] = refine_estimate(estimates[i], detections[i], camera, layout, opts)
+        else:  # an outlier to remove or a failure: the robust search
+            out[i] = _refine_robustly(estimates[i], p0[i], detections[i], camera, layout, options,
+                                      R_world_from_cam[i])
     return out

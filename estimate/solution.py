@@ -421,17 +421,19 @@ def estimate_robustly(
     min_points: int,
     refined: bool,
     failure_prefix: str = "numerical failure",
+    R_world_from_cam: np.ndarray | None = None,
 ) -> PoseEstimate:
     """The shared frame of every least-squares estimator here.
 
     Builds the observations, runs ``solve(observations, R_world_from_cam)`` under
     :func:`solve_robust` (outlier removal), and turns the result into a
     :class:`PoseEstimate`; a numerical exception becomes a failed estimate whose
-    reason starts with ``failure_prefix``.
+    reason starts with ``failure_prefix``. ``R_world_from_cam`` (3, 3), when given, is the
+    frame's camera attitude instead of ``options.R_world_from_cam``.
     """
     from deckpose.estimate.observations import build_observations
 
-    R_wc = np.asarray(options.R_world_from_cam, dtype=float)
+    R_wc = np.asarray(options.R_world_from_cam if R_world_from_cam is None else R_world_from_cam, dtype=float)
     with np.errstate(all="ignore"):
         try:
             obs = build_observations(detections, camera, layout, sigma_px=options.sigma_px,

@@ -4,8 +4,10 @@ The batched twin of :mod:`estimate.solution` for the common case: the planar
 ambiguity is resolved, no point is an outlier, and the estimate is ok. For those
 frames :func:`finish_batch` builds exactly the record that
 :func:`estimate.solution.estimate_robustly` builds; every other frame is marked
-for the single-frame path (which then removes outliers, reports an unresolved
-ambiguity, or says why it failed).
+for :func:`~estimate.solution.estimate_robustly` (which then removes outliers,
+reports an unresolved ambiguity, or says why it failed): ``pnp`` and the
+refinement solve each of its subsets as a batch of one, ``conic`` still through
+its single-frame path.
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from deckpose.estimate.least_squares import Fit, fit_of_row
 from deckpose.estimate.least_squares_batch import (
     FitBatch,
     FrameObservations,
@@ -153,9 +156,9 @@ def pick_batch(cands: BatchCandidates, *, ambiguity_chi2: float) -> PickBatch:
     best_p = cands.fits[0].params if K == 1 else _take(params, kb)
     cov, cov_ok = covariance_from_information(_select(cands.fits, "information", kb))
     unresolved = np.zeros(F, dtype=bool)
-    if K < 2:  # no runner-up (one NaN column serves both of its read-only fields)
-        nan = np.full(F, np.nan)
-        return PickBatch(kb, n_good, best_p, cov, cov_ok, np.full((F, 6), np.nan), nan, nan, unresolved)
+    if K < 2:  # no runner-up (one read-only NaN table serves its three fields)
+        nan = np.full((F, 6), np.nan)
+        return PickBatch(kb, n_good, best_p, cov, cov_ok, nan, nan[:, 0], nan[:, 0], unresolved)
     has_alt = n_good >= 2
     ka = order[:, 1]
     alt_p = _take(params, ka)
@@ -200,7 +203,8 @@ def finish_batch(
     :func:`estimate.solution.solve_robust` and :func:`estimate.solution.make_estimate`
     for the case where they produce an ok estimate without removing a point.
     ``pick=False`` is for a single solution taken as it is (the refinement): no
-    ``n_solutions`` extra.
+    ``n_solutions`` extra. NaN fits are expected: call it under
+    ``np.errstate(invalid="ignore")`` (:func:`settle_batch` does).
     """
     F = len(obs)
     M = obs.xy.shape[1]
@@ -208,18 +212,17 @@ def finish_batch(
     kb, best_p = choice.best, choice.params
     whitened = _select(cands.fits, "whitened", kb)
     res_px = _select(cands.fits, "residuals_px", kb)
-    with np.errstate(invalid="ignore"):
-        pc = (whitened * whitened).sum(axis=2)
-        # solution.make_estimate widens the covariance when the residuals exceed it alike
-        scale = covariance_scale(pc)
-        rms = np.sqrt((res_px * res_px).sum(axis=(1, 2)) / M)
-        cov = choice.covariance * scale[:, None, None]
-        sig = np.sqrt(cov.reshape(F, 36)[:, ::7])  # the diagonals (``cov`` is a fresh product)
-        # the frames where pick_candidate, solve_robust's first test and make_estimate give an ok
-        # estimate without removing a point (pose_constrained: else the single-frame path flags them)
-        settled = (choice.n_good > 0) & choice.covariance_ok & (pc.max(axis=1) <= outlier_chi2)
-        settled &= np.isfinite(rms) & (rms <= max_reprojection_rms_px) & pose_constrained(best_p, sig)
-        settled &= ~(cands.fallback | choice.unresolved)
+    pc = (whitened * whitened).sum(axis=2)
+    # solution.make_estimate widens the covariance when the residuals exceed it alike
+    scale = covariance_scale(pc)
+    rms = np.sqrt((res_px * res_px).sum(axis=(1, 2)) / M)
+    cov = choice.covariance * scale[:, None, None]
+    sig = np.sqrt(cov.reshape(F, 36)[:, ::7])  # the diagonals (``cov`` is a fresh product)
+    # the frames where pick_candidate, solve_robust's first test and make_estimate give an ok
+    # estimate without removing a point (pose_constrained: else the single-frame path flags them)
+    settled = (choice.n_good > 0) & choice.covariance_ok & (pc.max(axis=1) <= outlier_chi2)
+    settled &= np.isfinite(rms) & (rms <= max_reprojection_rms_px) & pose_constrained(best_p, sig)
+    settled &= ~(cands.fallback | choice.unresolved)
     settled_list = settled.tolist()
     if not any(settled_list):
         return [None] * F
@@ -270,6 +273,26 @@ def finish_batch(
     return out
 
 
+def candidates_of_one(cands: BatchCandidates) -> tuple[list[Fit], dict[str, float]]:
+    """The solutions a batch of one frame lists, and its extras, as the robust search takes them.
+
+    Parameters
+    ----------
+    cands : BatchCandidates
+        Of one frame (``F = 1``).
+
+    Returns
+    -------
+    fits : list of Fit
+        The valid slots, in order.
+    extras : dict of str to float
+        The extras the frame carries, in order.
+    """
+    fits = [fit_of_row(f, 0) for f, v in zip(cands.fits, cands.valid[0].tolist()) if v]
+    extras = {e.name: float(e.values[0]) for e in cands.extras if e.present is None or e.present[0]}
+    return fits, extras
+
+
 #: Solutions of a method for the frames of one beacon set.
 CandidatesFn = Callable[[FrameObservations], BatchCandidates]
 
@@ -278,7 +301,7 @@ def settle_batch(
     method: str, candidates: CandidatesFn, detections: Sequence[Detections], camera: CameraModel,
     layout: DeckLayout, options: EstimateOptions, R_world_from_cam: FloatArray, *, refined: bool,
 ) -> list[PoseEstimate | None]:
-    """``method``'s records for the frames the batch settles; None where the single-frame path must decide.
+    """``method``'s records for the frames the batch settles; None where the frame must be decided alone.
 
     Parameters
     ----------

@@ -225,7 +225,7 @@ def test_clean_frames_stay_in_the_batch(method, refine):
     from functools import partial
 
     from deckpose.estimate.conic_batch import conic_candidates_batch
-    from deckpose.estimate.pnp_batch import pnp_candidates_batch
+    from deckpose.estimate.pnp import pnp_candidates
     from deckpose.estimate.solution_batch import settle_batch
 
     camera = preset("4mp")
@@ -233,7 +233,7 @@ def test_clean_frames_stay_in_the_batch(method, refine):
     opts = EstimateOptions(sigma_px=2.0, refine=refine)
     R = np.broadcast_to(opts.R_world_from_cam, (len(frames), 3, 3))
     candidates = (partial(conic_candidates_batch, layout=LAYOUT, options=opts) if method == "conic"
-                  else pnp_candidates_batch)
+                  else pnp_candidates)
     got = settle_batch(method, candidates, frames, camera, LAYOUT, opts, np.ascontiguousarray(R),
                        refined=refine if method == "conic" else True)
     assert sum(e is None for e in got) <= 4

@@ -47,3 +47,24 @@ def test_run_estimator_keeps_failures_and_registry_lists_methods():
     for name in ("conic", "pnp", "test-rough"):
         e = run_estimator(name, empty, CAMERA, DeckLayout(), EstimateOptions(refine=True))
         assert not e.ok and e.reason
+
+
+def test_a_relabelled_record_is_the_record_dataclasses_replace_builds():
+    # The refinement relabels each refined record by a shallow copy (PoseEstimate.relabelled);
+    # the reference is dataclasses.replace, which validates and freezes every field anew.
+    import dataclasses
+
+    e = PoseEstimate("", True, roll_rad=0.1, pitch_rad=-0.2, yaw_rad=0.3, height_m=30.0, surge_m=0.5,
+                     sway_m=-0.4, covariance=np.diag(np.arange(1.0, 7.0)), inliers=(0, 3, 5),
+                     extras={"chi2": 12.5, "refined": 1.0}, frame_id=7)
+    extras = {"thesis_roll_deg": 1.0, "chi2": 12.5, "refined": 1.0}
+    got = e.relabelled("thesis", extras)
+    want = dataclasses.replace(e, method="thesis", extras=extras)
+    for f in dataclasses.fields(PoseEstimate):
+        a, b = getattr(got, f.name), getattr(want, f.name)
+        assert (np.array_equal(a, b) if f.name == "covariance" else a == b), f.name
+    assert dict(e.extras) == {"chi2": 12.5, "refined": 1.0} and e.method == ""  # the original is unchanged
+    extras["chi2"] = 0.0  # the record keeps its own copy of the extras, read-only
+    assert got.extras["chi2"] == 12.5
+    with np.testing.assert_raises(TypeError):
+        got.extras["chi2"] = 1.0  # type: ignore[index]
