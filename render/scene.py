@@ -44,7 +44,7 @@ import numpy as np
 from deckpose.render.config import Backend
 from deckpose.render.lens import MAX_SIDE_PX
 from deckpose.render.light_pools import AMBIENT_LUX, apply_light_pools, pool_gain
-from deckpose.render.scene_config import Lighting, SceneSpec, Shading
+from deckpose.render.scene_config import DEFAULT_TEXTURE_SEED, Lighting, SceneSpec, Shading
 from deckpose.render.sea import Waves, sea_colour, sea_grid_m, sea_grid_surface, sea_waves
 from deckpose.render.ship_model import hull_mesh, superstructure_mesh
 from numpy.typing import NDArray
@@ -62,7 +62,6 @@ _CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
 #: against 2.12 s for five (median of 4 interleaved, llvmpipe, load 0.9 on 2 cores).
 MAX_TILE_PX = 2**24
 #: Texture seed: the scene is the same in every worker and every run.
-_TEXTURE_SEED = 20240611
 
 
 @dataclass(frozen=True)
@@ -116,12 +115,14 @@ def gl_camera_pose(camera_pose: CameraPose) -> NDArray[np.float64]:
     return camera_pose.T_world_from_cam @ _CV_TO_GL
 
 
-def deck_texture(layout: DeckLayout, half_size_m: float, size_px: int) -> NDArray[np.uint8]:
+def deck_texture(layout: DeckLayout, half_size_m: float, size_px: int,
+                 seed: int = DEFAULT_TEXTURE_SEED) -> NDArray[np.uint8]:
     """RGB texture of the deck plate: non-skid grey, helipad circle and 'H', edge and centre lines.
 
-    Row 0 is the bow edge (deck +x), column 0 the port edge (deck +y).
+    Row 0 is the bow edge (deck +x), column 0 the port edge (deck +y); ``seed`` draws the
+    non-skid grain (``scene.texture_seed``).
     """
-    rng = np.random.default_rng(_TEXTURE_SEED)
+    rng = np.random.default_rng(seed)
     s = size_px
     base = 0.42 + 0.05 * rng.standard_normal((s // 8, s // 8))
     base = cv2.resize(base.astype(np.float32), (s, s), interpolation=cv2.INTER_CUBIC)
@@ -157,9 +158,9 @@ def deck_texture(layout: DeckLayout, half_size_m: float, size_px: int) -> NDArra
     return img
 
 
-def sea_texture(size_px: int) -> NDArray[np.uint8]:
-    """Tileable RGB sea texture (periodic noise, so it repeats without seams)."""
-    rng = np.random.default_rng(_TEXTURE_SEED + 1)
+def sea_texture(size_px: int, seed: int = DEFAULT_TEXTURE_SEED) -> NDArray[np.uint8]:
+    """Tileable RGB sea texture (periodic noise, so it repeats without seams); ``seed`` as the deck's."""
+    rng = np.random.default_rng(seed + 1)
     s = size_px
     spec = rng.standard_normal((s, s)) + 1j * rng.standard_normal((s, s))
     k = np.fft.fftfreq(s)[:, None] ** 2 + np.fft.fftfreq(s)[None, :] ** 2
@@ -215,9 +216,10 @@ class DeckRenderer:
 
         self._pr = pyrender
         pbr = self.spec.shading is Shading.PBR
-        deck_tex = pyrender.Texture(source=deck_texture(self.layout, self.half_m, self.spec.texture_px),
+        deck_tex = pyrender.Texture(source=deck_texture(self.layout, self.half_m, self.spec.texture_px,
+                                                            self.spec.texture_seed),
                                     source_channels="RGB")
-        sea_tex = pyrender.Texture(source=sea_texture(512), source_channels="RGB",
+        sea_tex = pyrender.Texture(source=sea_texture(512, self.spec.texture_seed), source_channels="RGB",
                                    sampler=pyrender.Sampler(wrapS=10497, wrapT=10497))
         deck_mat = pyrender.MetallicRoughnessMaterial(baseColorTexture=deck_tex, metallicFactor=0.0,
                                                       roughnessFactor=0.8)

@@ -48,6 +48,10 @@ class SeaSpec:
     seed: int = 1
 
 
+#: The deck and sea textures' seed unless ``scene.texture_seed`` says.
+DEFAULT_TEXTURE_SEED = 20240611
+
+
 @dataclass(frozen=True)
 class SceneSpec:
     """Deck plate and sea. ``deck_half_size_m`` must exceed the beacon ring radius.
@@ -57,7 +61,9 @@ class SceneSpec:
     the deck, 0: off); ``bloom_fraction`` of each light's flux spread as glare over a
     Gaussian of ``bloom_sigma_mrad`` (:mod:`deckpose.render.bloom`); ``shadows``: sun
     shadows in ``pbr`` shading; ``texture_px: auto`` sizes the deck texture from the
-    cameras' ground sampling distance at the lowest height (:mod:`deckpose.render.texture_size`).
+    cameras' ground sampling distance at the lowest height (:mod:`deckpose.render.texture_size`);
+    ``texture_seed`` draws the deck's non-skid grain and the sea's pattern (another seed, another
+    deck of the same statistics: the painted ring's edge errors follow the grain).
     ``antialias_samples``: multisample anti-aliasing of the deck and sea raster (4, as
     pyrender draws; 0 off: a 64 MP draw 1.6x faster, with edges of markings aliased; the
     beacons are drawn analytically and their truth does not change).
@@ -69,6 +75,7 @@ class SceneSpec:
     sea_half_size_m: float = 2000.0
     sea_drift_m_per_s: float = 0.8
     texture_px: int = 2048
+    texture_seed: int = DEFAULT_TEXTURE_SEED
     ship: ShipModelSpec = ShipModelSpec()
     sea: SeaSpec = SeaSpec()
     light_pools_cd: float = 0.0
@@ -90,6 +97,7 @@ def scene_spec(doc: object, where: str = "scene") -> SceneSpec:
     if spec.deck_half_size_m is not None:
         check_range(spec.deck_half_size_m, f"{where}.deck_half_size_m", low=0, low_open=True)
     check_range(spec.texture_px, f"{where}.texture_px", low=64, high=8192)
+    check_range(spec.texture_seed, f"{where}.texture_seed", low=0)
     check_range(spec.sea.waves, f"{where}.sea.waves", low=0, high=16)
     check_range(spec.sea.height_m, f"{where}.sea.height_m", low=0, high=0.5 * spec.freeboard_m)
     check_range(spec.sea.wavelength_m, f"{where}.sea.wavelength_m", low=2.0, high=500.0)

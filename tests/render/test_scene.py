@@ -249,3 +249,48 @@ def test_switching_antialias_samples_remakes_the_buffer(egl_renderer_factory) ->
     assert np.array_equal(a4, b4) and not np.array_equal(a4, a0)
     # only edges differ (markings, the deck's rim): a small share of the pixels
     assert np.mean(np.any(a4 != a0, axis=2)) < 0.05
+
+
+def test_texture_seed_draws_another_deck_of_the_same_statistics(egl_renderer_factory) -> None:
+    """``scene.texture_seed``: another non-skid grain (uncorrelated with the default's), the same
+    grey level and spread, and the renderer draws it (the painted ring's edge errors follow the grain,
+    so a benchmark needs more than one)."""
+    from deckpose.render.scene_config import DEFAULT_TEXTURE_SEED
+
+    from deckpose.layout import DeckLayout
+
+    layout = DeckLayout()
+    a = scene_mod.deck_texture(layout, 14.0, 512, DEFAULT_TEXTURE_SEED)[..., 0].astype(float)
+    b = scene_mod.deck_texture(layout, 14.0, 512, 7)[..., 0].astype(float)
+    # the same markings; the grain only where both are plain deck (grey, within the base's +-4 sigma)
+    plain = (np.abs(a - 107) < 60) & (np.abs(b - 107) < 60)
+    assert plain.mean() > 0.5
+    ga, gb = a[plain] - a[plain].mean(), b[plain] - b[plain].mean()
+    # two independent draws of ~1.5e5 correlated pixels (the coarse grain spans 8 texels, so about
+    # 2,000 independent cells): a correlation beyond 0.15 would be ~7 standard errors
+    assert abs(float(np.corrcoef(ga, gb)[0, 1])) < 0.15
+    assert a[plain].mean() == pytest.approx(b[plain].mean(), abs=3.0)  # level: 0.42 * 255 = 107 +- sampling
+    assert ga.std() == pytest.approx(gb.std(), rel=0.15)
+    # the renderer takes it from the config: the same view, another deck
+    cam = CameraModel(320, 240, [[300.0, 0, 160], [0, 300.0, 120], [0, 0, 1]])
+    args = (cam, CameraPose.nadir(20.0), ShipPose(0.0, 0.0, 0.0), 1.0, Lighting.DAY)
+    base = tiny_config()
+    seeded = tiny_config(scene={**tiny_doc_scene(), "texture_seed": 7})
+    assert seeded.scene.texture_seed == 7 and base.scene.texture_seed == DEFAULT_TEXTURE_SEED
+    img_a = egl_renderer_factory(base).render(*args).astype(float)
+    img_b = egl_renderer_factory(seeded).render(*args).astype(float)
+    assert np.abs(img_a - img_b).mean() > 1.0
+
+
+def tiny_doc_scene() -> dict:
+    from .conftest import tiny_doc
+
+    return dict(tiny_doc()["scene"])
+
+
+@pytest.mark.parametrize("bad", [-1, "7", 1.5])
+def test_texture_seed_must_be_a_non_negative_integer(bad: object) -> None:
+    from deckpose.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="texture_seed"):
+        tiny_config(scene={**tiny_doc_scene(), "texture_seed": bad})
