@@ -43,28 +43,35 @@ def _project(ship: ShipPose, cam: CameraPose, pts_deck: np.ndarray) -> np.ndarra
     return CAMERA.project(pts_deck @ T[:3, :3].T + T[:3, 3])
 
 
-def test_exact_edge_points_give_the_pose():
-    # points on the projected edge circles and the gap's ends, computed here from the pose: no image
-    ship, cam = _pose(1)
+def _exact_detection(ship: ShipPose, cam: CameraPose, radii_m: tuple[float, float]) -> RingDetection:
+    """Edge points exactly on circles of ``radii_m`` (inner, outer) around the deck centre, the bow
+    gap's arc missing, and the gap's ends, computed here from the pose: no image."""
     ang = np.linspace(0.3, 2 * math.pi - 0.3, 600)
     edges = [_project(ship, cam, np.column_stack([r * np.cos(ang), r * np.sin(ang), np.zeros_like(ang)]))
-             for r in RING.edge_radii_m]
+             for r in radii_m]
     half = math.radians(RING.gap_deg) / 2
     ends = _project(ship, cam, np.array([[RING.radius_m * math.cos(s * half), RING.radius_m * math.sin(s * half), 0]
                                          for s in (1, -1)]))
-    det = RingDetection(True, "", inner_px=edges[0], outer_px=edges[1],
-                        conics_px=edge_conics_px(RING, T_cam_from_deck(ship, cam), CAMERA.K),
-                        rms_px=np.full(2, 0.05), bow_ends_px=ends, bow_sigma_px=0.2, spacing_px=np.ones(2),
-                        contrast_dn=100.0, noise_dn=2.0, blur_px=0.5, edge_crb_px=0.03)
+    return RingDetection(True, "", inner_px=edges[0], outer_px=edges[1],
+                         conics_px=edge_conics_px(RING, T_cam_from_deck(ship, cam), CAMERA.K),
+                         rms_px=np.full(2, 0.05), bow_ends_px=ends, bow_sigma_px=0.2, spacing_px=np.ones(2),
+                         contrast_dn=100.0, noise_dn=2.0, blur_px=0.5, edge_crb_px=0.03)
+
+
+def test_exact_edge_points_give_the_pose():
+    # points on the projected edge circles and the gap's ends, computed here from the pose: no image
+    ship, cam = _pose(1)
+    det = _exact_detection(ship, cam, RING.edge_radii_m)
     res = estimate_painted_ring(det, CAMERA, RING, cam.R_world_from_cam)
     assert res.estimate.ok, res.estimate.reason
     # exact points: the optimum is the pose to the solver's tolerance (1e-8 relative steps)
     np.testing.assert_allclose(_err(res.estimate, _truth(ship, cam)), 0.0, atol=1e-6)
 
 
-def _analytic_image(ship: ShipPose, cam: CameraPose, seed: int, noise_dn: float = 4.0) -> np.ndarray:
+def _analytic_image(ship: ShipPose, cam: CameraPose, seed: int, noise_dn: float = 4.0,
+                    ring: PaintedRing = RING) -> np.ndarray:
     """The ring's exact area coverage (8 x 8 samples a pixel) on a flat deck, plus white noise."""
-    got = paint_coverage(RING, ship, cam, CAMERA, samples=8)
+    got = paint_coverage(ring, ship, cam, CAMERA, samples=8)
     assert got is not None
     r0, c0, cov = got
     img = np.full((CAMERA.height_px, CAMERA.width_px), 60.0)
@@ -114,13 +121,7 @@ def test_failures_carry_reasons():
 def test_bar_bow_mark_gives_the_yaw():
     ring = PaintedRing(bow_mark=BowMark.BAR, bar_length_m=1.0)
     ship, cam = _pose(11)
-    got = paint_coverage(ring, ship, cam, CAMERA, samples=8)
-    assert got is not None
-    r0, c0, cov = got
-    img = np.full((CAMERA.height_px, CAMERA.width_px), 60.0)
-    img[r0:r0 + cov.shape[0], c0:c0 + cov.shape[1]] += 120.0 * cov
-    img += np.random.default_rng(11).normal(0.0, 3.0, img.shape)
-    det = detect_ring_edges(img, CAMERA, ring)
+    det = detect_ring_edges(_analytic_image(ship, cam, 11, noise_dn=3.0, ring=ring), CAMERA, ring)
     assert det.ok, det.reason
     res = estimate_painted_ring(det, CAMERA, ring, cam.R_world_from_cam)
     assert res.estimate.ok, res.estimate.reason
@@ -133,18 +134,8 @@ def test_a_line_wider_than_nominal_moves_no_pose_parameter():
     # gap's arc missing: with the width a free nuisance the pose is exact; with it fixed, the two
     # edges' opposite offsets pass into height and, through the gap, into pitch and surge
     ship, cam = _pose(4)
-    ang = np.linspace(0.3, 2 * math.pi - 0.3, 600)
     widen_m = 0.02
-    radii = (RING.inner_radius_m - widen_m / 2, RING.outer_radius_m + widen_m / 2)
-    edges = [_project(ship, cam, np.column_stack([r * np.cos(ang), r * np.sin(ang), np.zeros_like(ang)]))
-             for r in radii]
-    half = math.radians(RING.gap_deg) / 2
-    ends = _project(ship, cam, np.array([[RING.radius_m * math.cos(s * half), RING.radius_m * math.sin(s * half), 0]
-                                         for s in (1, -1)]))
-    det = RingDetection(True, "", inner_px=edges[0], outer_px=edges[1],
-                        conics_px=edge_conics_px(RING, T_cam_from_deck(ship, cam), CAMERA.K),
-                        rms_px=np.full(2, 0.05), bow_ends_px=ends, bow_sigma_px=0.2, spacing_px=np.ones(2),
-                        contrast_dn=100.0, noise_dn=2.0, blur_px=0.5, edge_crb_px=0.03)
+    det = _exact_detection(ship, cam, (RING.inner_radius_m - widen_m / 2, RING.outer_radius_m + widen_m / 2))
     truth = _truth(ship, cam)
     free = estimate_painted_ring(det, CAMERA, RING, cam.R_world_from_cam, free_width=True)
     fixed = estimate_painted_ring(det, CAMERA, RING, cam.R_world_from_cam, free_width=False)
@@ -165,16 +156,7 @@ def test_the_free_width_costs_the_pose_little():
     # for the width's column: nested models, the free one's bound never below (to roundoff);
     # measured 1.0000-1.0040x (pitch and surge the most: the bow gap leaves the arcs unequal)
     ship, cam = _pose(4)
-    ang = np.linspace(0.3, 2 * math.pi - 0.3, 600)
-    edges = [_project(ship, cam, np.column_stack([r * np.cos(ang), r * np.sin(ang), np.zeros_like(ang)]))
-             for r in RING.edge_radii_m]
-    half = math.radians(RING.gap_deg) / 2
-    ends = _project(ship, cam, np.array([[RING.radius_m * math.cos(s * half), RING.radius_m * math.sin(s * half), 0]
-                                         for s in (1, -1)]))
-    det = RingDetection(True, "", inner_px=edges[0], outer_px=edges[1],
-                        conics_px=edge_conics_px(RING, T_cam_from_deck(ship, cam), CAMERA.K),
-                        rms_px=np.full(2, 0.05), bow_ends_px=ends, bow_sigma_px=0.2, spacing_px=np.ones(2),
-                        contrast_dn=100.0, noise_dn=2.0, blur_px=0.5, edge_crb_px=0.03)
+    det = _exact_detection(ship, cam, RING.edge_radii_m)
     free = estimate_painted_ring(det, CAMERA, RING, cam.R_world_from_cam, free_width=True)
     fixed = estimate_painted_ring(det, CAMERA, RING, cam.R_world_from_cam, free_width=False)
     assert free.bound is not None and fixed.bound is not None
