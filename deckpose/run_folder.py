@@ -341,23 +341,20 @@ def several_cameras_message(folder: DetectionsFolder) -> str:
             f"then {deckpose_command('estimate', '--run', folder.source)}")
 
 
-def check_detections_camera(detections: str | os.PathLike[str], camera: CameraModel) -> None:
+def check_folder_camera(folder: DetectionsFolder, camera: CameraModel, detections: str | os.PathLike[str]) -> None:
     """Refuse ``--camera`` for a detections folder's table whose frames another camera took.
 
     A table that ``deckpose detect -o`` wrote sits beside its record, which names the cameras
-    of its frames (:data:`DETECT_RECORD`). Estimated with a camera of another image size, or
-    with one camera where there were several, its frames would be solved with the wrong
-    intrinsics and look ok (a 960x540 frame solved as 640x480: 20 m for a true 30 m). Any
-    other table passes (nothing records its camera).
+    of its frames (:data:`DETECT_RECORD`, read into ``folder``). Estimated with a camera of
+    another image size, or with one camera where there were several, its frames would be
+    solved with the wrong intrinsics and look ok (a 960x540 frame solved as 640x480: 20 m for
+    a true 30 m).
 
     Raises
     ------
     InputDataError
         The folder's frames come from several cameras, or from one of another image size.
     """
-    folder = read_detections_folder(Path(detections).parent)
-    if folder is None:
-        return
     if len(folder.camera_files) > 1:
         raise InputDataError(several_cameras_message(folder))
     if len(folder.camera_files) == 1:

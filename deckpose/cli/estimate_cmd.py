@@ -83,11 +83,7 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.estimate.run import EstimateRunResult, estimate_table
     from deckpose.layout import DeckLayout, read_layout
     from deckpose.output_folder import ensure_writable
-    from deckpose.run_folder import (
-        check_detections_camera,
-        read_detections_folder,
-        several_cameras_message,
-    )
+    from deckpose.run_folder import check_folder_camera, read_detections_folder
     from deckpose.sequence_run import estimate_run_with_prior
     from deckpose.tables import read_table, write_table
 
@@ -104,27 +100,26 @@ def run(args: argparse.Namespace) -> int:
         if args.no_prior:
             raise ConfigError("--no-prior applies to --run RUN (a table alone has no time sequence); drop it")
         detections, camera_file, output = args.detections, args.camera, args.output
-        folder = None
+        folder = None  # the detections folder the table is in (deckpose detect -o), read once
         if detections is not None and detections.is_dir():
             folder = read_detections_folder(detections)
             if folder is None:
                 raise InputDataError(_not_a_detections_folder(detections))
             detections = folder.detections
-            if camera_file is None:
-                if len(folder.camera_files) > 1:
-                    raise InputDataError(several_cameras_message(folder))
+            if camera_file is None:  # the folder's camera (check_folder_camera refuses several)
                 camera_file = next(iter(folder.camera_files.values()), None)
             output = folder.root / "estimates.parquet" if output is None else output
-        elif detections is not None:  # a table beside its folder's record: the folder's layout
+        elif detections is not None:  # a table beside a folder's record
             folder = read_detections_folder(detections.parent)
-            folder = folder if folder is not None and folder.detections.name == detections.name else None
         if detections is None or camera_file is None or output is None:
             raise ConfigError("give DETECTIONS --camera CAMERA.yaml -o OUTPUT (or a folder 'deckpose detect -o' "
                               "wrote), or --run RUN --detector NAME")
         if getattr(args, "layout", None):
             layout = read_layout(args.layout)
-        else:  # the layout the folder's frames were identified with, else the default
-            layout = folder.layout if folder is not None else DeckLayout()
+        elif folder is not None and folder.detections.name == detections.name:
+            layout = folder.layout  # the layout the folder's frames were identified with
+        else:
+            layout = DeckLayout()
         if args.radius is not None:
             if not args.radius > 0:
                 raise ConfigError(f"--radius must be positive, got {args.radius}")
@@ -134,7 +129,8 @@ def run(args: argparse.Namespace) -> int:
                     "give the ring's radius in metres, or a --layout file")
             layout = dataclasses.replace(layout, radius_m=float(args.radius))
         camera = read_camera_info(camera_file)
-        check_detections_camera(detections, camera)
+        if folder is not None:
+            check_folder_camera(folder, camera, detections)
         out = Path(output)
         ensure_writable(out.parent)  # before the work, not after it
         table = read_table(detections, "detections")
