@@ -120,20 +120,19 @@ def cog_centroids(
         starts.append((u, v, cand.mask_sigma(), sigma_max))
     if not disc:
         return rows
-    # a first pass that a second one replaces (below) needs no covariance
-    measured_again = [above_floor and cands[i].clip_signal and not cands[i].saturated[cands[i].mask].any()
-                      for i in disc]
+    # a bright spot whose core is not clipped is measured again above its floor (below), so its
+    # first pass needs no covariance
+    measured_again = np.array([above_floor and cands[i].clip_signal and not cands[i].saturated[cands[i].mask].any()
+                               for i in disc])
     first = _windowed_centroids([cands[i] for i in disc], signals, np.array(starts),
-                                window_sigma, max_iter, tol_px,
-                                with_cov=covariance and not all(measured_again),
-                                cov_of=np.array([covariance and not a for a in measured_again]))
+                                window_sigma, max_iter, tol_px, cov_of=covariance & ~measured_again)
     again: list[int] = []
     floors: list[np.ndarray] = []
     restarts: list[tuple[float, float, float, float]] = []
     for k, i in enumerate(disc):
         row = rows[i] = first[k]
         cand = cands[i]
-        if row is None or not above_floor or not cand.clip_signal or cand.saturated[cand.mask].any():
+        if row is None or not measured_again[k]:
             continue
         u, v, _, _, sigma, _ = row
         floors.append(np.maximum(cand.above_floor(u, v, window_sigma * sigma + 2.0)[0], 0.0))
@@ -141,7 +140,7 @@ def cog_centroids(
         again.append(i)
     if again:
         second = _windowed_centroids([cands[i] for i in again], floors, np.array(restarts),
-                                     window_sigma, max_iter, tol_px, with_cov=covariance)
+                                     window_sigma, max_iter, tol_px, cov_of=np.full(len(again), covariance))
         for i, row in zip(again, second):
             rows[i] = row
     return rows
@@ -200,7 +199,6 @@ def _windowed_centroids(
     max_iter: int,
     tol_px: float,
     *,
-    with_cov: bool = True,
     cov_of: np.ndarray | None = None,
 ) -> list[Row | None]:
     """The iteration of :func:`cog_centroids` on the signal of each candidate, all together.
@@ -214,10 +212,9 @@ def _windowed_centroids(
         Start ``u, v`` (pixels), start spot sigma and the largest sigma, pixels.
     window_sigma, max_iter, tol_px
         As :func:`cog_centroids`.
-    with_cov : bool
-        Compute the covariances (else NaN: the centres, fluxes and sizes do not depend on them).
     cov_of : (K,) array of bool, optional
-        With ``with_cov``, the candidates whose covariance is computed (default all).
+        The candidates whose covariance is computed (default all); the others' are NaN (the
+        centres, fluxes and sizes do not depend on them).
 
     Returns
     -------
@@ -296,7 +293,7 @@ def _windowed_centroids(
         done = good & ((np.hypot(su, sv) < tol_px) | (it == max_iter))
         for j in np.flatnonzero(done):
             cand = cands[act[j]]
-            if not with_cov or (cov_of is not None and not cov_of[act[j]]):
+            if cov_of is not None and not cov_of[act[j]]:
                 rows[act[j]] = cand.blob(ua[j] + su[j], va[j] + sv[j], flux_dn=float(F[j]),
                                          size_px=float(sa[j]), cov_px2=np.full((2, 2), np.nan))
                 continue
