@@ -333,7 +333,8 @@ def _spots_at_scale(
     thr = PREFILTER_FRACTION * significance_sigma
     textures = _TileTextures(G)
     if ys.size > MAX_PEAKS:
-        ys, xs = _prefilter(G, ys, xs, thr, sigma_G, int(radii[-1]), textures)
+        keep = _prefilter(G, ys, xs, thr, sigma_G, int(radii[-1]), textures)
+        ys, xs = ys[keep], xs[keep]
         if ys.size > MAX_PEAKS:
             return (
                 f"{ys.size} local maxima above the significance threshold: "
@@ -350,7 +351,7 @@ def _spots_at_scale(
     sel = np.flatnonzero(pass0.any(axis=0))
     ys, xs, gp, pass0 = ys[sel], xs[sel], gp[sel], pass0[:, sel]
     if ys.size:
-        keep = _prefilter(G, ys, xs, thr, sigma_G, int(radii[-1]), textures, mask=True)
+        keep = _prefilter(G, ys, xs, thr, sigma_G, int(radii[-1]), textures)
         ys, xs, gp, pass0 = ys[keep], xs[keep], gp[keep], pass0[:, keep]
     # Pass 1: each ring in full where the screen let it pass: its highest sample against
     # sigma_G; then, where that holds, the ring's spread (median absolute deviation of
@@ -438,12 +439,11 @@ def _local_maxima(G: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray]:
 
 def _prefilter(
     G: np.ndarray, ys: np.ndarray, xs: np.ndarray, thr: float, sigma_G: float, half: int,
-    textures: _TileTextures, *, mask: bool = False,
-) -> tuple[np.ndarray, np.ndarray] | np.ndarray:
-    """The peaks that rise ``thr`` noise sigmas above the mean of their ``2 half + 1`` box.
+    textures: _TileTextures,
+) -> np.ndarray:
+    """Which peaks rise ``thr`` noise sigmas above the mean of their ``2 half + 1`` box, (n,) bool.
 
-    In the frame's noise ``sigma_G`` and in the tile's texture noise at a 2-px scale. Returns
-    the peaks that pass (rows, columns), or with ``mask`` which do, (n,) bool.
+    In the frame's noise ``sigma_G`` and in the tile's texture noise at a 2-px scale.
     """
     keep = np.zeros(ys.size, bool)
     if ys.size:
@@ -452,7 +452,7 @@ def _prefilter(
         if at.size:
             tex2 = textures.at(2, ys[at], xs[at])
             keep[at[rise[at] > thr * np.maximum(sigma_G, tex2)]] = True
-    return keep if mask else (ys[keep], xs[keep])
+    return keep
 
 
 def _texture_step(radius: float) -> int:
