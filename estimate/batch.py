@@ -163,8 +163,7 @@ def estimate_batch(
                 for i, e in zip(fresh, flagged):
                     ests[i] = e
         if options.refine and name not in ("conic", "pnp"):
-            ests = refine_estimates(ests, chunk, camera, layout, options, R_chunk,
-                                    skip=set(todo))
+            ests = refine_estimates(ests, chunk, camera, layout, options, R_chunk)
         if options.posterior_mean:  # the single-frame results in ``todo`` have theirs already
             single = set(todo)
             fresh = [i for i in range(len(ests)) if i not in single]

@@ -14,7 +14,7 @@ of one.
 from __future__ import annotations
 
 import math
-from collections.abc import Collection, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from deckpose.estimate.least_squares import fit_of_row
@@ -98,8 +98,6 @@ def refine_estimates(
     layout: DeckLayout,
     options: EstimateOptions,
     R_world_from_cam: np.ndarray,
-    *,
-    skip: Collection[int] = (),
 ) -> list[PoseEstimate]:
     """Refine many frames' estimates: one stacked Levenberg–Marquardt per beacon set.
 
@@ -112,8 +110,6 @@ def refine_estimates(
         As for the estimator that produced them.
     R_world_from_cam : (F, 3, 3) array of float
         Each frame's camera attitude.
-    skip : collection of int, keyword-only
-        Frames returned unchanged (already refined).
 
     Returns
     -------
@@ -125,7 +121,7 @@ def refine_estimates(
     out = list(estimates)
     p0: dict[int, np.ndarray] = {}
     for i, e in enumerate(estimates):
-        p = initial_params(e) if i not in skip and e.ok and not e.extras.get("refined", 0.0) else None
+        p = initial_params(e) if e.ok and not e.extras.get("refined", 0.0) else None
         if p is not None:
             p0[i] = p
     todo = list(p0)
