@@ -341,7 +341,7 @@ def _fit(det: RingDetection, camera: CameraModel, ring: PaintedRing, R_wc: Float
     if len(sols) > 1 and sols[1][2] - chi2 < AMBIGUITY_CHI2:
         d = sols[1][0][:6] - x[:6]
         d[:3] = wrap_angle_rad(d[:3])
-        if np.any(np.abs(d) > 5 * sig[:6]):
+        if np.any(np.abs(d) > 5 * sig):
             return _failed(det, f"ambiguous: both deck planes fit the edges (chi2 {chi2:.0f} and {sols[1][2]:.0f})")
     bound = _bound(J, ratio)
     known = det.known_levels_ratio
