@@ -45,6 +45,10 @@ def make_preview(image: NDArray[np.generic], preview_px: int) -> NDArray[np.uint
     """
     import cv2
 
+    if image.ndim == 3 and image.strides[2] < 0:  # a channel-reversed view (RGB <-> BGR) of a frame:
+        # shrink the frame as stored and reverse the small result's channels (each channel is
+        # shrunk alone, so the pixels are the same); OpenCV would copy the whole view first
+        return np.ascontiguousarray(make_preview(image[..., ::-1], preview_px)[..., ::-1])
     img = np.right_shift(image, 8).astype(np.uint8) if image.dtype == np.uint16 else np.asarray(image, np.uint8)
     w, h = preview_size(img.shape[1], img.shape[0], preview_px)
     if (w, h) != (img.shape[1], img.shape[0]):

@@ -332,6 +332,20 @@ def test_the_preview_rule_is_a_block_mean_and_keeps_the_top_8_bits() -> None:
     np.testing.assert_array_equal(make_preview(img16, 4096), top.astype(np.uint8))  # never enlarged
 
 
+def test_the_preview_of_a_channel_reversed_view_is_that_of_its_copy() -> None:
+    # render makes the preview of the BGR view of an RGB frame; shrinking the frame as stored and
+    # reversing the small result must give the pixels of shrinking a real BGR copy
+    from deckpose.preview import make_preview
+
+    rng = np.random.default_rng(3)
+    for dtype, top in ((np.uint8, 256), (np.uint16, 65536)):
+        rgb = rng.integers(0, top, (97, 143, 3), dtype=dtype)
+        view = rgb[..., ::-1]
+        small = make_preview(view, 50)
+        np.testing.assert_array_equal(small, make_preview(np.ascontiguousarray(view), 50))
+        assert small.flags.c_contiguous and small.shape == (34, 50, 3)
+
+
 def test_resuming_a_dataset_of_an_older_version_says_so(tmp_path: Path) -> None:
     """A dataset whose manifest config lacks keys this version writes (with any value) is not mixed."""
     from deckpose.render.dataset import _prepare
