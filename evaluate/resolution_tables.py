@@ -45,8 +45,10 @@ def resolution_table(errors: pd.DataFrame) -> pd.DataFrame:
         row["apparent_radius_px"] = float(g["apparent_radius_px"].mean()) if "apparent_radius_px" in g else float("nan")
         for name, _ in _Q:
             col = f"crb_{name}" + ("_m" if name == "height" else "_deg")
-            if col in g:
-                row[f"crb_{name}"] = float(np.nanmean(g[col].to_numpy(float)))
+            if col in g:  # NaN where no frame has a bound (none detected), without numpy's warning
+                v = g[col].to_numpy(float)
+                v = v[np.isfinite(v)]
+                row[f"crb_{name}"] = float(v.mean()) if v.size else float("nan")
         rows.append(row)
     return pd.DataFrame(rows)
 
