@@ -90,6 +90,37 @@ def test_read_back_into_the_frame_equals_pyrenders_read(egl_renderer_factory) ->
     assert not frame[:7].any() and not frame[7 + cam.height_px:200].any()  # nothing outside the rows
 
 
+def test_a_single_sample_buffer_is_read_without_a_resolve_and_equals_the_resolved_copy(
+        egl_renderer_factory) -> None:
+    """With ``antialias_samples: 0`` the draw buffer is read where it was drawn; a resolve into the
+    plain buffer (what pyrender does) and a read of that gives the same bytes."""
+    import pyrender
+    from OpenGL import GL
+
+    renderer = egl_renderer_factory(tiny_config(scene={"shading": "flat", "texture_px": 256,
+                                                       "antialias_samples": 0}))
+    cam = CameraModel(200, 150, [[240.0, 0, 101.3], [0, 235.0, 73.1], [0, 0, 1]])
+    mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=[0.9, 0.5, 0.2, 1.0])
+    pos = np.array([[-2, -1, 0], [3, -2, 0], [1, 3, 0]], np.float32)
+    sc = pyrender.Scene(bg_color=[0.1, 0.2, 0.3, 1])
+    sc.add(pyrender.Mesh([pyrender.Primitive(positions=pos, indices=np.array([[0, 1, 2]], np.uint32),
+                                             material=mat)]))
+    sc.add(pyrender.IntrinsicsCamera(*scene_mod.gl_intrinsics(cam, 0, cam.height_px), znear=0.1, zfar=100),
+           pose=scene_mod.gl_camera_pose(CameraPose.nadir(10.0)))
+    r = renderer.offscreen(cam.width_px, cam.height_px)
+    got, _ = r.render(sc, flags=pyrender.RenderFlags.FLAT | pyrender.RenderFlags.SKIP_CULL_FACES)
+    assert r._renderer._deckpose_fb_samples == 0 and got.std() > 0
+    w, h = r._renderer._main_fb_dims
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, r._renderer._main_fb_ms)
+    GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, r._renderer._main_fb)
+    GL.glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL.GL_COLOR_BUFFER_BIT, GL.GL_LINEAR)
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, r._renderer._main_fb)
+    GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+    buf = GL.glReadPixels(0, 0, w, h, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
+    resolved = np.frombuffer(buf, np.uint8).reshape(h, w, 3)[::-1]
+    np.testing.assert_array_equal(got, resolved)
+
+
 def test_lighting_presets_order_brightness(egl_renderer_factory) -> None:
     """Night is darker than dusk, dusk darker than day (deck and sea radiance)."""
     cfg = tiny_config()
