@@ -12,13 +12,15 @@ a distinct, increasing time that a log viewer shows as a date. One rule,
 from __future__ import annotations
 
 from datetime import datetime, timezone
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
-import pandas as pd
 from numpy.typing import NDArray
 
 from deckpose.errors import ConfigError, InputDataError
+
+if TYPE_CHECKING:  # pandas is imported where used: every render config (and command) paid its import
+    import pandas as pd
 
 #: The default capture epoch, 2024-01-01T00:00:00Z, integer nanoseconds since the Unix epoch.
 DEFAULT_CAPTURE_EPOCH = "2024-01-01T00:00:00Z"
@@ -97,6 +99,8 @@ def log_stamps(frames: pd.DataFrame, epoch_ns: int = DEFAULT_CAPTURE_EPOCH_NS) -
         from ``epoch_ns``, one second apart, each keeping its own stamp spacing, so
         the log times are distinct and increase with the frame order.
     """
+    import pandas as pd
+
     s_all = frames["stamp_ns"].to_numpy(np.int64)
     if len(frames) and int(s_all.min()) >= EPOCH_FLOOR_NS:
         return pd.Series(s_all, index=frames.index, dtype=np.int64)

@@ -28,10 +28,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
         formatter_class=HelpFormatter,
     )
     p.add_argument("run", type=Path, help="run folder with estimates (deckpose estimate --run RUN)")
-    from deckpose.tracking.config import TRACKERS
-
-    p.add_argument("--method", default=TRACKERS[0],
-                   help="the tracker: wave-bank, the wave-frequency oscillator-bank Kalman filter "
+    # the default is resolved in run() (the tracking package imports scipy: every command's parser paid it)
+    p.add_argument("--method", default=None,
+                   help="the tracker: wave-bank (default), the wave-frequency oscillator-bank Kalman filter "
                         "(the estimator whose estimates are tracked is --estimates)")
     p.add_argument("--detector", default=None, help="whose estimates (default: the run's only estimates table)")
     p.add_argument("--estimates", default=None, metavar="METHOD",
@@ -64,6 +63,8 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.tracking.config import TRACKERS, load_track_config
     from deckpose.tracking.run import track_run
 
+    if args.method is None:
+        args.method = TRACKERS[0]
     if args.method not in TRACKERS:
         hint = (f"; --method picks the tracker, the estimator is --estimates {args.method}"
                 if args.method.split("+")[0] in estimator_names() else "")

@@ -14,7 +14,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy import signal
 
 from deckpose.errors import ConfigError
 
@@ -95,6 +94,8 @@ def filtered_noise(noise: FilteredNoise, n_samples: int, dt_s: float, rng: np.ra
     out[0], out[1] = x0, x1
     if n_samples > 2:
         e = rng.standard_normal(n_samples - 2) / math.sqrt(var_unit)
+        from scipy import signal  # here: its import slowed every deckpose command's start
+
         zi = signal.lfiltic([1.0], [1.0, -a1, -a2], y=[x1, x0])
         out[2:], _ = signal.lfilter([1.0], [1.0, -a1, -a2], e, zi=zi)
     return noise.sigma * out[:n_samples]

@@ -21,7 +21,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.stats import norm, qmc
 
 from deckpose.errors import ConfigError, ShapeError
 from deckpose.tracking.deck_motion_model import DeckMotionModel, discretise, output_matrix
@@ -143,6 +142,9 @@ def window_calm_probability(x: NDArray[np.float64], P: NDArray[np.float64], mode
     P = np.asarray(P, float)
     if x.ndim != 2 or P.shape != (x.shape[0], x.shape[1], x.shape[1]):
         raise ShapeError(f"x, P: expected shapes (N, n) and (N, n, n), got {x.shape} and {P.shape}")
+    # imported here: scipy.stats at module level slowed every deckpose command's start
+    from scipy.stats import norm, qmc
+
     M, S = window_covariance(model, window_horizons_s(limits))
     d = M.shape[0]
     u = qmc.Sobol(d, scramble=True, rng=QMC_SEED).random(QMC_POINTS)

@@ -26,7 +26,6 @@ from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import minimize
 
 from deckpose.errors import ConfigError
 from deckpose.motion.closed_form import PhaseConvention, response_amplitudes
@@ -217,6 +216,8 @@ def fit_bank_sigmas(omega_rad_s: NDArray[np.float64], density: NDArray[np.float6
         return f, grad
 
     x0 = np.full(len(periods_s), math.log(max(total, floor) / len(periods_s)))
+    from scipy.optimize import minimize  # here: its import slowed every deckpose command
+
     res = minimize(cost, x0, jac=True, method="L-BFGS-B", bounds=[(lo, None)] * len(periods_s))
     return np.asarray(np.sqrt(np.exp(res.x)), dtype=np.float64)
 
