@@ -98,14 +98,54 @@ def block_sum(image: np.ndarray, factor: int) -> np.ndarray:
     return np.asarray(s, np.float32).reshape(a.shape[:2])
 
 
+def clipped_std_rows(d: np.ndarray, sd0: np.ndarray | None = None, *, clip: float = 4.0,
+                     passes: int = 3, min_kept: int = 10) -> np.ndarray:
+    """Each row's standard deviation within ``clip`` sigma of its centre, (n,).
+
+    Starts from the row's median and a first sigma, then ``passes`` times keeps the
+    values within ``clip`` of the current sigma of the current centre and takes their
+    mean and standard deviation; a row that would keep fewer than ``min_kept`` values
+    keeps its previous figures. The first sigma is ``sd0`` when given, else ``1.4826 MAD``
+    (the standard deviation where the MAD is 0). A median absolute deviation alone is
+    quantised with the data: on an 8-bit frame it overstated the noise by 40 %; the
+    clipped standard deviation keeps the quantisation's true variance and drops spots and
+    edges (beyond ``clip`` sigma).
+
+    Parameters
+    ----------
+    d : (n, m) array of float
+        Finite values (pixel differences), one sample per row.
+    sd0 : (n,) array of float, optional
+        First sigma of each row.
+    """
+    d = np.asarray(d, np.float64)
+    med = row_median(d)
+    if sd0 is not None:
+        sd = np.asarray(sd0, np.float64).copy()
+    else:
+        sd = 1.4826 * row_median(np.abs(d - med[:, None]))
+        flat = ~(sd > 0)
+        if flat.any():
+            sd[flat] = d[flat].std(axis=1)
+    for _ in range(passes):
+        keep = np.abs(d - med[:, None]) < clip * np.maximum(sd, 1e-12)[:, None]
+        n = keep.sum(axis=1)
+        ok = n >= min_kept
+        if not ok.any():
+            break
+        nn = np.maximum(n, 1)
+        mean = np.where(keep, d, 0.0).sum(axis=1) / nn
+        var = np.where(keep, (d - mean[:, None]) ** 2, 0.0).sum(axis=1) / nn
+        med = np.where(ok, mean, med)
+        sd = np.where(ok, np.sqrt(var), sd)
+    return sd
+
+
 def clipped_difference_noise(S: np.ndarray, samples: int = 60_000) -> float:
     """Noise of an image from horizontal pixel differences: a 4-sigma-clipped std, DN.
 
-    A median absolute deviation is quantised with the data: on an 8-bit frame whose
-    background is a few DN it overstated the noise by 40 % and hid spots of
-    integrated SNR 13. The standard deviation of the differences within 4 sigma
-    (three passes from the MAD's start) keeps the quantisation's true variance and
-    drops stars, spots and edges.
+    :func:`clipped_std_rows` of about ``samples`` differences of neighbours, over
+    ``sqrt 2`` (the noise of one pixel).
     """
     h, w = S.shape
     step = max(1, int(math.sqrt(h * w / samples)))
@@ -114,16 +154,7 @@ def clipped_difference_noise(S: np.ndarray, samples: int = 60_000) -> float:
     d = d[np.isfinite(d)]
     if d.size < 10:
         return MIN_NOISE_DN
-    med = float(np.median(d))
-    sd = 1.4826 * float(np.median(np.abs(d - med)))
-    if not sd > 0:
-        sd = float(np.std(d))
-    for _ in range(3):
-        keep = np.abs(d - med) < 4.0 * max(sd, 1e-12)
-        if keep.sum() < 10:
-            break
-        med, sd = float(np.mean(d[keep])), float(np.std(d[keep]))
-    return sd / math.sqrt(2.0)
+    return float(clipped_std_rows(d[None])[0]) / math.sqrt(2.0)
 
 
 def tiles_of(ys: np.ndarray, xs: np.ndarray, w: int) -> tuple[np.ndarray, np.ndarray]:
@@ -159,7 +190,8 @@ def _gaussian_norm(sigma: float) -> tuple[int, float]:
     return k, float(np.sum(g**2))  # the 2-D kernel's L2 norm is the 1-D one's squared
 
 
-def texture_noise(G: np.ndarray, step_px: int, tiles: np.ndarray) -> np.ndarray:
+def texture_noise(G: np.ndarray, step_px: int, tiles: np.ndarray,
+                  flat_steps: np.ndarray | None = None) -> np.ndarray:
     """Spread of a smoothed coarse image on a spot's scale in some tiles, (n,).
 
     Differences of pixels ``step_px`` apart (a ring's radius) along rows cancel
@@ -169,12 +201,22 @@ def texture_noise(G: np.ndarray, step_px: int, tiles: np.ndarray) -> np.ndarray:
     raises the threshold where it is; an edge crossing a tile touches few of its
     samples.
 
+    In a tile of flat steps (``flat_steps``, :func:`flat_step_tiles`) the MAD misreads
+    the texture: most differences there are exactly 0 and the rest are steps of many
+    noise sigmas, so the median of their sizes is far below their spread. There the
+    spread is the larger of that and the differences' standard deviation clipped at
+    4 sigma from the plain standard deviation (:func:`clipped_std_rows`, five passes: the
+    iteration of astropy's ``sigma_clip``), which keeps the steps and drops a spot's few
+    samples.
+
     Parameters
     ----------
     G : (h, w) array of float
     step_px : int
     tiles : (n, 2) array of int
         Tile rows and columns (``v // T``, ``u // T``).
+    flat_steps : (n,) array of bool, optional
+        Which tiles hold a texture of flat steps (none when not given).
     """
     h, w = G.shape
     T, st = TEXTURE_TILE_PX, 4
@@ -191,7 +233,24 @@ def texture_noise(G: np.ndarray, step_px: int, tiles: np.ndarray) -> np.ndarray:
     d = flat.take(right) - flat.take(at)
     med = row_median(d)
     mad = row_median(np.abs(d - med[:, None]))
-    return 1.4826 * mad / math.sqrt(2.0)
+    spread = 1.4826 * mad / math.sqrt(2.0)
+    if flat_steps is not None and flat_steps.any():
+        ds = d[flat_steps]
+        clipped = clipped_std_rows(ds, ds.std(axis=1), passes=5) / math.sqrt(2.0)
+        spread[flat_steps] = np.maximum(spread[flat_steps], clipped)
+    return spread
+
+
+def flat_step_tiles(spread_2px: np.ndarray, noise: float) -> np.ndarray:
+    """Which tiles hold a texture of flat steps, (n,) bool.
+
+    A tile whose :func:`texture_noise` at a 2-px step is below half the image's pixel
+    noise ``noise`` (``sigma_G``): more than half of its differences are equal, which
+    noise never gives (the MAD of 256 differences of noise is within 8 % of it, one
+    sigma). A night sea or deck on a low-noise 8-bit sensor is such a texture: steps of
+    one DN per channel, each many noise sigmas, between flat patches.
+    """
+    return spread_2px < 0.5 * noise
 
 
 def box_means(G: np.ndarray, ys: np.ndarray, xs: np.ndarray, half: int) -> np.ndarray:
@@ -331,8 +390,11 @@ def _spots_at_scale(
     # The frame fails when more than MAX_PEAKS maxima pass the prefilter: that count needs
     # the prefilter on every maximum, which only a frame with more maxima than that runs.
     thr = PREFILTER_FRACTION * significance_sigma
-    textures = _TileTextures(G)
+    textures = _TileTextures(G, sigma_G)
     if ys.size > MAX_PEAKS:
+        # flat steps (a night sea on a low-noise 8-bit sensor) give plateaus of equal maxima:
+        # each plateau is one peak before the count (frames below the count keep all of them)
+        ys, xs = one_per_plateau(ys, xs, G.shape)
         keep = _prefilter(G, ys, xs, thr, sigma_G, int(radii[-1]), textures)
         ys, xs = ys[keep], xs[keep]
         if ys.size > MAX_PEAKS:
@@ -437,6 +499,33 @@ def _local_maxima(G: np.ndarray, level: float) -> tuple[np.ndarray, np.ndarray]:
     return ys, xs
 
 
+def one_per_plateau(ys: np.ndarray, xs: np.ndarray, shape: tuple[int, int]) -> tuple[np.ndarray, np.ndarray]:
+    """One local maximum per plateau: the one nearest the plateau's centroid.
+
+    Two 3x3 local maxima that touch (8-connected) are equal (each is at least the other),
+    so the connected groups of maxima are plateaus. Of each, the member nearest the
+    group's centroid is kept (the first in row-major order on a tie); a lone maximum is
+    its own group. Row-major order is kept.
+
+    Parameters
+    ----------
+    ys, xs : (n,) arrays of int
+        Rows and columns of local maxima of an image of ``shape``.
+    """
+    if ys.size == 0:
+        return ys, xs
+    mask = np.zeros(shape, np.uint8)
+    mask[ys, xs] = 1
+    _n, labels, _stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    lab = labels[ys, xs]
+    d2 = (xs - centroids[lab, 0]) ** 2 + (ys - centroids[lab, 1]) ** 2
+    order = np.lexsort((np.arange(ys.size), d2, lab))  # by group, nearest first, then row-major
+    first = np.ones(order.size, bool)
+    first[1:] = lab[order][1:] != lab[order][:-1]
+    kept = np.sort(order[first])
+    return ys[kept], xs[kept]
+
+
 def _prefilter(
     G: np.ndarray, ys: np.ndarray, xs: np.ndarray, thr: float, sigma_G: float, half: int,
     textures: _TileTextures,
@@ -526,17 +615,34 @@ def _ring_screen(
 
 
 class _TileTextures:
-    """:func:`texture_noise` of an image per step and :data:`TEXTURE_TILE_PX` tile, each once."""
+    """:func:`texture_noise` of an image per step and :data:`TEXTURE_TILE_PX` tile, each once.
 
-    def __init__(self, G: np.ndarray) -> None:
+    With ``noise`` (the image's ``sigma_G``), tiles of flat steps (:func:`flat_step_tiles`,
+    from their 2-px texture) get the step texture's spread at every step.
+    """
+
+    def __init__(self, G: np.ndarray, noise: float = 0.0) -> None:
         self.G = G
+        self.noise = noise
         self.n_cols = -(-G.shape[1] // TEXTURE_TILE_PX)
         self.n_tiles = -(-G.shape[0] // TEXTURE_TILE_PX) * self.n_cols
         self.done: dict[int, np.ndarray] = {}
+        self.plain_2px = np.full(self.n_tiles, np.nan)  # the MAD rule at 2 px, for the flags
 
     def tile_of(self, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
         """Flat index (row-major) of the tile of each point ``(ys, xs)``, coarse px; (n,) int."""
         return (ys // TEXTURE_TILE_PX) * self.n_cols + xs // TEXTURE_TILE_PX
+
+    def _rc(self, tiles: np.ndarray) -> np.ndarray:
+        return np.column_stack([tiles // self.n_cols, tiles % self.n_cols])
+
+    def _flat_steps(self, tiles: np.ndarray) -> np.ndarray | None:
+        if not self.noise > 0:
+            return None
+        todo = tiles[np.isnan(self.plain_2px[tiles])]
+        if todo.size:
+            self.plain_2px[todo] = texture_noise(self.G, 2, self._rc(todo))
+        return flat_step_tiles(self.plain_2px[tiles], self.noise)
 
     def of_tiles(self, step_px: int, tiles: np.ndarray) -> np.ndarray:
         """Texture noise at ``step_px`` of every tile, (n_tiles,): those in ``tiles`` (flat
@@ -544,8 +650,7 @@ class _TileTextures:
         vals = self.done.setdefault(step_px, np.full(self.n_tiles, np.nan))
         todo = np.unique(tiles[np.isnan(vals[tiles])])
         if todo.size:
-            rc = np.column_stack([todo // self.n_cols, todo % self.n_cols])
-            vals[todo] = texture_noise(self.G, step_px, rc)
+            vals[todo] = texture_noise(self.G, step_px, self._rc(todo), self._flat_steps(todo))
         return vals
 
     def at(self, step_px: int, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
