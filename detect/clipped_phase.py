@@ -108,9 +108,15 @@ def _phase_cov_one(c: float, n_sat: float, flux: float, phases: int) -> np.ndarr
     s2 = max((flux / c - n_sat) / (2.0 * math.pi), 0.25 * r_p2 / MAX_LOG_PEAK_OVER_CLIP, 0.01)
     s = math.sqrt(s2)
     n_total = 2.0 * math.pi * s2 * c * math.exp(min(r_p2 / (2.0 * s2), MAX_LOG_PEAK_OVER_CLIP))
-    # phases p in [-1/2, 1/2) (a pixel's centre at 0), the plateau's box around them
-    p = (np.arange(phases) + 0.5) / phases - 0.5  # (P,)
-    half = math.ceil(math.sqrt(r_p2)) + 2
+    # Phases p in [-1/2, 1/2) (a pixel's centre at 0). The model is round and centred, so
+    # e_u is odd in p_u and even in p_v (e_v alike, axes swapped): e_u^2 and e_v^2 take the
+    # same values in each quadrant of the phase grid and e_u e_v averages to zero over it.
+    # The quadrant p >= 0 gives the whole grid's mean (a phase at 0, its own mirror, counts half).
+    p_all = (np.arange(phases) + 0.5) / phases - 0.5
+    p = p_all[p_all >= 0.0]  # (P,)
+    w = np.where(p == 0.0, 0.5, 1.0)
+    wts = w[:, None] * w[None, :]  # (Pv, Pu)
+    half = math.ceil(math.sqrt(r_p2)) + 2  # the plateau's box around the phases
     x = np.arange(-half, half + 1, dtype=float)  # (n,)
     # exact fractions of a unit Gaussian in each pixel, per phase: (P, n)
     frac = ndtr((x[None, :] + 0.5 - p[:, None]) / s) - ndtr((x[None, :] - 0.5 - p[:, None]) / s)
@@ -119,5 +125,4 @@ def _phase_cov_one(c: float, n_sat: float, flux: float, phases: int) -> np.ndarr
     # e_u(pv, pu) = -sum (x - pu) excess / F, and likewise along v
     eu = -(excess.sum(axis=2) * (x[None, None, :] - p[None, :, None])).sum(axis=2) / flux
     ev = -(excess.sum(axis=3) * (x[None, None, :] - p[:, None, None])).sum(axis=2) / flux
-    e = np.stack([eu.ravel(), ev.ravel()])  # (2, P^2)
-    return (e @ e.T) / e.shape[1]
+    return np.diag([float((wts * eu * eu).sum()), float((wts * ev * ev).sum())]) / float(wts.sum())

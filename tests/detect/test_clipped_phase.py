@@ -202,7 +202,7 @@ def test_eight_phases_per_axis_suffice():
     fine = clipped_phase_cov(clip, n_sat, flux, phases=64)
     ratio = np.sqrt(coarse[:, 0, 0] / fine[:, 0, 0])
     assert np.all(np.abs(ratio - 1.0) < 0.1), ratio
-    assert np.allclose(coarse[:, 0, 0], coarse[:, 1, 1]) and np.allclose(coarse[:, 0, 1], 0.0)
+    assert np.allclose(coarse[:, 0, 0], coarse[:, 1, 1])  # a round model
 
 
 def test_no_plateau_no_term_and_bad_shapes_refused():
