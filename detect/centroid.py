@@ -20,6 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from deckpose.detect.candidate import Candidate
+from deckpose.detect.clipped_phase import clipped_phase_cov
 
 Row = tuple[float, float, np.ndarray, float, float, float]
 
@@ -93,6 +94,12 @@ def cog_centroids(
     through a Gaussian window instead (:func:`_matched_centroid`). ``covariance=False``
     leaves the disc-window rows' covariances NaN (for a caller that reads the centres,
     fluxes and sizes alone: they are the same either way).
+
+    A clipped core's covariance also holds its pixel-phase error
+    (:func:`~deckpose.detect.clipped_phase.clipped_phase_cov`, from its saturated pixels,
+    their signal and the window's flux): a deterministic error of the centroid of a
+    clipped plateau that the noise's covariance does not hold. A spot without a
+    saturated pixel in its blob pays nothing and its covariance is unchanged.
     """
     if max_iter < 0:
         raise ValueError(f"max_iter must be >= 0, got {max_iter}")
@@ -143,7 +150,36 @@ def cog_centroids(
                                      window_sigma, max_iter, tol_px, cov_of=np.full(len(again), covariance))
         for i, row in zip(again, second):
             rows[i] = row
+    if covariance:
+        _add_clipped_phase_cov(cands, signals, disc, rows)
     return rows
+
+
+def _add_clipped_phase_cov(
+    cands: Sequence[Candidate], signals: Sequence[np.ndarray], disc: Sequence[int],
+    rows: list[Row | None],
+) -> None:
+    """Add the clipped cores' pixel-phase covariance to their rows, in place (all of them at once).
+
+    ``disc`` are the candidates measured through the disc window and ``signals`` their
+    signals (the first pass's, which a clipped core keeps: it is not measured again above
+    its floor). The clip level is the median signal of the blob's saturated pixels.
+    """
+    clipped: list[tuple[int, Row]] = []
+    clip, n_sat = [], []
+    for k, i in enumerate(disc):
+        row = rows[i]
+        sat = cands[i].saturated & cands[i].mask
+        if row is None or not sat.any():
+            continue
+        clipped.append((i, row))
+        clip.append(float(np.median(signals[k][sat])))
+        n_sat.append(int(np.count_nonzero(sat)))
+    if not clipped:
+        return
+    terms = clipped_phase_cov(np.array(clip), np.array(n_sat), np.array([r[3] for _, r in clipped]))
+    for (i, (u, v, cov, f, size, score)), term in zip(clipped, terms):
+        rows[i] = (u, v, cov + term, f, size, score)
 
 
 def _matched_centroid(cand: Candidate, s_full: np.ndarray) -> Row | None:
