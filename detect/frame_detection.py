@@ -81,6 +81,12 @@ def detect_frame(
 ) -> FrameDetections:
     """Run detector ``detector`` on ``frame`` and identify the beacons.
 
+    A detector with a candidate kernel (:func:`~deckpose.detect.registry.register_kernel`:
+    ``cog``, ``gauss``) gets a second look on a colour frame whose ring was fitted: the
+    empty ring slots and a missing centre are searched again in the beacon's colour
+    (:func:`~deckpose.detect.guided_look.look_again`), and identification runs again with
+    what it adds; the frame keeps the result only if it is identified, or was not before.
+
     Parameters
     ----------
     frame : Frame

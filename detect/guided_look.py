@@ -23,8 +23,9 @@ can afford a lower threshold and the beacon's colour:
 * **Threshold.** The search looks at ``n`` positions in all (the integer pixels within
   the search radius of each prediction, once per template). The union bound caps its
   false alarms per frame at ``n Q(t)``; setting that to :data:`FALSE_ALARM_PER_FRAME`
-  gives ``t = Q^-1(FALSE_ALARM_PER_FRAME / n)``: for 4 empty slots of 29 positions and
-  two templates, ``t = 4.45``. The full-frame search had 1 false detection in 144
+  gives ``t = Q^-1(FALSE_ALARM_PER_FRAME / n)``: for 4 empty slots of 45 positions
+  (:func:`search_positions` of 3 px, counted generously) ``t = 4.39``, and 4.54 with two
+  templates each (the bow missing). The full-frame search had 1 false detection in 144
   frames of 8 MP (``reports/detectors_independent/frames48``): about 7e-3 per frame,
   so the second look adds at most a seventh of that.
 * **Search radius.** The prediction's error is about the ring blobs' RMS residual

@@ -94,7 +94,7 @@ def _full_search_alone(frame: Frame, detector: str):
 def test_a_dim_red_bow_at_snr_8_to_12_is_found_and_identified(detector):
     # 10 frames, the bow's red-channel SNR spread over 8-12. The second look's statistic
     # at the bow is about SNR x the filter's efficiency (>= 0.79 for the ring's median
-    # sigma against the bow's, both in 0.8-2.5 px) >= 6.3, against a threshold near 4.6:
+    # sigma against the bow's, both in 0.8-2.5 px) >= 6.3, against a threshold of 4.1-4.6:
     # a miss has probability <= Q(1.7) = 4.5 % per frame (an identification also needs
     # the red share measured; it errs far less at this SNR). Allowed: 2 misses of 10
     # (probability of more than 2 at 4.5 % each: 1.0 %).
