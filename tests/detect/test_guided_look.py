@@ -131,8 +131,9 @@ def _grid(image: np.ndarray, spacing: int) -> np.ndarray:
 def test_the_rounding_noise_is_in_the_channel_noise():
     # Regression: on 8-bit frames the noise is mostly rounding. The per-channel pixel noise
     # is sqrt((background + read^2) gain^2 + 1/12) DN = 0.43 DN here, independently of
-    # detect; the estimate (60,000 pixel differences, clipped at 4 sigma, which removes
-    # ~1e-4 of a Gaussian's variance) has a relative sampling error of ~0.3 %: 3 % allowed.
+    # detect; the estimate (10,000 pixel differences, clipped at 4 sigma, which removes
+    # ~1e-3 of a Gaussian's variance) has a relative sampling error of ~0.7 %: 3 % allowed
+    # (4 standard errors and the clip's bias).
     # Before, an unsigned channel's differences wrapped around (70 DN).
     img = _noise_image(np.random.default_rng(1), (1080, 1920))
     expected = math.sqrt((RGB8.background_e + RGB8.read_noise_e**2) * GAIN**2 + 1.0 / 12.0)
