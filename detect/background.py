@@ -113,6 +113,27 @@ def clipped_mean(values: np.ndarray, k_sigma: float = 3.0, passes: int = 3) -> n
     return m if x.ndim > 1 else m.reshape(())
 
 
+def clipped_sd(values: np.ndarray, k_sigma: float = 4.0, passes: int = 3) -> np.ndarray:
+    """Standard deviation of each column of ``values`` within ``k_sigma`` of its mean, (m,).
+
+    ``values`` is (n, m). Three passes from the median and the MAD, as
+    :func:`~deckpose.detect.significance.clipped_difference_noise` does for one column:
+    a standard deviation keeps a quantised frame's rounding variance, which a MAD loses.
+    """
+    x = np.asarray(values, dtype=np.float64).reshape(np.shape(values)[0], -1)
+    m = np.median(x, axis=0)
+    sd = MAD_TO_SIGMA * np.median(np.abs(x - m), axis=0)
+    sd = np.where(sd > 0, sd, x.std(axis=0))
+    for _ in range(passes):
+        keep = np.abs(x - m) < k_sigma * np.maximum(sd, 1e-12)
+        n = keep.sum(axis=0)
+        if np.any(n < 10):
+            break
+        m = np.where(keep, x, 0.0).sum(axis=0) / n
+        sd = np.sqrt(np.where(keep, (x - m) ** 2, 0.0).sum(axis=0) / n)
+    return sd
+
+
 def robust_stats(values: np.ndarray) -> tuple[float, float]:
     """Median and MAD-based standard deviation (floored at :data:`MIN_NOISE_DN`)."""
     v = np.asarray(values, dtype=np.float64).ravel()

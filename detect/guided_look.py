@@ -11,8 +11,9 @@ can afford a lower threshold and the beacon's colour:
 
 * **Statistic.** For a colour template ``a`` (channel shares of the beacon's light:
   the layout's ``bow_rgb`` or ``beacon_rgb``) the channels are combined with the
-  matched weights ``w_c = a_c / sigma_c^2`` (``sigma_c``: the channel's pixel noise,
-  :func:`channel_noise`), less each channel's background (a clipped mean of the
+  matched weights ``w_c = a_c / sigma_c^2`` (``sigma_c``: the channel's pixel noise, the
+  larger of the frame's, :func:`channel_noise`, and that of the window's outer part, where
+  a lit or textured deck has more), less each channel's background (a clipped mean of the
   window's outer part, ``N_bg`` pixels), and correlated with the pixel-integrated
   Gaussian ``g`` of the ring's spot size. On noise alone, at each position,
 
@@ -45,7 +46,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from deckpose.detect.background import clipped_mean, saturation_level
+from deckpose.detect.background import clipped_mean, clipped_sd, saturation_level
 from deckpose.detect.candidates import spot_window, window_candidate
 from deckpose.detect.colour import blob_rgb_flux, redness
 from deckpose.detect.identification import Identification, IdentifyOptions
@@ -84,6 +85,11 @@ MAX_SEARCH_RADIUS_PX = 10.0
 #: Pixel pairs per channel of :func:`channel_noise`: the noise's relative standard error is
 #: about ``1 / sqrt(2 x 10,000) = 0.7 %`` (T's scale, a shift of 0.03 sigma at 4.4 sigma).
 NOISE_SAMPLES = 10_000
+#: A spot found is at most this many times the size (``size_px``) of the ring's largest
+#: spot found: the same optics from about the same range (the independent generator draws
+#: each beacon's sigma from 0.8-2.5 px, a 3x range, so 2x the largest of 12 draws, about
+#: 2.4 px, covers it; a fit's size at SNR 8 errs by up to ~1.7x).
+MAX_SIZE_RATIO = 2.0
 #: Width of the window's outer part whose clipped mean is the background, pixels.
 BACKGROUND_MARGIN_PX = 8
 
@@ -238,7 +244,8 @@ def search_windows(
     templates : (m, C) array of float
         Channel shares of each colour searched for (rows need not sum to 1).
     noise_dn : (C,) array of float
-        Pixel noise per channel, DN (:func:`channel_noise`).
+        Pixel noise per channel, DN (:func:`channel_noise`); in each window the outer
+        part's own (pixel differences), where larger.
     threshold : float
         Noise sigmas of ``T`` (:func:`guided_threshold`).
 
@@ -255,8 +262,6 @@ def search_windows(
     kh = g.shape[0] // 2
     tmpl = np.asarray(templates, float).reshape(-1, C)
     noise = np.asarray(noise_dn, float).reshape(C)
-    wts = tmpl / noise[None, :] ** 2  # (m, C) matched channel weights
-    sig_y = np.sqrt((wts**2 * noise[None, :] ** 2).sum(axis=1))  # (m,)
     sum_g, g2 = float(g.sum()), float(np.sum(g**2))
     r_in = radius_px + kh  # the spot's light reaches this far from the prediction
     half = math.ceil(r_in) + BACKGROUND_MARGIN_PX
@@ -273,6 +278,14 @@ def search_windows(
         if n_bg < 50:
             continue
         bg = clipped_mean(block[outer])
+        # the pixel noise where the window is (a brighter, textured deck has more than the
+        # frame's dark sky): the larger of the frame's and the outer part's, per channel
+        pair = outer[:, 1:] & outer[:, :-1]
+        diffs = (block[:, 1:] - block[:, :-1])[pair]
+        local = clipped_sd(diffs) / math.sqrt(2.0) if pair.sum() >= 50 else np.zeros(C)
+        noise_k = np.maximum(noise, local)
+        wts = tmpl / noise_k[None, :] ** 2  # (m, C) matched channel weights
+        sig_y = np.sqrt((wts**2 * noise_k[None, :] ** 2).sum(axis=1))  # (m,)
         for t in range(tmpl.shape[0]):
             y = ((block - bg[None, None, :]) * wts[t][None, None, :]).sum(axis=2)
             # correlation with g at every pixel whose kernel lies in the block
@@ -383,9 +396,15 @@ def look_again(
             at.append(k)
     rows_all = kernel(cands, options) if cands else []
     rows: list[BlobRow] = []
+    # A beacon of this ring is seen through the same optics from about the same range as
+    # the ring's others: its spot is at most MAX_SIZE_RATIO times the largest of theirs. A
+    # broad bump is no beacon (a painted-out beacon's glow on a rendered frame measured
+    # 2.4-3.1x the ring's largest spot).
+    max_size = MAX_SIZE_RATIO * float(np.max(blobs.size_px[ring])) if ring.any() else math.inf
     for k, r in zip(at, rows_all):
         # the kernel's centre stays near the prediction (a spot's own, not a neighbour's)
-        if r is not None and math.hypot(r[0] - pos[k, 0], r[1] - pos[k, 1]) <= radius + sigma:
+        if (r is not None and math.hypot(r[0] - pos[k, 0], r[1] - pos[k, 1]) <= radius + sigma
+                and r[4] <= max_size):
             rows.append(r)
     if not rows:
         return LookResult([])
