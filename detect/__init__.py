@@ -15,6 +15,8 @@
   RANSAC, :mod:`~deckpose.detect.ring_homography`, colour of the bow beacon) or two
   (:mod:`~deckpose.detect.two_ring_identify`), the record and options in
   :mod:`~deckpose.detect.identification`;
+* :mod:`~deckpose.detect.guided_look` — a second look at the empty ring slots, in the
+  beacon's colour, once the ring is fitted;
 * :mod:`~deckpose.detect.prior_identify` — beacon ids from a prior pose (the
   previous frame's), for frames without a bow or a ring in view;
 * :mod:`~deckpose.detect.frame_detection` — one frame: detect + identify ->

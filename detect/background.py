@@ -91,6 +91,49 @@ def row_median(a: np.ndarray) -> np.ndarray:
     return (s[:, m // 2 - 1] + s[:, m // 2]) / 2
 
 
+def clipped_mean(values: np.ndarray, k_sigma: float = 3.0, passes: int = 3) -> np.ndarray:
+    """Mean of each column of ``values`` within ``k_sigma`` standard deviations, (m,).
+
+    ``values`` is (n, m) (or (n,), giving one value). Three passes drop a neighbouring
+    spot's light. A mean, not a median: on a quantised frame whose background is a DN or
+    two, the median is a whole DN, up to half a DN off the level (summed over a
+    spot's aperture, a bias of many DN).
+    """
+    x = np.asarray(values, dtype=np.float64)
+    x2 = x.reshape(x.shape[0], -1)
+    keep = np.ones(x2.shape, bool)
+    m = x2.mean(axis=0)
+    for _ in range(passes):
+        n = keep.sum(axis=0)
+        if np.any(n < 3):
+            break
+        m = np.where(keep, x2, 0.0).sum(axis=0) / n
+        sd = np.sqrt(np.where(keep, (x2 - m) ** 2, 0.0).sum(axis=0) / n)
+        keep = np.abs(x2 - m) <= k_sigma * sd + 1e-12
+    return m if x.ndim > 1 else m.reshape(())
+
+
+def clipped_sd(values: np.ndarray, k_sigma: float = 4.0, passes: int = 3) -> np.ndarray:
+    """Standard deviation of each column of ``values`` within ``k_sigma`` of its mean, (m,).
+
+    ``values`` is (n, m). Three passes from the median and the MAD, as
+    :func:`~deckpose.detect.significance.clipped_difference_noise` does for one column:
+    a standard deviation keeps a quantised frame's rounding variance, which a MAD loses.
+    """
+    x = np.asarray(values, dtype=np.float64).reshape(np.shape(values)[0], -1)
+    m = np.median(x, axis=0)
+    sd = MAD_TO_SIGMA * np.median(np.abs(x - m), axis=0)
+    sd = np.where(sd > 0, sd, x.std(axis=0))
+    for _ in range(passes):
+        keep = np.abs(x - m) < k_sigma * np.maximum(sd, 1e-12)
+        n = keep.sum(axis=0)
+        if np.any(n < 10):
+            break
+        m = np.where(keep, x, 0.0).sum(axis=0) / n
+        sd = np.sqrt(np.where(keep, (x - m) ** 2, 0.0).sum(axis=0) / n)
+    return sd
+
+
 def robust_stats(values: np.ndarray) -> tuple[float, float]:
     """Median and MAD-based standard deviation (floored at :data:`MIN_NOISE_DN`)."""
     v = np.asarray(values, dtype=np.float64).ravel()

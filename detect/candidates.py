@@ -398,11 +398,7 @@ def search_candidates(
             f"noise {st.noise_dn:.2f} DN, brightest pixel {float(np.max(image)):.0f} DN)"
         ), ""
     gain0 = options.gain_dn_per_e or 1.0
-    cands = [
-        Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, gain0, t, clip_signal=clip,
-                  frame_shape=(H, W), surround_grad=(sg[0], sg[1]), surround_grad_sd=sg[2])
-        for p, m, s, u0, v0, bg, t, nz, clip, sg in raw
-    ]
+    cands = [window_candidate(win, gain0, (H, W)) for win in raw]
     if options.gain_dn_per_e is None:
         gain = estimate_gain(cands, options.window_sigma)
         cands = [dataclasses.replace(c, gain_dn_per_e=gain) for c in cands]
@@ -433,7 +429,6 @@ def _significant_windows(
     )
     if reason:
         return [], reason, ""
-    H, W = image.shape[:2]
     taken: list[tuple[float, float, float, float]] = []
     out: list[RawWindow] = []
     for win in bright:
@@ -450,32 +445,76 @@ def _significant_windows(
         if any(a - near_px <= uc <= c + near_px and b - near_px <= vc <= d + near_px
                for a, b, c, d in taken):
             continue
-        half = math.ceil(1.5 * r) + 4
-        wb = (max(0, int(uc) - half), max(0, int(vc) - half),
-              min(W, int(uc) + half + 1), min(H, int(vc) + half + 1))
-        if wb[2] - wb[0] < 5 or wb[3] - wb[1] < 5:
+        found = spot_window(image, float(uc), float(vc), float(r), st.noise_dn, sat_dn)
+        if found is None:
             continue
-        wpix = mono(image[wb[1] : wb[3], wb[0] : wb[2]])
-        plane = border_plane(wpix)
-        h, w = wpix.shape
-        tilt = (np.arange(h)[:, None] - (h - 1) / 2) * plane[2] + (
-            np.arange(w)[None, :] - (w - 1) / 2
-        ) * plane[1]
-        smooth = cv2.GaussianBlur(wpix - plane[0] - tilt, (0, 0), 1.0)
-        # the peak nearest the search's centre, within the ring it passed on
-        vv, uu = np.mgrid[0:h, 0:w]
-        near = np.hypot(uu + wb[0] - uc, vv + wb[1] - vc) <= max(r, 2.0)
-        pv, pu = np.unravel_index(np.argmax(np.where(near, smooth, -np.inf)), smooth.shape)
-        top = float(smooth[pv, pu])
-        if not top > 0:
-            continue
-        _n, labels = cv2.connectedComponents((smooth > 0.5 * top).astype(np.uint8), connectivity=8)
-        mask = labels == labels[pv, pu]
-        noise = max(st.noise_dn, border_noise(wpix))
-        out.append((wpix, mask, _saturated(image, wb, sat_dn), wb[0], wb[1], plane,
-                    plane[0] + 0.5 * top, noise, False, (0.0, 0.0, 0.0)))
-        taken.append((wb[0] + pu - 1.0, wb[1] + pv - 1.0, wb[0] + pu + 1.0, wb[1] + pv + 1.0))
+        win, (pu_px, pv_px) = found
+        out.append(win)
+        taken.append((pu_px - 1.0, pv_px - 1.0, pu_px + 1.0, pv_px + 1.0))
     return out, "", note
+
+
+def spot_window(
+    image: np.ndarray, uc: float, vc: float, r: float, noise_dn: float, sat_dn: float
+) -> tuple[RawWindow, tuple[int, int]] | None:
+    """The window of a spot a search found near ``(uc, vc)``, measured on the channel sum.
+
+    The window reaches ``1.5 r + 4`` px around the spot, its background is a plane fitted
+    to its border, and its blob is the half-maximum region (of the window smoothed by a
+    1 px Gaussian, above the plane) around the highest point within ``max(r, 2)`` px of
+    ``(uc, vc)``.
+
+    Parameters
+    ----------
+    image : (H, W) or (H, W, 3) array
+    uc, vc : float
+        Where the search found the spot, full-resolution pixels.
+    r : float
+        Its size: the radius it was found on, pixels.
+    noise_dn : float
+        The frame's noise of the channel sum, DN (the window border's, where larger).
+    sat_dn : float
+        Saturation level, DN.
+
+    Returns
+    -------
+    (RawWindow, (u, v)) or None
+        The window and its peak pixel; ``None`` when the window is smaller than 5 px a
+        side or nothing rises above its plane there.
+    """
+    H, W = image.shape[:2]
+    half = math.ceil(1.5 * r) + 4
+    wb = (max(0, int(uc) - half), max(0, int(vc) - half),
+          min(W, int(uc) + half + 1), min(H, int(vc) + half + 1))
+    if wb[2] - wb[0] < 5 or wb[3] - wb[1] < 5:
+        return None
+    wpix = mono(image[wb[1] : wb[3], wb[0] : wb[2]])
+    plane = border_plane(wpix)
+    h, w = wpix.shape
+    tilt = (np.arange(h)[:, None] - (h - 1) / 2) * plane[2] + (
+        np.arange(w)[None, :] - (w - 1) / 2
+    ) * plane[1]
+    smooth = cv2.GaussianBlur(wpix - plane[0] - tilt, (0, 0), 1.0)
+    # the peak nearest the search's centre, within the ring it passed on
+    vv, uu = np.mgrid[0:h, 0:w]
+    near = np.hypot(uu + wb[0] - uc, vv + wb[1] - vc) <= max(r, 2.0)
+    pv, pu = np.unravel_index(np.argmax(np.where(near, smooth, -np.inf)), smooth.shape)
+    top = float(smooth[pv, pu])
+    if not top > 0:
+        return None
+    _n, labels = cv2.connectedComponents((smooth > 0.5 * top).astype(np.uint8), connectivity=8)
+    mask = labels == labels[pv, pu]
+    noise = max(noise_dn, border_noise(wpix))
+    win: RawWindow = (wpix, mask, _saturated(image, wb, sat_dn), wb[0], wb[1], plane,
+                      plane[0] + 0.5 * top, noise, False, (0.0, 0.0, 0.0))
+    return win, (wb[0] + int(pu), wb[1] + int(pv))
+
+
+def window_candidate(win: RawWindow, gain_dn_per_e: float, frame_shape: tuple[int, int]) -> Candidate:
+    """The :class:`Candidate` of a window (:data:`RawWindow`) at a known gain, DN per electron."""
+    p, m, s, u0, v0, bg, t, nz, clip, sg = win
+    return Candidate(p, m, s, u0, v0, bg[0], (bg[1], bg[2]), nz, gain_dn_per_e, t, clip_signal=clip,
+                     frame_shape=frame_shape, surround_grad=(sg[0], sg[1]), surround_grad_sd=sg[2])
 
 
 def measure_candidates(
@@ -511,4 +550,4 @@ def measure_candidate_batch(
     for r in sorted(rows, key=lambda r: -r[3]):
         if all(math.hypot(r[0] - k[0], r[1] - k[1]) >= max(1.0, r[4], k[4]) for k in kept):
             kept.append(r)
-    return Blobs.stack(kept, note=note)
+    return Blobs.stack(kept, note=note, gain_dn_per_e=cands[0].gain_dn_per_e)

@@ -5,11 +5,17 @@ from __future__ import annotations
 from deckpose.detect.candidate import Candidate
 from deckpose.detect.candidates import measure_candidate_batch
 from deckpose.detect.centroid import Row, cog_centroids
-from deckpose.detect.registry import Blobs, DetectorOptions, register
+from deckpose.detect.registry import Blobs, DetectorOptions, register, register_kernel
 
 from deckpose.records import Frame
 
-__all__ = ["detect_cog"]
+__all__ = ["detect_cog", "measure_cog"]
+
+
+def measure_cog(cands: list[Candidate], options: DetectorOptions) -> list[Row | None]:
+    """The ``cog`` row of each candidate (``None``: a clipped core cut by the frame edge)."""
+    rows = cog_centroids(cands, options.window_sigma)
+    return [None if c.clipped_at_frame_edge() else r for c, r in zip(cands, rows)]
 
 
 @register("cog")
@@ -20,9 +26,7 @@ def detect_cog(frame: Frame, options: DetectorOptions) -> Blobs:
     (:meth:`~deckpose.detect.candidate.Candidate.clipped_at_frame_edge`): its centre of
     gravity is that of the part in view. (``gauss`` fits its wings instead.)
     """
+    return measure_candidate_batch(frame, options, lambda cands: measure_cog(cands, options))
 
-    def measure(cands: list[Candidate]) -> list[Row | None]:
-        rows = cog_centroids(cands, options.window_sigma)
-        return [None if c.clipped_at_frame_edge() else r for c, r in zip(cands, rows)]
 
-    return measure_candidate_batch(frame, options, measure)
+register_kernel("cog", measure_cog)

@@ -9,6 +9,7 @@ from dataclasses import dataclass
 import numpy as np
 from deckpose.detect import registry
 from deckpose.detect.colour import blob_rgb_flux
+from deckpose.detect.guided_look import look_again
 from deckpose.detect.identify import IdentifyOptions, identify_beacons
 from deckpose.detect.registry import Blobs, DetectorOptions
 from numpy.typing import NDArray
@@ -80,6 +81,12 @@ def detect_frame(
 ) -> FrameDetections:
     """Run detector ``detector`` on ``frame`` and identify the beacons.
 
+    A detector with a candidate kernel (:func:`~deckpose.detect.registry.register_kernel`:
+    ``cog``, ``gauss``) gets a second look on a colour frame whose ring was fitted: the
+    empty ring slots and a missing centre are searched again in the beacon's colour
+    (:func:`~deckpose.detect.guided_look.look_again`), and identification runs again with
+    what it adds; the frame keeps the result only if it is identified, or was not before.
+
     Parameters
     ----------
     frame : Frame
@@ -128,12 +135,29 @@ def detect_frame(
             ident = identify_beacons(
                 blobs.points_px, layout, frame.camera, rgb_flux=rgb, options=identify_options
             )
+            note = blobs.note
+            kernel = registry.kernel(detector)
+            if rgb is not None and kernel is not None and ident.ring_homography is not None:
+                # the empty ring slots searched again, in the beacon's colour (guided_look)
+                look = look_again(frame.image, frame.camera, blobs, ident, rgb, layout, kernel,
+                                  options, identify_options)
+                note = "; ".join(x for x in (note, look.note) if x)
+                if look.rows:
+                    more = blobs.joined(look.rows)
+                    rgb_more = blob_rgb_flux(frame.image, more.points_px,
+                                             np.maximum(2.0, 2.0 * more.size_px))
+                    again = identify_beacons(more.points_px, layout, frame.camera,
+                                             rgb_flux=rgb_more, options=identify_options)
+                    if again.ok or not ident.ok:
+                        blobs, ident = more, again
+                        n = len(blobs)
             ids = np.asarray(ident.beacon_ids)
             reason = "" if ident else f"identification: {ident.reason}"
-            if reason and blobs.note:
-                reason += f" ({blobs.note})"
+            if reason and note:
+                reason += f" ({note})"
         except (ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
             # degenerate geometry the identification did not foresee: the frame fails
+            ids = np.full(n, UNASSIGNED, np.int64)
             reason = f"identification raised {type(exc).__name__}: {exc}"
     seconds, cpu_seconds = time.perf_counter() - t0, time.thread_time() - c0
     dets = Detections(

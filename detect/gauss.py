@@ -26,7 +26,7 @@ from deckpose.detect.candidates import measure_candidate_batch
 from deckpose.detect.centroid import Row, cog_centroid, cog_centroids
 from deckpose.detect.core_fit import core_fit
 from deckpose.detect.crb import gaussian_pixel_terms
-from deckpose.detect.registry import Blobs, DetectorOptions, register
+from deckpose.detect.registry import Blobs, DetectorOptions, register, register_kernel
 from scipy.optimize import least_squares
 
 from deckpose.records import Frame
@@ -109,20 +109,24 @@ def gauss_fit_from(cand: Candidate, start: Row | None, window_sigma: float = 3.0
     return cand.blob(u, v, flux_dn=float(F), size_px=math.sqrt(su * sv), cov_px2=cov)
 
 
+def measure_gauss(cands: list[Candidate], options: DetectorOptions) -> list[Row | None]:
+    """The ``gauss`` row of each candidate (``None``: no fit and no clipped core to fall back on)."""
+    # the cog starts of all the candidates together (cog_centroids' batch)
+    starts = cog_centroids(cands, options.window_sigma, above_floor=False)
+    rows = [gauss_fit_from(c, s, options.window_sigma) for c, s in zip(cands, starts)]
+    # Too few unsaturated core pixels to fit: keep the windowed centroid rather than
+    # lose the beacon.
+    lost = [i for i, (c, r) in enumerate(zip(cands, rows))
+            if r is None and (c.clip_signal or c.saturated[c.mask].any())]
+    for i, row in zip(lost, cog_centroids([cands[i] for i in lost], options.window_sigma)):
+        rows[i] = row
+    return rows
+
+
 @register("gauss")
 def detect_gauss(frame: Frame, options: DetectorOptions) -> Blobs:
     """Weighted least-squares pixel-integrated Gaussian fit per blob (with covariance)."""
+    return measure_candidate_batch(frame, options, lambda cands: measure_gauss(cands, options))
 
-    def measure(cands: list[Candidate]) -> list[Row | None]:
-        # the cog starts of all the candidates together (cog_centroids' batch)
-        starts = cog_centroids(cands, options.window_sigma, above_floor=False)
-        rows = [gauss_fit_from(c, s, options.window_sigma) for c, s in zip(cands, starts)]
-        # Too few unsaturated core pixels to fit: keep the windowed centroid rather than
-        # lose the beacon.
-        lost = [i for i, (c, r) in enumerate(zip(cands, rows))
-                if r is None and (c.clip_signal or c.saturated[c.mask].any())]
-        for i, row in zip(lost, cog_centroids([cands[i] for i in lost], options.window_sigma)):
-            rows[i] = row
-        return rows
 
-    return measure_candidate_batch(frame, options, measure)
+register_kernel("gauss", measure_gauss)

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from deckpose.errors import ConfigError
+from deckpose.errors import ConfigError, check_shape
 from deckpose.records import UNASSIGNED
 
 __all__ = ["Identification", "IdentifyOptions", "failed_identification"]
@@ -76,16 +76,39 @@ class Identification:
         Layout id per detection, ``UNASSIGNED`` (-1) for spurious or unidentified blobs.
     ok : bool
     reason : str
+    ring_homography : (3, 3) array of float or None
+        One-ring identification that got as far as the ring's homography: the map from
+        the ring's deck plane (unit circle, slot ``k`` at angle ``2 pi k / n``) to
+        undistorted pixels, so that the empty slots can be predicted
+        (:mod:`~deckpose.detect.guided_look`); ``None`` otherwise.
+    ring_slot : (N,) array of int64 or None
+        With ``ring_homography``: each detection's slot on that unit circle
+        (``UNASSIGNED``: off the ring), numbered from the blob the fit started at, not
+        from the bow (which may be missing); the slots no detection holds are the
+        ring's empty ones.
     """
 
     beacon_ids: NDArray[np.int64]
     ok: bool
     reason: str = ""
+    ring_homography: NDArray[np.float64] | None = None
+    ring_slot: NDArray[np.int64] | None = None
 
     def __post_init__(self) -> None:
         ids = np.array(self.beacon_ids, dtype=np.int64).reshape(-1)
         ids.setflags(write=False)
         object.__setattr__(self, "beacon_ids", ids)
+        if (self.ring_homography is None) != (self.ring_slot is None):
+            raise ValueError("Identification: ring_homography and ring_slot come together")
+        if self.ring_homography is not None and self.ring_slot is not None:
+            H = np.array(self.ring_homography, dtype=float)
+            check_shape("ring_homography", H, (3, 3))
+            slot = np.array(self.ring_slot, dtype=np.int64).reshape(-1)
+            check_shape("ring_slot", slot, (ids.size,))
+            H.setflags(write=False)
+            slot.setflags(write=False)
+            object.__setattr__(self, "ring_homography", H)
+            object.__setattr__(self, "ring_slot", slot)
 
     def __bool__(self) -> bool:
         return self.ok

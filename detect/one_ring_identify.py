@@ -157,5 +157,5 @@ def identify_one_ring(
             else:
                 ids[ring] = (rel[ring] - rel[ring[b]] + layout.bow_id) % n
     if reasons:
-        return Identification(ids, False, "; ".join(reasons))
-    return Identification(ids, True, "")
+        return Identification(ids, False, "; ".join(reasons), ring_homography=H, ring_slot=rel)
+    return Identification(ids, True, "", ring_homography=H, ring_slot=rel)

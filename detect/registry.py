@@ -30,14 +30,19 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
+import math
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
 
 from deckpose.errors import ConfigError, check_shape
 from deckpose.records import Frame
+
+if TYPE_CHECKING:
+    from deckpose.detect.candidate import Candidate
 
 FloatArray = NDArray[np.float64]
 
@@ -150,6 +155,9 @@ class Blobs:
     note : str
         What the search left out on an ok frame (e.g. spots beyond ``max_blobs``), so
         that a later failure (identification) can say it; empty when nothing.
+    gain_dn_per_e : float
+        The gain the covariances were computed with, DN per electron (given or
+        estimated from the frame's candidates); NaN when the detector does not say.
     """
 
     points_px: FloatArray
@@ -160,6 +168,7 @@ class Blobs:
     ok: bool = True
     reason: str = ""
     note: str = ""
+    gain_dn_per_e: float = math.nan
 
     def __post_init__(self) -> None:
         pts = _ro(self.points_px).reshape(-1, 2)
@@ -189,18 +198,39 @@ class Blobs:
 
     @classmethod
     def stack(cls, rows: list[tuple[float, float, FloatArray, float, float, float]], *,
-              note: str = "") -> Blobs:
+              note: str = "", gain_dn_per_e: float = math.nan) -> Blobs:
         """Build from ``(u, v, cov (2, 2), flux_dn, size_px, score)`` tuples."""
         if not rows:
             return cls.empty()
         u, v, cov, flux, size, score = zip(*rows)
         return cls(np.column_stack([u, v]), np.stack(cov), np.asarray(flux, float),
-                   np.asarray(size, float), np.asarray(score, float), note=note)
+                   np.asarray(size, float), np.asarray(score, float), note=note,
+                   gain_dn_per_e=gain_dn_per_e)
+
+    def joined(self, rows: list[tuple[float, float, FloatArray, float, float, float]]) -> Blobs:
+        """These blobs with ``rows`` appended (same note and gain); ``self`` when none."""
+        if not rows:
+            return self
+        u, v, cov, flux, size, score = zip(*rows)
+        return Blobs(np.vstack([self.points_px, np.column_stack([u, v])]),
+                     np.concatenate([self.covariance_px2, np.stack(cov)]),
+                     np.concatenate([self.flux_dn, np.asarray(flux, float)]),
+                     np.concatenate([self.size_px, np.asarray(size, float)]),
+                     np.concatenate([self.score, np.asarray(score, float)]),
+                     note=self.note, gain_dn_per_e=self.gain_dn_per_e)
 
 
 DetectorFn = Callable[[Frame, DetectorOptions], Blobs]
 
+#: One row of :class:`Blobs`: ``(u, v, cov (2, 2), flux_dn, size_px, score)``.
+BlobRow = tuple[float, float, FloatArray, float, float, float]
+#: A detector's measurement of given candidates (one row or ``None`` per candidate), the
+#: kernel its frame function maps over the search's candidates; the guided second look
+#: (:mod:`~deckpose.detect.guided_look`) measures its spots with it.
+KernelFn = Callable[["list[Candidate]", DetectorOptions], "list[BlobRow | None]"]
+
 _REGISTRY: dict[str, DetectorFn] = {}
+_KERNELS: dict[str, KernelFn] = {}
 
 #: Modules that register the built-in detectors when imported.
 _BUILTIN_MODULES: tuple[str, ...] = (
@@ -232,9 +262,25 @@ def register(name: str) -> Callable[[DetectorFn], DetectorFn]:
     return deco
 
 
+def register_kernel(name: str, kernel: KernelFn) -> None:
+    """Say that detector ``name`` measures each candidate with ``kernel``.
+
+    Optional: a detector with a kernel gets the guided second look
+    (:mod:`~deckpose.detect.guided_look`) in :func:`~deckpose.detect.frame_detection.detect_frame`.
+    """
+    _KERNELS[name] = kernel
+
+
+def kernel(name: str) -> KernelFn | None:
+    """The candidate kernel of detector ``name`` (:func:`register_kernel`), or ``None``."""
+    _load_builtins()
+    return _KERNELS.get(name)
+
+
 def unregister(name: str) -> None:
     """Remove detector ``name`` (for tests and interactive sessions)."""
     _REGISTRY.pop(name, None)
+    _KERNELS.pop(name, None)
     _PLUGIN_OF.pop(name, None)
 
 

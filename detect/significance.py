@@ -145,11 +145,15 @@ def clipped_difference_noise(S: np.ndarray, samples: int = 60_000) -> float:
     """Noise of an image from horizontal pixel differences: a 4-sigma-clipped std, DN.
 
     :func:`clipped_std_rows` of about ``samples`` differences of neighbours, over
-    ``sqrt 2`` (the noise of one pixel).
+    ``sqrt 2`` (the noise of one pixel). ``S`` may be an integer image (one channel of a
+    frame).
     """
     h, w = S.shape
     step = max(1, int(math.sqrt(h * w / samples)))
-    d = (S[::step, 1::step][:, : (w - 1) // step] - S[::step, 0 : w - 1 : step][:, : (w - 1) // step])
+    right, left = S[::step, 1::step][:, : (w - 1) // step], S[::step, 0 : w - 1 : step][:, : (w - 1) // step]
+    if np.issubdtype(S.dtype, np.integer):  # no wrap-around below 0 (exact in float32 to 2^24)
+        right = right.astype(np.float32)
+    d = right - left
     d = np.asarray(d, np.float64).ravel()
     d = d[np.isfinite(d)]
     if d.size < 10:
