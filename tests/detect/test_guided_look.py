@@ -8,11 +8,8 @@ statistic's distribution (a standard normal on noise alone) and binomial counts.
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,22 +24,9 @@ from scipy.special import ndtr
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
 from deckpose.records import Frame
+from tests.detect.independent_generator import load_independent_generator
 
-REPO = Path(__file__).resolve().parents[2]
-
-
-def _load_generator():
-    spec = importlib.util.spec_from_file_location(
-        "independent_spots", REPO / "benchmarks" / "independent_spots.py"
-    )
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["independent_spots"] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-gen = _load_generator()
+gen = load_independent_generator()
 LAYOUT = DeckLayout()
 #: The benchmark's rgb8_uneven frames at a quarter of the pixels: 8-bit RGB, 6,000 e full
 #: scale (23.5 e per DN), uneven brightness; ring 100-180 px in radius.

@@ -13,11 +13,8 @@ about ``1 / sqrt(2 m)``; a test allows the target plus three of those.
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -28,22 +25,9 @@ from deckpose.camera import CameraModel
 from deckpose.errors import ConfigError
 from deckpose.layout import DeckLayout
 from deckpose.records import Frame
+from tests.detect.independent_generator import load_independent_generator
 
-REPO = Path(__file__).resolve().parents[2]
-
-
-def _load_generator():
-    spec = importlib.util.spec_from_file_location(
-        "independent_spots", REPO / "benchmarks" / "independent_spots.py"
-    )
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["independent_spots"] = mod
-    spec.loader.exec_module(mod)
-    return mod
-
-
-gen = _load_generator()
+gen = load_independent_generator()
 
 #: 1920x1080 with the ring 210-360 px in radius (35-60 m at 1250 px focal length).
 SMALL = gen.SpotFrameSpec(width_px=1920, height_px=1080, focal_px=1250.0)

@@ -12,27 +12,14 @@ thousands of bumps are what the screen is for.
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import sys
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 from deckpose.detect.significance import block_sum, search_factor, significant_spots
 
-REPO = Path(__file__).resolve().parents[2]
-
-
-def _generator():
-    spec = importlib.util.spec_from_file_location(
-        "independent_spots", REPO / "benchmarks" / "independent_spots.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["independent_spots"] = mod
-    spec.loader.exec_module(mod)
-    return mod
+from tests.detect.independent_generator import load_independent_generator
 
 
 def _spots(shape: tuple[int, int], n: int, rng: np.random.Generator, amp: tuple[float, float],
@@ -79,7 +66,7 @@ def _sea_frame(seed: int) -> np.ndarray:
 
 
 def _independent_frame(seed: int, rgb: bool, bits: int) -> np.ndarray:
-    gen = _generator()
+    gen = load_independent_generator()
     spec = gen.SpotFrameSpec(width_px=640, height_px=480, focal_px=420.0, rgb=rgb, bits=bits,
                              uneven=(0.4, 1.0), other_lights=3, sigma_px=(0.7, 3.0),
                              flux_e=(1_500.0, 30_000.0))

@@ -60,12 +60,10 @@ def test_tiled_render_equals_single_pass(egl_renderer_factory, monkeypatch: pyte
     assert diff.mean() < 0.05 and diff.max() <= 3
 
 
-def test_read_back_into_the_frame_equals_pyrenders_read(egl_renderer_factory) -> None:
-    """Read back straight into rows of a preallocated frame (flipped in place) gives the top rows
-    of the image the plain read returns, byte for byte; a tile shorter than the framebuffer too."""
+def _triangle_scene():
+    """A 200 x 150 camera and a pyrender scene of an asymmetric flat triangle in its view."""
     import pyrender
 
-    renderer = egl_renderer_factory(tiny_config())
     cam = CameraModel(200, 150, [[240.0, 0, 101.3], [0, 235.0, 73.1], [0, 0, 1]])
     mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=[0.9, 0.5, 0.2, 1.0])
     pos = np.array([[-2, -1, 0], [3, -2, 0], [1, 3, 0]], np.float32)  # an asymmetric triangle
@@ -74,6 +72,16 @@ def test_read_back_into_the_frame_equals_pyrenders_read(egl_renderer_factory) ->
                                              material=mat)]))
     sc.add(pyrender.IntrinsicsCamera(*scene_mod.gl_intrinsics(cam, 0, cam.height_px), znear=0.1, zfar=100),
            pose=scene_mod.gl_camera_pose(CameraPose.nadir(10.0)))
+    return cam, sc
+
+
+def test_read_back_into_the_frame_equals_pyrenders_read(egl_renderer_factory) -> None:
+    """Read back straight into rows of a preallocated frame (flipped in place) gives the top rows
+    of the image the plain read returns, byte for byte; a tile shorter than the framebuffer too."""
+    import pyrender
+
+    renderer = egl_renderer_factory(tiny_config())
+    cam, sc = _triangle_scene()
     r = renderer.offscreen(cam.width_px, cam.height_px)
     flags = pyrender.RenderFlags.FLAT | pyrender.RenderFlags.SKIP_CULL_FACES
     plain, _ = r.render(sc, flags=flags)
@@ -99,14 +107,7 @@ def test_a_single_sample_buffer_is_read_without_a_resolve_and_equals_the_resolve
 
     renderer = egl_renderer_factory(tiny_config(scene={"shading": "flat", "texture_px": 256,
                                                        "antialias_samples": 0}))
-    cam = CameraModel(200, 150, [[240.0, 0, 101.3], [0, 235.0, 73.1], [0, 0, 1]])
-    mat = pyrender.MetallicRoughnessMaterial(baseColorFactor=[0.9, 0.5, 0.2, 1.0])
-    pos = np.array([[-2, -1, 0], [3, -2, 0], [1, 3, 0]], np.float32)
-    sc = pyrender.Scene(bg_color=[0.1, 0.2, 0.3, 1])
-    sc.add(pyrender.Mesh([pyrender.Primitive(positions=pos, indices=np.array([[0, 1, 2]], np.uint32),
-                                             material=mat)]))
-    sc.add(pyrender.IntrinsicsCamera(*scene_mod.gl_intrinsics(cam, 0, cam.height_px), znear=0.1, zfar=100),
-           pose=scene_mod.gl_camera_pose(CameraPose.nadir(10.0)))
+    cam, sc = _triangle_scene()
     r = renderer.offscreen(cam.width_px, cam.height_px)
     got, _ = r.render(sc, flags=pyrender.RenderFlags.FLAT | pyrender.RenderFlags.SKIP_CULL_FACES)
     assert r._renderer._deckpose_fb_samples == 0 and got.std() > 0
