@@ -521,6 +521,7 @@ def one_per_plateau(ys: np.ndarray, xs: np.ndarray, shape: tuple[int, int]) -> t
     mask = np.zeros(shape, np.uint8)
     mask[ys, xs] = 1
     _n, labels, _stats, centroids = cv2.connectedComponentsWithStats(mask, connectivity=8)
+    labels, centroids = np.asarray(labels, np.intp), np.asarray(centroids, np.float64)
     lab = labels[ys, xs]
     d2 = (xs - centroids[lab, 0]) ** 2 + (ys - centroids[lab, 1]) ** 2
     order = np.lexsort((np.arange(ys.size), d2, lab))  # by group, nearest first, then row-major
