@@ -38,33 +38,39 @@ def polish_batch(fit: FitBatch, obs: FrameObservations, steps: int) -> FitBatch:
 
     The batched :func:`estimate.conic._polish`.
     """
-    active = np.arange(len(obs))
-    params, chi2 = fit.params.copy(), fit.chi2.copy()
-    parts = {name: getattr(fit, name).copy() for name in ("information", "whitened", "residuals_px",
-                                                          "gradient")}
+    F = len(obs)
+    cur = fit
+    active = np.arange(F)
     for _ in range(steps):
         if not active.size:
             break
-        cov, ok = covariance_from_information(parts["information"][active])
-        p1 = params[active] - np.einsum("fij,fj->fi", cov, parts["gradient"][active])
+        every = active.size == F  # (then ``active`` is every frame in order: no gathers)
+        H, params, grad = ((cur.information, cur.params, cur.gradient) if every else
+                           (cur.information[active], cur.params[active], cur.gradient[active]))
+        cov, ok = covariance_from_information(H)
+        p1 = params - np.einsum("fij,fj->fi", cov, grad)
         go = ok & np.all(np.isfinite(p1), axis=1)
         rows, p1 = active[go], p1[go]
-        f1 = evaluate_fit_batch(p1, obs.take(rows))
-        better = f1.chi2 <= chi2[rows]
+        f1 = evaluate_fit_batch(p1, obs if rows.size == F else obs.take(rows))
+        better = f1.chi2 <= cur.chi2[rows]
         rows = rows[better]
-        params[rows], chi2[rows] = f1.params[better], f1.chi2[better]
-        for name, arr in parts.items():
-            arr[rows] = getattr(f1, name)[better]
+        if rows.size == F:  # every frame took its step
+            cur = f1
+        elif rows.size:
+            cur = _replace_rows(cur, rows, FitBatch(*(getattr(f1, name)[better] for name in _FIELDS)))
         active = rows
-    return FitBatch(params, chi2, parts["information"], parts["whitened"], parts["residuals_px"],
-                    parts["gradient"], fit.iterations, fit.converged)
+    return FitBatch(cur.params, cur.chi2, cur.information, cur.whitened, cur.residuals_px, cur.gradient,
+                    fit.iterations, fit.converged)
+
+
+#: The fields of :class:`FitBatch`, in order.
+_FIELDS = ("params", "chi2", "information", "whitened", "residuals_px", "gradient", "iterations", "converged")
 
 
 def _replace_rows(fit: FitBatch, rows: np.ndarray, new: FitBatch) -> FitBatch:
     """``fit`` with frames ``rows`` taken from ``new`` (one row each, in order)."""
     parts = {}
-    for name in ("params", "chi2", "information", "whitened", "residuals_px", "gradient", "iterations",
-                 "converged"):
+    for name in _FIELDS:
         a = getattr(fit, name).copy()
         a[rows] = getattr(new, name)
         parts[name] = a
@@ -96,19 +102,21 @@ def conic_candidates_batch(obs: FrameObservations, layout: DeckLayout,
         far_n, far_X, far_ok = normals[ar, far], centres[ar, far], np.asarray(plane_ok.any(axis=1))
         normals[rows, 1], centres[rows, 1], plane_ok[rows, 1] = far_n[rows], far_X[rows], far_ok[rows]
         normals[rows, 0], centres[rows, 0], plane_ok[rows, 0] = n_c[rows], X_c[rows], True
-    p0 = np.full((F, 2, 6), np.nan)
-    start_ok = np.zeros((F, 2), dtype=bool)
-    chi0 = np.full((F, 2), np.inf)
-    for j in range(2):
-        R, t, ok = in_plane_alignment_batch(obs.xy, obs.points_deck_m, normals[:, j], centres[:, j])
-        with np.errstate(invalid="ignore"):
-            p = params_from_relative_batch(R, t, obs.R_world_from_cam)
-        ok &= plane_ok[:, j] & np.all(np.isfinite(p), axis=1)
-        rows = np.flatnonzero(ok)
-        p0[rows, j] = p[rows]
-        start_ok[:, j] = ok
-        if rows.size:
-            chi0[rows, j] = chi2_batch(p[rows], obs.take(rows))
+    # Both planes of every frame as 2F rows (plane-major): one alignment, one chi2 call.
+    n2, X2 = np.concatenate([normals[:, 0], normals[:, 1]]), np.concatenate([centres[:, 0], centres[:, 1]])
+    xy2 = np.concatenate([obs.xy, obs.xy])
+    R2 = np.concatenate([obs.R_world_from_cam, obs.R_world_from_cam])
+    R, t, ok = in_plane_alignment_batch(xy2, obs.points_deck_m, n2, X2)
+    with np.errstate(invalid="ignore"):
+        p = params_from_relative_batch(R, t, R2)
+    ok &= np.concatenate([plane_ok[:, 0], plane_ok[:, 1]]) & np.all(np.isfinite(p), axis=1)
+    rows = np.flatnonzero(ok)
+    chi = np.full(2 * F, np.inf)
+    if rows.size:
+        chi[rows] = chi2_batch(p[rows], obs.take(rows % F))
+    p0 = np.where(ok[:, None], p, np.nan).reshape(2, F, 6).transpose(1, 0, 2)
+    start_ok = ok.reshape(2, F).T
+    chi0 = chi.reshape(2, F).T
     # Starts sorted by their chi2 (stable); the second competes only within ALT_MARGIN_CHI2.
     swap = start_ok[:, 1] & (~start_ok[:, 0] | (chi0[:, 1] < chi0[:, 0]))
     first = swap.astype(np.int64)

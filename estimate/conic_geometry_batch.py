@@ -116,7 +116,6 @@ def circle_planes_batch(C: FloatArray, radius_m: float) -> tuple[FloatArray, Flo
     valid : (F, 2) array of bool
         Plane ``j`` exists; the single-frame list holds the valid ones in this order.
     """
-    F = C.shape[0]
     finite = np.all(np.isfinite(C), axis=(1, 2))
     Cs = 0.5 * (C + np.swapaxes(C, 1, 2))
     Cs[~finite] = np.diag([1.0, 1.0, -1.0])
@@ -131,22 +130,20 @@ def circle_planes_batch(C: FloatArray, radius_m: float) -> tuple[FloatArray, Flo
         s23 = np.sqrt(l2 - l3)[:, None]
         a = s13 * V[:, :, 2] + s23 * V[:, :, 0]
         b = s13 * V[:, :, 2] - s23 * V[:, :, 0]
-        normals = np.full((F, 2, 3), np.nan)
-        centres = np.full((F, 2, 3), np.nan)
-        valid = np.zeros((F, 2), dtype=bool)
-        for j, (u, v) in enumerate(((a, b), (b, a))):
-            uu = np.sum(u * u, axis=1)
-            S = -v / (2.0 * l2[:, None])
-            us = np.sum(u * S, axis=1)
-            Xc1 = S + ((1.0 - us) / uu)[:, None] * u
-            r1_sq = np.sum(S * S, axis=1) - (us - 1.0) ** 2 / uu
-            good = ok & (r1_sq > 0)
-            k = radius_m / np.sqrt(r1_sq)
-            Xc = k[:, None] * Xc1
-            Xc = np.where((Xc[:, 2] < 0)[:, None], -Xc, Xc)
-            n = u / np.sqrt(uu)[:, None]
-            n = np.where((np.sum(n * Xc, axis=1) > 0)[:, None], -n, n)
-            normals[:, j], centres[:, j], valid[:, j] = n, Xc, good
+        # both planes at once: (u, v) = (a, b) for the first, (b, a) for the second
+        u = np.stack([a, b], axis=1)  # (F, 2, 3)
+        v = np.stack([b, a], axis=1)
+        uu = np.sum(u * u, axis=2)
+        S = -v / (2.0 * l2[:, None, None])
+        us = np.sum(u * S, axis=2)
+        Xc1 = S + ((1.0 - us) / uu)[:, :, None] * u
+        r1_sq = np.sum(S * S, axis=2) - (us - 1.0) ** 2 / uu
+        valid = ok[:, None] & (r1_sq > 0)
+        k = radius_m / np.sqrt(r1_sq)
+        centres = k[:, :, None] * Xc1
+        centres = np.where((centres[:, :, 2] < 0)[:, :, None], -centres, centres)
+        n = u / np.sqrt(uu)[:, :, None]
+        normals = np.where((np.sum(n * centres, axis=2) > 0)[:, :, None], -n, n)
     normals[~valid] = np.nan
     centres[~valid] = np.nan
     return normals, centres, valid
@@ -226,27 +223,31 @@ def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, c
         function drops that line, which this batch does not model.
     """
     F = xy.shape[0]
-    unsure = np.zeros(F, dtype=bool)
-    rows, rhs, weights = [], [], []
-    for i, j in diameter_pairs(points_deck_m, ring):
-        xi, yi, xj, yj = xy[:, i, 0], xy[:, i, 1], xy[:, j, 0], xy[:, j, 1]
-        L0, L1, L2 = yi - yj, xj - xi, xi * yj - yi * xj
-        norm = np.hypot(L0, L1)
-        unsure |= ~(norm > 0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rows.append(np.stack([L0 / norm, L1 / norm], axis=1))
-            rhs.append(-(L2 / norm))
-        weights.append(2.0)
-    n_lines = len(rows)
-    for k in np.flatnonzero(centre):
-        rows += [np.broadcast_to([1.0, 0.0], (F, 2)), np.broadcast_to([0.0, 1.0], (F, 2))]
-        rhs += [xy[:, k, 0], xy[:, k, 1]]
-        weights += [1.0, 1.0]
-    if n_lines < 2 and not np.any(centre):
+    pairs = np.asarray(diameter_pairs(points_deck_m, ring), dtype=np.int64).reshape(-1, 2)
+    centre_rows = np.flatnonzero(centre)
+    n_lines, n_centre = pairs.shape[0], centre_rows.size
+    if n_lines < 2 and not n_centre:
+        unsure = np.zeros(F, dtype=bool)
+        if n_lines:
+            p, q = xy[:, pairs[:, 0]], xy[:, pairs[:, 1]]
+            unsure = ~(np.hypot(p[..., 1] - q[..., 1], q[..., 0] - p[..., 0]) > 0).all(axis=1)
         return np.full((F, 2), np.nan), np.zeros(F, dtype=bool), unsure
-    w = np.sqrt(np.asarray(weights))
-    A = np.stack(rows, axis=1) * w[None, :, None]  # (F, R, 2)
-    b = np.stack(rhs, axis=1) * w[None, :]
+    # rows: every diameter's line (weight 2), then both coordinates of each centre beacon (weight 1),
+    # each scaled by the square root of its weight
+    A = np.empty((F, n_lines + 2 * n_centre, 2))
+    b = np.empty((F, n_lines + 2 * n_centre))
+    p, q = xy[:, pairs[:, 0]], xy[:, pairs[:, 1]]  # (F, P, 2)
+    xi, yi, xj, yj = p[..., 0], p[..., 1], q[..., 0], q[..., 1]
+    L0, L1, L2 = yi - yj, xj - xi, xi * yj - yi * xj
+    norm = np.hypot(L0, L1)
+    unsure = ~(norm > 0).all(axis=1)
+    w = np.sqrt(2.0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        A[:, :n_lines, 0] = L0 / norm * w
+        A[:, :n_lines, 1] = L1 / norm * w
+        b[:, :n_lines] = -(L2 / norm) * w
+    A[:, n_lines:] = np.tile(np.eye(2), (n_centre, 1))
+    b[:, n_lines:] = xy[:, centre_rows].reshape(F, 2 * n_centre)
     finite = np.all(np.isfinite(A), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
     unsure |= ~finite
     A[~finite] = np.eye(A.shape[1], 2)
