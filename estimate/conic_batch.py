@@ -144,8 +144,8 @@ def conic_candidates_batch(obs: FrameObservations, layout: DeckLayout,
     cands = BatchCandidates(
         tuple(fits), valid, ~has_first | unsure,
         (Extra("centre_beacon_used", np.full(F, centre_used)),))
-    if options.refine or not fits:
-        return cands
+    if options.refine or len(fits) < 2 or not cands.valid.all(axis=1).any():
+        return cands  # (an ambiguity needs two solutions)
     # Unconverged candidates can look ambiguous while they share one minimum: settle those
     # frames at the optima (both solutions iterated to convergence) before the choice.
     unsettled = np.flatnonzero(pick_batch(cands, ambiguity_chi2=options.ambiguity_chi2).unresolved)

@@ -10,6 +10,8 @@ arithmetic, with a validity mask where the single-frame function returns
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 from deckpose.estimate.circle_pose import diameter_pairs
 from deckpose.estimate.ellipse_fit import C1_INV
@@ -18,6 +20,36 @@ from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
+
+
+#: Machine epsilon of float64 (numpy.linalg.lstsq's rank cut-off).
+_EPS = float(np.finfo(np.float64).eps)
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``np.cross`` of (F, 3) vectors, the same products and differences without its axis handling."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+    b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
+    out[:, 0] = a1 * b2 - a2 * b1
+    out[:, 1] = a2 * b0 - a0 * b2
+    out[:, 2] = a0 * b1 - a1 * b0
+    return out
+
+
+@functools.lru_cache(maxsize=64)
+def _diameter_rows_cached(points: bytes, ring: bytes, n: int) -> NDArray[np.int64]:
+    pts = np.frombuffer(points, dtype=np.float64).reshape(n, 3)
+    rows = np.asarray(diameter_pairs(pts, np.frombuffer(ring, dtype=np.bool_)), dtype=np.int64).reshape(-1, 2)
+    rows.flags.writeable = False
+    return rows
+
+
+def _diameter_rows(points_deck_m: FloatArray, ring: BoolArray) -> NDArray[np.int64]:
+    """:func:`~estimate.circle_pose.diameter_pairs` as a (P, 2) array, computed once per beacon set."""
+    pts = np.ascontiguousarray(points_deck_m, dtype=np.float64)
+    return _diameter_rows_cached(pts.tobytes(), np.ascontiguousarray(ring, dtype=np.bool_).tobytes(),
+                                 pts.shape[0])
 
 
 def _eig_batch(M: FloatArray) -> tuple[FloatArray, FloatArray, BoolArray]:
@@ -58,8 +90,10 @@ def fit_ellipses(points: FloatArray) -> tuple[FloatArray, BoolArray]:
     with np.errstate(divide="ignore", invalid="ignore"):
         q = q / s[:, None, None]
     x, y = q[..., 0], q[..., 1]
-    D1 = np.stack([x * x, x * y, y * y], axis=2)
-    D2 = np.stack([x, y, np.ones_like(x)], axis=2)
+    D1 = np.empty(q.shape[:2] + (3,))
+    D1[..., 0], D1[..., 1], D1[..., 2] = x * x, x * y, y * y
+    D2 = np.empty(q.shape[:2] + (3,))
+    D2[..., 0], D2[..., 1], D2[..., 2] = x, y, 1.0
     D1t = np.swapaxes(D1, 1, 2)
     S1 = D1t @ D1
     S2 = D1t @ D2
@@ -182,8 +216,9 @@ def in_plane_alignment_batch(
         if np.any(alt):
             ex[alt] = np.array([0.0, 1.0, 0.0]) - n_up[alt, 1, None] * n_up[alt]
         e1 = ex / np.sqrt(np.sum(ex * ex, axis=1))[:, None]
-        e2 = np.cross(n_up, e1)
-        E = np.stack([e1, e2], axis=1)  # (F, 2, 3)
+        e2 = _cross(n_up, e1)
+        E = np.empty((e1.shape[0], 2, 3))
+        E[:, 0], E[:, 1] = e1, e2
         q = ((xy @ np.swapaxes(E[:, :, :2], 1, 2)) + E[:, None, :, 2]) * s_ray[:, :, None] - (
             E @ centre_m[:, :, None])[:, None, :, 0]
         p = points_deck_m[:, :2]
@@ -195,8 +230,9 @@ def in_plane_alignment_batch(
         c, s = np.cos(psi), np.sin(psi)
         shift = qm - np.stack([c * pm[0] - s * pm[1], s * pm[0] + c * pm[1]], axis=1)
         x_deck = c[:, None] * e1 + s[:, None] * e2
-        y_deck = np.cross(n_up, x_deck)
-        R = np.asarray(np.stack([x_deck, y_deck, n_up], axis=2), dtype=np.float64)
+        y_deck = _cross(n_up, x_deck)
+        R = np.empty((n_up.shape[0], 3, 3))
+        R[:, :, 0], R[:, :, 1], R[:, :, 2] = x_deck, y_deck, n_up
         t = centre_m + shift[:, 0, None] * e1 + shift[:, 1, None] * e2
     return R, t, ok
 
@@ -223,7 +259,7 @@ def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, c
         function drops that line, which this batch does not model.
     """
     F = xy.shape[0]
-    pairs = np.asarray(diameter_pairs(points_deck_m, ring), dtype=np.int64).reshape(-1, 2)
+    pairs = _diameter_rows(points_deck_m, ring)
     centre_rows = np.flatnonzero(centre)
     n_lines, n_centre = pairs.shape[0], centre_rows.size
     if n_lines < 2 and not n_centre:
@@ -254,7 +290,7 @@ def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, c
     b[~finite] = 0.0
     # Minimum-norm least squares through the SVD, with numpy.linalg.lstsq's rank cut-off.
     U, s, Vt = np.linalg.svd(A, full_matrices=False)
-    cut = np.finfo(float).eps * max(A.shape[1], 2) * s[:, :1]
+    cut = _EPS * max(A.shape[1], 2) * s[:, :1]
     big = s > cut
     rank = big.sum(axis=1)
     with np.errstate(divide="ignore", invalid="ignore"):
