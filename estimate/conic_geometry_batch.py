@@ -278,7 +278,7 @@ def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, c
         unsure = np.zeros(F, dtype=bool)
         if n_lines:
             p, q = xy[:, pairs[:, 0]], xy[:, pairs[:, 1]]
-            unsure = ~(np.hypot(p[..., 1] - q[..., 1], q[..., 0] - p[..., 0]) > 0).all(axis=1)
+            unsure = np.logical_not((np.hypot(p[..., 1] - q[..., 1], q[..., 0] - p[..., 0]) > 0).all(axis=1))
         return np.full((F, 2), np.nan), np.zeros(F, dtype=bool), unsure
     # rows: every diameter's line (weight 2), then both coordinates of each centre beacon (weight 1),
     # each scaled by the square root of its weight
@@ -292,7 +292,7 @@ def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, c
     A[:, :n_lines, 0] = L0 / norm * w
     A[:, :n_lines, 1] = L1 / norm * w
     b[:, :n_lines] = -(L2 / norm) * w
-    unsure = ~(norm > 0).all(axis=1)
+    unsure = np.logical_not((norm > 0).all(axis=1))
     A[:, n_lines:] = np.tile(np.eye(2), (n_centre, 1))
     b[:, n_lines:] = xy[:, centre_rows].reshape(F, 2 * n_centre)
     finite = np.isfinite(A).all(axis=(1, 2)) & np.isfinite(b).all(axis=1)
