@@ -5,10 +5,13 @@ Stacked twins of :func:`estimate.ellipse_fit.fit_ellipse_direct`,
 :func:`estimate.circle_pose.plane_from_centre` and
 :func:`estimate.circle_pose.in_plane_alignment`, step by step the same
 arithmetic, with a validity mask where the single-frame function returns
-``None`` or fewer planes.
+``None`` or fewer planes. NaN and inf are expected in the frames that are not valid: call
+these under ``np.errstate(all="ignore")`` (:func:`~estimate.solution_batch.settle_batch` does).
 """
 
 from __future__ import annotations
+
+import functools
 
 import numpy as np
 from deckpose.estimate.circle_pose import diameter_pairs
@@ -18,6 +21,36 @@ from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
+
+
+#: Machine epsilon of float64 (numpy.linalg.lstsq's rank cut-off).
+_EPS = float(np.finfo(np.float64).eps)
+
+
+def _cross(a: FloatArray, b: FloatArray) -> FloatArray:
+    """``np.cross`` of (F, 3) vectors, the same products and differences without its axis handling."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    a0, a1, a2 = a[:, 0], a[:, 1], a[:, 2]
+    b0, b1, b2 = b[:, 0], b[:, 1], b[:, 2]
+    out[:, 0] = a1 * b2 - a2 * b1
+    out[:, 1] = a2 * b0 - a0 * b2
+    out[:, 2] = a0 * b1 - a1 * b0
+    return out
+
+
+@functools.lru_cache(maxsize=64)
+def _diameter_rows_cached(points: bytes, ring: bytes, n: int) -> NDArray[np.int64]:
+    pts = np.frombuffer(points, dtype=np.float64).reshape(n, 3)
+    rows = np.asarray(diameter_pairs(pts, np.frombuffer(ring, dtype=np.bool_)), dtype=np.int64).reshape(-1, 2)
+    rows.flags.writeable = False
+    return rows
+
+
+def _diameter_rows(points_deck_m: FloatArray, ring: BoolArray) -> NDArray[np.int64]:
+    """:func:`~estimate.circle_pose.diameter_pairs` as a (P, 2) array, computed once per beacon set."""
+    pts = np.ascontiguousarray(points_deck_m, dtype=np.float64)
+    return _diameter_rows_cached(pts.tobytes(), np.ascontiguousarray(ring, dtype=np.bool_).tobytes(),
+                                 pts.shape[0])
 
 
 def _eig_batch(M: FloatArray) -> tuple[FloatArray, FloatArray, BoolArray]:
@@ -35,6 +68,15 @@ def _eig_batch(M: FloatArray) -> tuple[FloatArray, FloatArray, BoolArray]:
     return np.real(w), np.real(V), ok
 
 
+#: The conic matrix (row-major, 9) of the coefficients ``(A, B, C, D, E, F)`` of
+#: ``A x^2 + B xy + C y^2 + D x + E y + F``: each entry one coefficient times 1 or 1/2 (exact).
+_CONIC_FROM_COEFFICIENTS = np.zeros((6, 9))
+for _entry, (_k, _f) in enumerate(((0, 1.0), (1, 0.5), (3, 0.5), (1, 0.5), (2, 1.0), (4, 0.5), (3, 0.5),
+                                    (4, 0.5), (5, 1.0))):
+    _CONIC_FROM_COEFFICIENTS[_k, _entry] = _f
+_CONIC_FROM_COEFFICIENTS.setflags(write=False)
+
+
 def fit_ellipses(points: FloatArray) -> tuple[FloatArray, BoolArray]:
     """Direct least-squares ellipse (Halíř–Flusser, normalised) of each frame's points.
 
@@ -48,56 +90,57 @@ def fit_ellipses(points: FloatArray) -> tuple[FloatArray, BoolArray]:
     C : (F, 3, 3) array of float
         Conic matrices scaled to unit Frobenius norm (NaN where not ok).
     ok : (F,) array of bool
-        Where the single-frame fit does not return None.
+        Where the points admit an ellipse (finite, not collinear or degenerate).
     """
-    F = points.shape[0]
-    mean = points.mean(axis=1)
+    F, n = points.shape[0], points.shape[1]
+    mean = points.sum(axis=1) / n  # (np.mean's arithmetic without its wrapper)
     q = points - mean[:, None, :]
-    s = np.sqrt(np.mean(np.sum(q * q, axis=2), axis=1))
+    s = np.sqrt((q * q).sum(axis=2).sum(axis=1) / n)
     ok = s > 0
-    with np.errstate(divide="ignore", invalid="ignore"):
-        q = q / s[:, None, None]
+    q = q / s[:, None, None]
     x, y = q[..., 0], q[..., 1]
-    D1 = np.stack([x * x, x * y, y * y], axis=2)
-    D2 = np.stack([x, y, np.ones_like(x)], axis=2)
+    D1 = np.empty(q.shape[:2] + (3,))
+    D1[..., 0], D1[..., 1], D1[..., 2] = x * x, x * y, y * y
+    D2 = np.empty(q.shape[:2] + (3,))
+    D2[..., 0], D2[..., 1], D2[..., 2] = x, y, 1.0
     D1t = np.swapaxes(D1, 1, 2)
     S1 = D1t @ D1
     S2 = D1t @ D2
     S3 = np.swapaxes(D2, 1, 2) @ D2
-    S3[~ok] = np.eye(3)
+    if not ok.all():
+        S3[~ok] = np.eye(3)
     T, solved = solve_batch(S3, np.swapaxes(S2, 1, 2))
     T = -T
     ok &= solved
     M = C1_INV @ (S1 + S2 @ T)
-    ok &= np.all(np.isfinite(M), axis=(1, 2))
-    M[~ok] = np.eye(3)
+    ok &= np.isfinite(M).all(axis=(1, 2))
+    if not ok.all():
+        M[~ok] = np.eye(3)
     w, V, eig_ok = _eig_batch(M)
     ok &= eig_ok
     cond = 4.0 * V[:, 0, :] * V[:, 2, :] - V[:, 1, :] ** 2
     good = cond > 0
     ok &= np.any(good, axis=1)
     k = np.argmin(np.where(good, np.abs(w), np.inf), axis=1)
-    a1 = np.take_along_axis(V, k[:, None, None], axis=2)[:, :, 0]
-    a2 = np.einsum("fij,fj->fi", T, a1)
-    A, B, Cc = a1[:, 0], a1[:, 1], a1[:, 2]
-    Dd, E, Ff = a2[:, 0], a2[:, 1], a2[:, 2]
-    Cn = np.empty((F, 3, 3))
-    Cn[:, 0, 0], Cn[:, 0, 1], Cn[:, 0, 2] = A, B / 2, Dd / 2
-    Cn[:, 1, 0], Cn[:, 1, 1], Cn[:, 1, 2] = B / 2, Cc, E / 2
-    Cn[:, 2, 0], Cn[:, 2, 1], Cn[:, 2, 2] = Dd / 2, E / 2, Ff
+    a1 = V[np.arange(F), :, k]
+    coef = np.empty((F, 6))
+    coef[:, :3] = a1
+    coef[:, 3:] = np.einsum("fij,fj->fi", T, a1)
+    # (A, B, C, D, E, F) -> [[A, B/2, D/2], [B/2, C, E/2], [D/2, E/2, F]]: one exact product
+    Cn = (coef @ _CONIC_FROM_COEFFICIENTS).reshape(F, 3, 3)
+    # x_n = N x with N = [[1/s, 0, -mx/s], [0, 1/s, -my/s], [0, 0, 1]]: C = N^T Cn N.
     N = np.zeros((F, 3, 3))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        N[:, 0, 0] = 1.0 / s
-        N[:, 1, 1] = 1.0 / s
-        N[:, 0, 2] = -mean[:, 0] / s
-        N[:, 1, 2] = -mean[:, 1] / s
+    inv_s = 1.0 / s
+    N[:, 0, 0] = inv_s
+    N[:, 1, 1] = inv_s
+    N[:, :2, 2] = -mean / s[:, None]
     N[:, 2, 2] = 1.0
     Cm = np.swapaxes(N, 1, 2) @ Cn @ N
     norm = np.sqrt(np.sum(Cm * Cm, axis=(1, 2)))
     ok &= np.isfinite(norm) & (norm != 0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        C = Cm / norm[:, None, None]
-    C[~ok] = np.nan
+    C = Cm / norm[:, None, None]
+    if not ok.all():
+        C[~ok] = np.nan
     return C, ok
 
 
@@ -114,41 +157,42 @@ def circle_planes_batch(C: FloatArray, radius_m: float) -> tuple[FloatArray, Flo
     normal_up : (F, 2, 3) array of float
     centre_m : (F, 2, 3) array of float
     valid : (F, 2) array of bool
-        Plane ``j`` exists; the single-frame list holds the valid ones in this order.
+        Plane ``j`` exists (none where ``C`` is not the image of a circle in front of the camera).
     """
-    F = C.shape[0]
-    finite = np.all(np.isfinite(C), axis=(1, 2))
+    finite = np.isfinite(C).all(axis=(1, 2))
     Cs = 0.5 * (C + np.swapaxes(C, 1, 2))
-    Cs[~finite] = np.diag([1.0, 1.0, -1.0])
+    if not finite.all():
+        Cs[~finite] = np.diag([1.0, 1.0, -1.0])
     w, V = np.linalg.eigh(Cs)
     flip = w[:, 1] < 0
-    w = np.where(flip[:, None], -w[:, ::-1], w)
-    V = np.where(flip[:, None, None], V[:, :, ::-1], V)
+    if flip.any():
+        w = np.where(flip[:, None], -w[:, ::-1], w)
+        V = np.where(flip[:, None, None], V[:, :, ::-1], V)
     l3, l2, l1 = w[:, 0], w[:, 1], w[:, 2]
     ok = finite & (l1 >= l2) & (l2 > 0) & (0 > l3)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        s13 = np.sqrt(l1 - l2)[:, None]
-        s23 = np.sqrt(l2 - l3)[:, None]
-        a = s13 * V[:, :, 2] + s23 * V[:, :, 0]
-        b = s13 * V[:, :, 2] - s23 * V[:, :, 0]
-        normals = np.full((F, 2, 3), np.nan)
-        centres = np.full((F, 2, 3), np.nan)
-        valid = np.zeros((F, 2), dtype=bool)
-        for j, (u, v) in enumerate(((a, b), (b, a))):
-            uu = np.sum(u * u, axis=1)
-            S = -v / (2.0 * l2[:, None])
-            us = np.sum(u * S, axis=1)
-            Xc1 = S + ((1.0 - us) / uu)[:, None] * u
-            r1_sq = np.sum(S * S, axis=1) - (us - 1.0) ** 2 / uu
-            good = ok & (r1_sq > 0)
-            k = radius_m / np.sqrt(r1_sq)
-            Xc = k[:, None] * Xc1
-            Xc = np.where((Xc[:, 2] < 0)[:, None], -Xc, Xc)
-            n = u / np.sqrt(uu)[:, None]
-            n = np.where((np.sum(n * Xc, axis=1) > 0)[:, None], -n, n)
-            normals[:, j], centres[:, j], valid[:, j] = n, Xc, good
-    normals[~valid] = np.nan
-    centres[~valid] = np.nan
+    s13 = np.sqrt(l1 - l2)[:, None]
+    s23 = np.sqrt(l2 - l3)[:, None]
+    V2, V0 = s13 * V[:, :, 2], s23 * V[:, :, 0]
+    # both planes at once: (u, v) = (a, b) for the first, (b, a) for the second, with
+    # a = s13 V2 + s23 V0 and b = s13 V2 - s23 V0
+    u = np.empty((V.shape[0], 2, 3))
+    u[:, 0] = V2 + V0
+    u[:, 1] = V2 - V0
+    v = u[:, ::-1]
+    uu = np.sum(u * u, axis=2)
+    S = -v / (2.0 * l2[:, None, None])
+    us = np.sum(u * S, axis=2)
+    Xc1 = S + ((1.0 - us) / uu)[:, :, None] * u
+    r1_sq = np.sum(S * S, axis=2) - (us - 1.0) ** 2 / uu
+    valid = ok[:, None] & (r1_sq > 0)
+    k = radius_m / np.sqrt(r1_sq)
+    centres = k[:, :, None] * Xc1
+    centres = np.where((centres[:, :, 2] < 0)[:, :, None], -centres, centres)
+    n = u / np.sqrt(uu)[:, :, None]
+    normals = np.where((np.sum(n * centres, axis=2) > 0)[:, :, None], -n, n)
+    if not valid.all():
+        normals[~valid] = np.nan
+        centres[~valid] = np.nan
     return normals, centres, valid
 
 
@@ -170,37 +214,38 @@ def in_plane_alignment_batch(
     R_cam_from_deck : (F, 3, 3) array of float
     t_cam_from_deck : (F, 3) array of float
     ok : (F,) array of bool
-        False where the single-frame function returns None (a ray parallel to or
-        away from the plane) or the plane is invalid.
+        False where a ray is parallel to or points away from the plane, or the plane
+        is invalid.
     """
     n_up = normal_up
-    with np.errstate(invalid="ignore", divide="ignore"):
-        d = -np.sum(n_up * centre_m, axis=1)
-        den = -(xy @ n_up[:, :2, None])[..., 0] - n_up[:, 2, None]
-        ok = np.all(np.isfinite(n_up), axis=1) & ~np.any(den <= 1e-12, axis=1) & np.all(
-            np.isfinite(den), axis=1)
-        s_ray = d[:, None] / den
-        ex = np.array([1.0, 0.0, 0.0]) - n_up[:, 0, None] * n_up
-        alt = np.sum(ex * ex, axis=1) < 1e-12
-        if np.any(alt):
-            ex[alt] = np.array([0.0, 1.0, 0.0]) - n_up[alt, 1, None] * n_up[alt]
-        e1 = ex / np.sqrt(np.sum(ex * ex, axis=1))[:, None]
-        e2 = np.cross(n_up, e1)
-        E = np.stack([e1, e2], axis=1)  # (F, 2, 3)
-        q = ((xy @ np.swapaxes(E[:, :, :2], 1, 2)) + E[:, None, :, 2]) * s_ray[:, :, None] - (
-            E @ centre_m[:, :, None])[:, None, :, 0]
-        p = points_deck_m[:, :2]
-        qm, pm = q.mean(axis=1), p.mean(axis=0)
-        qc, pc = q - qm[:, None, :], p - pm
-        sin_sum = np.sum(pc[:, 0] * qc[:, :, 1] - pc[:, 1] * qc[:, :, 0], axis=1)
-        cos_sum = np.sum(pc[:, 0] * qc[:, :, 0] + pc[:, 1] * qc[:, :, 1], axis=1)
-        psi = np.arctan2(sin_sum, cos_sum)
-        c, s = np.cos(psi), np.sin(psi)
-        shift = qm - np.stack([c * pm[0] - s * pm[1], s * pm[0] + c * pm[1]], axis=1)
-        x_deck = c[:, None] * e1 + s[:, None] * e2
-        y_deck = np.cross(n_up, x_deck)
-        R = np.asarray(np.stack([x_deck, y_deck, n_up], axis=2), dtype=np.float64)
-        t = centre_m + shift[:, 0, None] * e1 + shift[:, 1, None] * e2
+    d = -np.sum(n_up * centre_m, axis=1)
+    den = -(xy @ n_up[:, :2, None])[..., 0] - n_up[:, 2, None]
+    ok = np.all(np.isfinite(n_up), axis=1) & ~np.any(den <= 1e-12, axis=1) & np.all(
+        np.isfinite(den), axis=1)
+    s_ray = d[:, None] / den
+    ex = np.array([1.0, 0.0, 0.0]) - n_up[:, 0, None] * n_up
+    alt = np.sum(ex * ex, axis=1) < 1e-12
+    if np.any(alt):
+        ex[alt] = np.array([0.0, 1.0, 0.0]) - n_up[alt, 1, None] * n_up[alt]
+    e1 = ex / np.sqrt(np.sum(ex * ex, axis=1))[:, None]
+    e2 = _cross(n_up, e1)
+    E = np.empty((e1.shape[0], 2, 3))
+    E[:, 0], E[:, 1] = e1, e2
+    q = ((xy @ np.swapaxes(E[:, :, :2], 1, 2)) + E[:, None, :, 2]) * s_ray[:, :, None] - (
+        E @ centre_m[:, :, None])[:, None, :, 0]
+    p = points_deck_m[:, :2]
+    qm, pm = q.mean(axis=1), p.mean(axis=0)
+    qc, pc = q - qm[:, None, :], p - pm
+    sin_sum = np.sum(pc[:, 0] * qc[:, :, 1] - pc[:, 1] * qc[:, :, 0], axis=1)
+    cos_sum = np.sum(pc[:, 0] * qc[:, :, 0] + pc[:, 1] * qc[:, :, 1], axis=1)
+    psi = np.arctan2(sin_sum, cos_sum)
+    c, s = np.cos(psi), np.sin(psi)
+    shift = qm - np.stack([c * pm[0] - s * pm[1], s * pm[0] + c * pm[1]], axis=1)
+    x_deck = c[:, None] * e1 + s[:, None] * e2
+    y_deck = _cross(n_up, x_deck)
+    R = np.empty((n_up.shape[0], 3, 3))
+    R[:, :, 0], R[:, :, 1], R[:, :, 2] = x_deck, y_deck, n_up
+    t = centre_m + shift[:, 0, None] * e1 + shift[:, 1, None] * e2
     return R, t, ok
 
 
@@ -226,47 +271,51 @@ def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, c
         function drops that line, which this batch does not model.
     """
     F = xy.shape[0]
-    unsure = np.zeros(F, dtype=bool)
-    rows, rhs, weights = [], [], []
-    for i, j in diameter_pairs(points_deck_m, ring):
-        xi, yi, xj, yj = xy[:, i, 0], xy[:, i, 1], xy[:, j, 0], xy[:, j, 1]
-        L0, L1, L2 = yi - yj, xj - xi, xi * yj - yi * xj
-        norm = np.hypot(L0, L1)
-        unsure |= ~(norm > 0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            rows.append(np.stack([L0 / norm, L1 / norm], axis=1))
-            rhs.append(-(L2 / norm))
-        weights.append(2.0)
-    n_lines = len(rows)
-    for k in np.flatnonzero(centre):
-        rows += [np.broadcast_to([1.0, 0.0], (F, 2)), np.broadcast_to([0.0, 1.0], (F, 2))]
-        rhs += [xy[:, k, 0], xy[:, k, 1]]
-        weights += [1.0, 1.0]
-    if n_lines < 2 and not np.any(centre):
+    pairs = _diameter_rows(points_deck_m, ring)
+    centre_rows = np.flatnonzero(centre)
+    n_lines, n_centre = pairs.shape[0], centre_rows.size
+    if n_lines < 2 and not n_centre:
+        unsure = np.zeros(F, dtype=bool)
+        if n_lines:
+            p, q = xy[:, pairs[:, 0]], xy[:, pairs[:, 1]]
+            unsure = np.logical_not((np.hypot(p[..., 1] - q[..., 1], q[..., 0] - p[..., 0]) > 0).all(axis=1))
         return np.full((F, 2), np.nan), np.zeros(F, dtype=bool), unsure
-    w = np.sqrt(np.asarray(weights))
-    A = np.stack(rows, axis=1) * w[None, :, None]  # (F, R, 2)
-    b = np.stack(rhs, axis=1) * w[None, :]
-    finite = np.all(np.isfinite(A), axis=(1, 2)) & np.all(np.isfinite(b), axis=1)
+    # rows: every diameter's line (weight 2), then both coordinates of each centre beacon (weight 1),
+    # each scaled by the square root of its weight
+    A = np.empty((F, n_lines + 2 * n_centre, 2))
+    b = np.empty((F, n_lines + 2 * n_centre))
+    p, q = xy[:, pairs[:, 0]], xy[:, pairs[:, 1]]  # (F, P, 2)
+    xi, yi, xj, yj = p[..., 0], p[..., 1], q[..., 0], q[..., 1]
+    L0, L1, L2 = yi - yj, xj - xi, xi * yj - yi * xj
+    norm = np.hypot(L0, L1)
+    w = np.sqrt(2.0)
+    A[:, :n_lines, 0] = L0 / norm * w
+    A[:, :n_lines, 1] = L1 / norm * w
+    b[:, :n_lines] = -(L2 / norm) * w
+    unsure = np.logical_not((norm > 0).all(axis=1))
+    A[:, n_lines:] = np.tile(np.eye(2), (n_centre, 1))
+    b[:, n_lines:] = xy[:, centre_rows].reshape(F, 2 * n_centre)
+    finite = np.isfinite(A).all(axis=(1, 2)) & np.isfinite(b).all(axis=1)
     unsure |= ~finite
-    A[~finite] = np.eye(A.shape[1], 2)
-    b[~finite] = 0.0
+    if not finite.all():
+        A[~finite] = np.eye(A.shape[1], 2)
+        b[~finite] = 0.0
     # Minimum-norm least squares through the SVD, with numpy.linalg.lstsq's rank cut-off.
     U, s, Vt = np.linalg.svd(A, full_matrices=False)
-    cut = np.finfo(float).eps * max(A.shape[1], 2) * s[:, :1]
+    cut = _EPS * max(A.shape[1], 2) * s[:, :1]
     big = s > cut
     rank = big.sum(axis=1)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        coef = np.where(big, np.einsum("frk,fr->fk", U, b) / s, 0.0)
+    coef = np.where(big, np.einsum("frk,fr->fk", U, b) / s, 0.0)
     sol = np.einsum("fkj,fk->fj", Vt, coef)
-    ok = finite & (rank >= 2) & np.all(np.isfinite(sol), axis=1)
-    sol[~ok] = np.nan
+    ok = finite & (rank >= 2) & np.isfinite(sol).all(axis=1)
+    if not ok.all():
+        sol[~ok] = np.nan
     return sol, ok, unsure
 
 
 def planes_from_centres(C: FloatArray, centre_xy: FloatArray, ring_xy: FloatArray, radius_m: float
                         ) -> tuple[FloatArray, FloatArray, BoolArray]:
-    """The circle's plane from its conic and its imaged centre, per frame (:func:`circle_pose.plane_from_centre`).
+    """The circle's plane from its conic and its imaged centre, per frame (its normal is the centre's polar).
 
     Parameters
     ----------
@@ -279,25 +328,26 @@ def planes_from_centres(C: FloatArray, centre_xy: FloatArray, ring_xy: FloatArra
     -------
     normal_up, centre_m : (F, 3) array of float
     ok : (F,) array of bool
-        Where the single-frame function returns a plane.
+        Where the polar is a line, the centre and every ring ray meet the plane in front of
+        the camera, and the ring has a size.
     """
     F = C.shape[0]
     c = np.concatenate([centre_xy, np.ones((F, 1))], axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        line = ((0.5 * (C + np.swapaxes(C, 1, 2))) @ c[:, :, None])[:, :, 0]
-        norm = np.sqrt(np.sum(line * line, axis=1))
-        ok = np.isfinite(norm) & (norm > 0)
-        n_up = line / norm[:, None]
-        n_up = np.where((np.sum(n_up * c, axis=1) > 0)[:, None], -n_up, n_up)
-        u = np.concatenate([ring_xy, np.ones(ring_xy.shape[:2] + (1,))], axis=2)
-        den_ring = -(u @ n_up[:, :, None])[:, :, 0]
-        den_c = -np.sum(n_up * c, axis=1)
-        ok &= (den_c > 1e-12) & np.all(den_ring > 1e-12, axis=1)
-        diff = u / den_ring[:, :, None] - (c / den_c[:, None])[:, None, :]
-        spread = np.mean(np.sqrt(np.sum(diff * diff, axis=2)), axis=1)
-        ok &= spread > 0
-        d = radius_m / spread
-        centre_m = d[:, None] * c / den_c[:, None]
-    n_up[~ok] = np.nan
-    centre_m[~ok] = np.nan
+    line = ((0.5 * (C + np.swapaxes(C, 1, 2))) @ c[:, :, None])[:, :, 0]
+    norm = np.sqrt(np.sum(line * line, axis=1))
+    ok = np.isfinite(norm) & (norm > 0)
+    n_up = line / norm[:, None]
+    n_up = np.where((np.sum(n_up * c, axis=1) > 0)[:, None], -n_up, n_up)
+    u = np.concatenate([ring_xy, np.ones(ring_xy.shape[:2] + (1,))], axis=2)
+    den_ring = -(u @ n_up[:, :, None])[:, :, 0]
+    den_c = -np.sum(n_up * c, axis=1)
+    ok &= (den_c > 1e-12) & np.all(den_ring > 1e-12, axis=1)
+    diff = u / den_ring[:, :, None] - (c / den_c[:, None])[:, None, :]
+    spread = np.mean(np.sqrt(np.sum(diff * diff, axis=2)), axis=1)
+    ok &= spread > 0
+    d = radius_m / spread
+    centre_m = d[:, None] * c / den_c[:, None]
+    if not ok.all():
+        n_up[~ok] = np.nan
+        centre_m[~ok] = np.nan
     return n_up, centre_m, ok

@@ -70,12 +70,16 @@ class BatchCandidates:
         Frames the batched method could not settle (they go to the single-frame path).
     extras : tuple of Extra
         Method extras that precede ``n_solutions`` in the record, in order.
+    choice : PickBatch or None
+        :func:`pick_batch` of these solutions at the options' ``ambiguity_chi2``, where the
+        method has made it already (:func:`finish_batch` makes it otherwise).
     """
 
     fits: tuple[FitBatch, ...]
     valid: BoolArray
     fallback: BoolArray
     extras: tuple[Extra, ...] = ()
+    choice: PickBatch | None = None
 
 
 def scatter_fit(n_frames: int, rows: NDArray[np.int64], fit: FitBatch) -> FitBatch:
@@ -165,12 +169,18 @@ def pick_batch(cands: BatchCandidates, *, ambiguity_chi2: float) -> PickBatch:
     dchi2 = _take(chi2, ka) - _take(chi2, kb)
     delta = alt_p - best_p
     delta[:, :3] = wrap_angle_rad(delta[:, :3])
-    rows = np.flatnonzero(has_alt & cov_ok)
-    maha = np.full(F, np.inf)
-    if rows.size:
-        x, solved = solve_batch(cov[rows], delta[rows])
-        maha[rows] = np.sqrt(np.sum(delta[rows] * x, axis=1))
-        unresolved[rows[~solved]] = True
+    testable = has_alt & cov_ok
+    if testable.all():  # (every frame: no gathers)
+        x, solved = solve_batch(cov, delta)
+        maha = np.sqrt(np.sum(delta * x, axis=1))
+        unresolved |= ~solved
+    else:
+        rows = np.flatnonzero(testable)
+        maha = np.full(F, np.inf)
+        if rows.size:
+            x, solved = solve_batch(cov[rows], delta[rows])
+            maha[rows] = np.sqrt(np.sum(delta[rows] * x, axis=1))
+            unresolved[rows[~solved]] = True
     with np.errstate(invalid="ignore"):
         resolved = ambiguity_resolved(dchi2, maha, ambiguity_chi2)
     unresolved |= has_alt & ~resolved
@@ -208,7 +218,7 @@ def finish_batch(
     """
     F = len(obs)
     M = obs.xy.shape[1]
-    choice = pick_batch(cands, ambiguity_chi2=ambiguity_chi2)
+    choice = cands.choice if cands.choice is not None else pick_batch(cands, ambiguity_chi2=ambiguity_chi2)
     kb, best_p = choice.best, choice.params
     whitened = _select(cands.fits, "whitened", kb)
     res_px = _select(cands.fits, "residuals_px", kb)
