@@ -113,24 +113,46 @@ def clipped_mean(values: np.ndarray, k_sigma: float = 3.0, passes: int = 3) -> n
     return m if x.ndim > 1 else m.reshape(())
 
 
-def clipped_sd(values: np.ndarray, k_sigma: float = 4.0, passes: int = 3) -> np.ndarray:
-    """Standard deviation of each column of ``values`` within ``k_sigma`` of its mean, (m,).
+def clipped_std_rows(d: np.ndarray, sd0: np.ndarray | None = None, *, clip: float = 4.0,
+                     passes: int = 3, min_kept: int = 10) -> np.ndarray:
+    """Each row's standard deviation within ``clip`` sigma of its centre, (n,).
 
-    ``values`` is (n, m). Three passes from the median and the MAD, as
-    :func:`~deckpose.detect.significance.clipped_difference_noise` does for one column:
-    a standard deviation keeps a quantised frame's rounding variance, which a MAD loses.
+    Starts from the row's median and a first sigma, then ``passes`` times keeps the
+    values within ``clip`` of the current sigma of the current centre and takes their
+    mean and standard deviation; a row that would keep fewer than ``min_kept`` values
+    keeps its previous figures. The first sigma is ``sd0`` when given, else ``1.4826 MAD``
+    (the standard deviation where the MAD is 0). A median absolute deviation alone is
+    quantised with the data: on an 8-bit frame it overstated the noise by 40 %; the
+    clipped standard deviation keeps the quantisation's true variance and drops spots and
+    edges (beyond ``clip`` sigma).
+
+    Parameters
+    ----------
+    d : (n, m) array of float
+        Finite values (pixel differences), one sample per row.
+    sd0 : (n,) array of float, optional
+        First sigma of each row.
     """
-    x = np.asarray(values, dtype=np.float64).reshape(np.shape(values)[0], -1)
-    m = np.median(x, axis=0)
-    sd = MAD_TO_SIGMA * np.median(np.abs(x - m), axis=0)
-    sd = np.where(sd > 0, sd, x.std(axis=0))
+    d = np.asarray(d, np.float64)
+    med = row_median(d)
+    if sd0 is not None:
+        sd = np.asarray(sd0, np.float64).copy()
+    else:
+        sd = MAD_TO_SIGMA * row_median(np.abs(d - med[:, None]))
+        flat = ~(sd > 0)
+        if flat.any():
+            sd[flat] = d[flat].std(axis=1)
     for _ in range(passes):
-        keep = np.abs(x - m) < k_sigma * np.maximum(sd, 1e-12)
-        n = keep.sum(axis=0)
-        if np.any(n < 10):
+        keep = np.abs(d - med[:, None]) < clip * np.maximum(sd, 1e-12)[:, None]
+        n = keep.sum(axis=1)
+        ok = n >= min_kept
+        if not ok.any():
             break
-        m = np.where(keep, x, 0.0).sum(axis=0) / n
-        sd = np.sqrt(np.where(keep, (x - m) ** 2, 0.0).sum(axis=0) / n)
+        nn = np.maximum(n, 1)
+        mean = np.where(keep, d, 0.0).sum(axis=1) / nn
+        var = np.where(keep, (d - mean[:, None]) ** 2, 0.0).sum(axis=1) / nn
+        med = np.where(ok, mean, med)
+        sd = np.where(ok, np.sqrt(var), sd)
     return sd
 
 

@@ -46,7 +46,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from deckpose.detect.background import clipped_mean, clipped_sd, saturation_level
+from deckpose.detect.background import clipped_mean, clipped_std_rows, saturation_level
 from deckpose.detect.candidates import spot_window, window_candidate
 from deckpose.detect.colour import blob_rgb_flux, redness
 from deckpose.detect.identification import Identification, IdentifyOptions
@@ -282,7 +282,7 @@ def search_windows(
         # frame's dark sky): the larger of the frame's and the outer part's, per channel
         pair = outer[:, 1:] & outer[:, :-1]
         diffs = (block[:, 1:] - block[:, :-1])[pair]
-        local = clipped_sd(diffs) / math.sqrt(2.0) if pair.sum() >= 50 else np.zeros(C)
+        local = clipped_std_rows(diffs.T) / math.sqrt(2.0) if pair.sum() >= 50 else np.zeros(C)
         noise_k = np.maximum(noise, local)
         wts = tmpl / noise_k[None, :] ** 2  # (m, C) matched channel weights
         sig_y = np.sqrt((wts**2 * noise_k[None, :] ** 2).sum(axis=1))  # (m,)

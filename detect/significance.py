@@ -34,7 +34,7 @@ import math
 
 import cv2
 import numpy as np
-from deckpose.detect.background import MIN_NOISE_DN, row_median
+from deckpose.detect.background import MAD_TO_SIGMA, MIN_NOISE_DN, clipped_std_rows, row_median
 from deckpose.detect.defects import point_defects
 
 #: The coarse image has at most this many pixels (block size a power of two).
@@ -96,49 +96,6 @@ def block_sum(image: np.ndarray, factor: int) -> np.ndarray:
         s = a.astype(np.float32)
         s *= f2
     return np.asarray(s, np.float32).reshape(a.shape[:2])
-
-
-def clipped_std_rows(d: np.ndarray, sd0: np.ndarray | None = None, *, clip: float = 4.0,
-                     passes: int = 3, min_kept: int = 10) -> np.ndarray:
-    """Each row's standard deviation within ``clip`` sigma of its centre, (n,).
-
-    Starts from the row's median and a first sigma, then ``passes`` times keeps the
-    values within ``clip`` of the current sigma of the current centre and takes their
-    mean and standard deviation; a row that would keep fewer than ``min_kept`` values
-    keeps its previous figures. The first sigma is ``sd0`` when given, else ``1.4826 MAD``
-    (the standard deviation where the MAD is 0). A median absolute deviation alone is
-    quantised with the data: on an 8-bit frame it overstated the noise by 40 %; the
-    clipped standard deviation keeps the quantisation's true variance and drops spots and
-    edges (beyond ``clip`` sigma).
-
-    Parameters
-    ----------
-    d : (n, m) array of float
-        Finite values (pixel differences), one sample per row.
-    sd0 : (n,) array of float, optional
-        First sigma of each row.
-    """
-    d = np.asarray(d, np.float64)
-    med = row_median(d)
-    if sd0 is not None:
-        sd = np.asarray(sd0, np.float64).copy()
-    else:
-        sd = 1.4826 * row_median(np.abs(d - med[:, None]))
-        flat = ~(sd > 0)
-        if flat.any():
-            sd[flat] = d[flat].std(axis=1)
-    for _ in range(passes):
-        keep = np.abs(d - med[:, None]) < clip * np.maximum(sd, 1e-12)[:, None]
-        n = keep.sum(axis=1)
-        ok = n >= min_kept
-        if not ok.any():
-            break
-        nn = np.maximum(n, 1)
-        mean = np.where(keep, d, 0.0).sum(axis=1) / nn
-        var = np.where(keep, (d - mean[:, None]) ** 2, 0.0).sum(axis=1) / nn
-        med = np.where(ok, mean, med)
-        sd = np.where(ok, np.sqrt(var), sd)
-    return sd
 
 
 def clipped_difference_noise(S: np.ndarray, samples: int = 60_000) -> float:
@@ -222,6 +179,12 @@ def texture_noise(G: np.ndarray, step_px: int, tiles: np.ndarray,
     flat_steps : (n,) array of bool, optional
         Which tiles hold a texture of flat steps (none when not given).
     """
+    d = _pair_differences(G, step_px, tiles)
+    return _step_spread(d, _mad_spread(d), flat_steps)
+
+
+def _pair_differences(G: np.ndarray, step_px: int, tiles: np.ndarray) -> np.ndarray:
+    """Differences of pixels ``step_px`` apart along rows, every 4th row and column of each tile, (n, m)."""
     h, w = G.shape
     T, st = TEXTURE_TILE_PX, 4
     offs = np.arange(0, T, st)
@@ -234,15 +197,23 @@ def texture_noise(G: np.ndarray, step_px: int, tiles: np.ndarray,
     at = (row0 + cols[:, None, :]).reshape(n, -1)
     right = (row0 + np.minimum(cols + step_px, w - 1)[:, None, :]).reshape(n, -1)
     flat = G.ravel()
-    d = flat.take(right) - flat.take(at)
+    return flat.take(right) - flat.take(at)
+
+
+def _mad_spread(d: np.ndarray) -> np.ndarray:
+    """``1.4826 MAD / sqrt(2)`` of each row of pixel-pair differences, (n,)."""
     med = row_median(d)
-    mad = row_median(np.abs(d - med[:, None]))
-    spread = 1.4826 * mad / math.sqrt(2.0)
-    if flat_steps is not None and flat_steps.any():
-        ds = d[flat_steps]
-        clipped = clipped_std_rows(ds, ds.std(axis=1), passes=5) / math.sqrt(2.0)
-        spread[flat_steps] = np.maximum(spread[flat_steps], clipped)
-    return spread
+    return MAD_TO_SIGMA * row_median(np.abs(d - med[:, None])) / math.sqrt(2.0)
+
+
+def _step_spread(d: np.ndarray, spread: np.ndarray, flat_steps: np.ndarray | None) -> np.ndarray:
+    """``spread``, where ``flat_steps`` the larger of it and the clipped standard deviation of ``d``."""
+    if flat_steps is None or not flat_steps.any():
+        return spread
+    ds = d[flat_steps]
+    out = spread.copy()
+    out[flat_steps] = np.maximum(spread[flat_steps], clipped_std_rows(ds, ds.std(axis=1), passes=5) / math.sqrt(2.0))
+    return out
 
 
 def flat_step_tiles(spread_2px: np.ndarray, noise: float) -> np.ndarray:
@@ -646,7 +617,7 @@ class _TileTextures:
             return None
         todo = tiles[np.isnan(self.plain_2px[tiles])]
         if todo.size:
-            self.plain_2px[todo] = texture_noise(self.G, 2, self._rc(todo))
+            self.plain_2px[todo] = _mad_spread(_pair_differences(self.G, 2, self._rc(todo)))
         return flat_step_tiles(self.plain_2px[tiles], self.noise)
 
     def of_tiles(self, step_px: int, tiles: np.ndarray) -> np.ndarray:
@@ -655,7 +626,11 @@ class _TileTextures:
         vals = self.done.setdefault(step_px, np.full(self.n_tiles, np.nan))
         todo = np.unique(tiles[np.isnan(vals[tiles])])
         if todo.size:
-            vals[todo] = texture_noise(self.G, step_px, self._rc(todo), self._flat_steps(todo))
+            d = _pair_differences(self.G, step_px, self._rc(todo))
+            plain = _mad_spread(d)
+            if step_px == 2:  # the flags' own spread: not computed a second time
+                self.plain_2px[todo] = plain
+            vals[todo] = _step_spread(d, plain, self._flat_steps(todo))
         return vals
 
     def at(self, step_px: int, ys: np.ndarray, xs: np.ndarray) -> np.ndarray:
