@@ -475,12 +475,10 @@ def _read_colour_only(self: Any, scene: Any, flags: int) -> tuple[np.ndarray, No
     from OpenGL import GL
 
     width, height = self._main_fb_dims[0], self._main_fb_dims[1]
-    if getattr(self, "_deckpose_fb_samples", 4) == 0:
-        # a single-sample draw buffer needs no resolve: read it where it was drawn (the copy
-        # into the plain buffer cost 0.5-0.9 s of CPU per 64 MP frame on llvmpipe)
-        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
-    else:
-        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
+    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
+    # a single-sample draw buffer needs no resolve: it is read where it was drawn (the copy
+    # into the plain buffer cost 0.5-0.9 s of CPU per 64 MP frame on llvmpipe)
+    if getattr(self, "_deckpose_fb_samples", 4) != 0:
         GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
         GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_LINEAR)
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
