@@ -338,15 +338,9 @@ def write_run_log(run: rl.RunPaths, out_path: Path | None = None, *, preview_px:
     camera_names = sorted(frames["camera"].unique())
     cameras = rl.read_cameras(run, camera_names)
     # each detector's points and ids per frame, grouped once (a .loc per frame cost 1-5 ms)
-    dets: dict[str, dict[int, tuple[np.ndarray, np.ndarray]]] = {}
-    for d in run.detectors():
-        df = rl.read_detections(run, d)
-        order = np.argsort(df["frame_id"].to_numpy(np.int64), kind="stable")  # rows kept in order per frame
-        fids = df["frame_id"].to_numpy(np.int64)[order]
-        uv, ids = df[["u_px", "v_px"]].to_numpy(float)[order], df["beacon_id"].to_numpy()[order]
-        starts = np.flatnonzero(np.r_[True, fids[1:] != fids[:-1]]) if fids.size else np.zeros(0, np.intp)
-        ends = np.r_[starts[1:], fids.size]
-        dets[d] = {int(fids[a]): (uv[a:b], ids[a:b]) for a, b in zip(starts, ends)}
+    dets = {d: {f: (g[["u_px", "v_px"]].to_numpy(float), g["beacon_id"].to_numpy())
+                for f, g in rl.read_detections(run, d).groupby("frame_id", sort=False)}
+            for d in run.detectors()}
     no_points = (np.zeros((0, 2)), np.zeros(0))
     pairs = run.estimate_pairs()
     ests = {p: rl.read_estimates(run, *p).set_index("frame_id") for p in pairs}
