@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from deckpose.detect.candidate import Candidate
-from deckpose.detect.clipped_phase import clipped_phase_cov
+from deckpose.detect.clipped_phase import clipped_phase_cov, spot_aspect
 
 Row = tuple[float, float, np.ndarray, float, float, float]
 
@@ -163,10 +163,11 @@ def _add_clipped_phase_cov(
 
     ``disc`` are the candidates measured through the disc window and ``signals`` their
     signals (the first pass's, which a clipped core keeps: it is not measured again above
-    its floor). The clip level is the median signal of the blob's saturated pixels.
+    its floor). The clip level is the median signal of the blob's saturated pixels, the
+    spot's aspect that of its signal's second moments over the blob (:func:`spot_aspect`).
     """
     clipped: list[tuple[int, Row]] = []
-    clip, n_sat = [], []
+    clip, n_sat, aspect = [], [], []
     for k, i in enumerate(disc):
         row = rows[i]
         sat = cands[i].saturated & cands[i].mask
@@ -175,9 +176,11 @@ def _add_clipped_phase_cov(
         clipped.append((i, row))
         clip.append(float(np.median(signals[k][sat])))
         n_sat.append(int(np.count_nonzero(sat)))
+        aspect.append(spot_aspect(signals[k], cands[i].mask))
     if not clipped:
         return
-    terms = clipped_phase_cov(np.array(clip), np.array(n_sat), np.array([r[3] for _, r in clipped]))
+    terms = clipped_phase_cov(np.array(clip), np.array(n_sat), np.array([r[3] for _, r in clipped]),
+                              np.array(aspect))
     for (i, (u, v, cov, f, size, score)), term in zip(clipped, terms):
         rows[i] = (u, v, cov + term, f, size, score)
 
