@@ -45,8 +45,9 @@ _CV_CODE: dict[BayerPattern, int] = {
 }
 
 
-def filter_channels(pattern: BayerPattern, height_px: int, width_px: int, row0: int = 0) -> NDArray[np.intp]:
-    """The filter channel (0 R, 1 G, 2 B) of every pixel of rows ``row0 .. row0 + height_px - 1``.
+def filter_channels(pattern: BayerPattern, height_px: int, width_px: int, row0: int = 0,
+                    col0: int = 0) -> NDArray[np.intp]:
+    """The filter channel (0 R, 1 G, 2 B) of every pixel of rows ``row0 ..`` and columns ``col0 ..``.
 
     Returns
     -------
@@ -54,7 +55,7 @@ def filter_channels(pattern: BayerPattern, height_px: int, width_px: int, row0: 
     """
     block = np.array(CHANNEL_INDEX[pattern], np.intp).reshape(2, 2)
     rows = (np.arange(height_px) + row0) % 2
-    cols = np.arange(width_px) % 2
+    cols = (np.arange(width_px) + col0) % 2
     return block[rows[:, None], cols[None, :]]
 
 

@@ -32,7 +32,15 @@ from deckpose.render.fixed_pattern import fixed_pattern
 from deckpose.render.lens import distort, raster_camera
 from deckpose.render.light import unit_factors
 from deckpose.render.occlusion import OCCLUSION_STREAM, OcclusionRecord, occlude
-from deckpose.render.optics import LensedFrame, OpticsRecord, optics_row, through_lens
+from deckpose.render.optics import (
+    NO_KERNELS,
+    LensedFrame,
+    OpticsRecord,
+    lens_record,
+    optics_row,
+    through_lens,
+)
+from deckpose.render.optics_config import OpticsSpec
 from deckpose.render.painted_ring import (
     RingTruth,
     floodlight_gain,
@@ -44,6 +52,7 @@ from deckpose.render.plan import FrameSpec
 from deckpose.render.rolling_shutter import ShutterFrame, rolling_shutter_beacons
 from deckpose.render.scene import DeckRenderer, radiance_scale
 from deckpose.render.sensor import SpotRecord, expose, splat_electrons, spot_record
+from deckpose.render.sensor_config import BayerPattern
 from deckpose.render.ship_lights import (
     GLINT_STREAM,
     ShipLight,
@@ -132,6 +141,10 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
         flux_e[-1 - sp.beacon_id] = splat_electrons(sp, sensor)
     rng = np.random.default_rng(spec.seed)
     spots = lens.spots if lens else spot_record(raster, scale, splats, sensor, cfg.layout.n_beacons)
+    record = lens.record if lens else None
+    if record is None and sensor.bayer is not BayerPattern.NONE:  # the bound of the mosaic, no lens
+        record = lens_record(OpticsSpec(), camera, sensor, splats, [(NO_KERNELS, 1.0)] * len(splats), spots,
+                             proj.points_px, proj.depth_m)
     pattern = fixed_pattern(sensor, cfg.seed, camera.name, *raster.shape[:2])
     gain = lens.background_gain if lens else None
     paint: list[Splat] = []
@@ -153,7 +166,7 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
                          lights_in, flux_e,
                          global_points_px=None if shutter is None else shutter.global_points_px,
                          exposure=None if cfg.sensor.auto_exposure is None else sensor.exposure,
-                         optics=lens.record if lens else None, ring=ring)
+                         optics=record, ring=ring)
 
 
 def _product(a: RowGain | None, b: RowGain | None) -> RowGain | None:

@@ -83,9 +83,10 @@ from numpy.typing import NDArray
 from deckpose.camera import CameraModel
 
 __all__ = [
-    "OPTICS_CHANNELS", "OPTICS_COLUMNS", "KernelParts", "LensedFrame", "OpticsRecord", "SpotOptics", "apply_optics",
-    "ca_centres_px", "channel_flux_e", "channel_kernels", "defocus_diameter_px", "field_sigma_px", "focal_length_m", "kernel_parts",
-    "optics_block", "optics_record", "optics_row", "through_lens", "vignetting_gain", "vignetting_rows",
+    "NO_KERNELS", "OPTICS_CHANNELS", "OPTICS_COLUMNS", "KernelParts", "LensedFrame", "OpticsRecord", "SpotOptics",
+    "apply_optics", "ca_centres_px", "channel_flux_e", "channel_kernels", "defocus_diameter_px", "field_sigma_px",
+    "focal_length_m", "kernel_parts", "lens_record", "optics_block", "optics_record", "optics_row", "through_lens",
+    "vignetting_gain", "vignetting_rows",
 ]
 
 
@@ -452,19 +453,43 @@ def through_lens(optics: OpticsSpec, camera: CameraModel, sensor: SensorSpec, ra
     spots = spot_record(raster, scale_rgb, lensed, sensor, n)
     vig = vignetting_gain(points_px, camera, optics.vignetting_exponent)
     spots = replace(spots, background_e=spots.background_e * np.where(np.isfinite(vig), vig, 1.0))
-    crb = np.full(n, np.nan)
-    rgb = np.full((n, OPTICS_CHANNELS), np.nan)
-    for sp in beacons:
-        rgb[sp.beacon_id] = sp.rgb
-    for sp, u in zip(beacons, used):
-        crb[sp.beacon_id] = spot_crb_px(sp, u.kernels, u.gain, float(spots.background_e[sp.beacon_id]),
-                                        sensor)
+    record = lens_record(optics, camera, sensor, beacons, [(u.kernels, u.gain) for u in used], spots, points_px,
+                         depth_m)
     if optics.bloom:
         vig = (camera, optics.vignetting_exponent) if optics.vignetting_exponent > 0 else None
         lensed = bloom_splats(lensed, raster, scale_rgb, sensor, vig)
         lensed_lights = bloom_splats(lensed_lights, raster, scale_rgb, sensor, vig)
-    record = optics_record(optics, camera, points_px, depth_m, crb, channel_flux_e(spots.flux_e, rgb))
     return LensedFrame(lensed, lensed_lights, spots, record, gain_rows)
+
+
+#: The kernels of no optics: each channel's the identity (:func:`lens_record` without a lens).
+NO_KERNELS: tuple[Kernel, Kernel, Kernel] = (np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1)))
+
+
+def lens_record(optics: OpticsSpec, camera: CameraModel, sensor: SensorSpec, beacons: list[Splat],
+                lens: list[tuple[tuple[Kernel, Kernel, Kernel], float]], spots: SpotRecord,
+                points_px: NDArray[np.float64], depth_m: NDArray[np.float64]) -> OpticsRecord:
+    """The frame's :class:`OpticsRecord`, with each beacon's bound (:func:`spot_crb_px`) under its lens.
+
+    Parameters
+    ----------
+    optics, camera, sensor
+    beacons : list of Splat
+        The beacons' splats before the optics.
+    lens : list of ((3 kernels), float)
+        Each splat's channel kernels and vignetting gain (no optics: :data:`NO_KERNELS` and 1).
+    spots : SpotRecord
+        The spots' record (its background under the beacon, vignetted).
+    points_px, depth_m : (N, 2) and (N,) arrays of float
+        The beacons' true centres, pixels, and depths, metres.
+    """
+    n = points_px.shape[0]
+    crb = np.full(n, np.nan)
+    rgb = np.full((n, OPTICS_CHANNELS), np.nan)
+    for sp, (kernels, gain) in zip(beacons, lens):
+        rgb[sp.beacon_id] = sp.rgb
+        crb[sp.beacon_id] = spot_crb_px(sp, kernels, gain, float(spots.background_e[sp.beacon_id]), sensor)
+    return optics_record(optics, camera, points_px, depth_m, crb, channel_flux_e(spots.flux_e, rgb))
 
 
 def optics_row(record: OpticsRecord | None, i: int) -> dict[str, float]:

@@ -10,9 +10,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from deckpose.render.bayer import filter_channels
 from deckpose.render.beacons import Splat
 from deckpose.render.psf_kernels import Kernel, full_convolution
-from deckpose.render.sensor_config import SensorSpec
+from deckpose.render.sensor_config import BayerPattern, SensorSpec
 from numpy.typing import NDArray
 
 from deckpose.spot_fisher import centre_crb_px2
@@ -79,13 +80,62 @@ def spot_crb_px(base: Splat, kernels: tuple[Kernel, Kernel, Kernel], gain: float
         if frac > 0:
             terms += frac * np.stack(_gauss(base.centre_px, base.cov_px2 * scale2, row0, col0, n))
     terms *= base.core_flux * e_per_rad * gain
-    kernel = np.asarray(sum(w * k for w, k in zip(weights, kernels)), float)  # the channel sum (linear)
+    gain_dn = (2 ** sensor.bit_depth - 1) / sensor.full_well_e
+    extra_e2 = sensor.read_noise_e ** 2 + 1.0 / (12.0 * gain_dn ** 2)
     # the four images as the channels of one (OpenCV filters each channel with the same kernel)
     # float32 (7 digits: the bound to ~1e-6), which OpenCV's DFT runs several times faster than float64
-    four = full_convolution(np.ascontiguousarray(np.moveaxis(terms, 0, -1), np.float32), kernel)
+    four_f32 = np.ascontiguousarray(np.moveaxis(terms, 0, -1), np.float32)
+    if sensor.bayer is not BayerPattern.NONE:
+        crb = _mosaic_crb_px2(four_f32, weights, kernels, background_e, extra_e2, sensor.bayer, row0, col0)
+        return float(math.sqrt(max(float(np.trace(crb)) / 2.0, 0.0)))
+    kernel = np.asarray(sum(w * k for w, k in zip(weights, kernels)), float)  # the channel sum (linear)
+    four = full_convolution(four_f32, kernel)
     spot, d_u, d_v, d_s = np.moveaxis(four.astype(np.float64), -1, 0)
     mu = spot + max(background_e, 0.0)
     grads = np.stack([d_u, d_v, d_s, spot, np.ones_like(spot)])
-    gain_dn = (2 ** sensor.bit_depth - 1) / sensor.full_well_e
-    crb = centre_crb_px2(mu, grads, sensor.read_noise_e ** 2 + 1.0 / (12.0 * gain_dn ** 2))
+    crb = centre_crb_px2(mu, grads, extra_e2)
     return float(math.sqrt(max(float(np.trace(crb)) / 2.0, 0.0)))
+
+
+def _mosaic_crb_px2(four: NDArray[np.float32], weights: NDArray[np.float64], kernels: tuple[Kernel, Kernel, Kernel],
+                    background_e: float, extra_e2: float, pattern: BayerPattern, row0: int, col0: int
+                    ) -> NDArray[np.float64]:
+    """The centre's bound from a colour filter array's photosites, (2, 2) px^2.
+
+    Each photosite collects its own filter's channel only (:func:`deckpose.render.bayer.select_mosaic`),
+    so the information is the sum over the channels of that channel's image (its colour weight,
+    through its own kernel) over that channel's photosites; a detector that demosaics and sums
+    the channels works from these data and cannot do better. Nuisances: the core's width, the
+    flux (the colour is known) and one background per channel; the recorded background is the
+    channel sum, split evenly (its colour is not recorded: it enters only the variances and a
+    nuisance, a second-order effect on the centre's bound).
+
+    Parameters
+    ----------
+    four : (n, n, 4) array of float32
+        The unit-colour spot, its ``u``, ``v`` and dilation derivatives, electrons, on the
+        window whose top-left pixel is ``(row0, col0)``.
+    weights : (3,) array of float
+        The spot's colour, per channel.
+    kernels, background_e, extra_e2
+        As :func:`spot_crb_px` (``extra_e2``: read noise^2 + quantisation, e^2).
+    pattern : BayerPattern
+        Not ``NONE``.
+    row0, col0 : int
+        The window's top-left pixel in the image (the pattern's phase).
+    """
+    r = kernels[0].shape[0] // 2
+    n = four.shape[0] + 2 * r
+    sites = filter_channels(pattern, n, n, row0 - r, col0 - r)  # the convolved window starts r before
+    mu = np.zeros((n, n))
+    grads = np.zeros((7, n, n))  # u, v, width, flux, and the three channels' backgrounds
+    for c in range(3):
+        on = sites == c
+        img = np.moveaxis(full_convolution(four, np.asarray(kernels[c], float)).astype(np.float64), -1, 0)
+        img *= weights[c]
+        mu[on] = img[0][on] + max(background_e, 0.0) / 3.0
+        for p in range(3):
+            grads[p][on] = img[p + 1][on]
+        grads[3][on] = img[0][on]
+        grads[4 + c][on] = 1.0
+    return centre_crb_px2(mu, grads, extra_e2)
