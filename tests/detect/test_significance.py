@@ -7,13 +7,8 @@ import math
 import numpy as np
 import pytest
 from deckpose.detect.background import row_median
-from deckpose.detect.significance import (
-    TEXTURE_TILE_PX,
-    box_means,
-    ring_samples,
-    texture_noise,
-    tiles_of,
-)
+from deckpose.detect.significance import box_means, ring_samples
+from deckpose.detect.tile_texture import TEXTURE_TILE_PX, texture_noise, tiles_of
 
 
 @pytest.mark.parametrize("m", [1, 2, 3, 16, 17, 26, 256])
