@@ -58,6 +58,28 @@ def test_an_approach_plans_one_sequence_on_one_time_base():
     assert np.abs(xy).max() <= 1.0 + 1e-12 and np.abs(np.diff(xy, axis=0)).max() < 0.05   # continuous drift
 
 
+def test_the_first_frame_blurs_symmetrically_about_its_truth():
+    # A frame at the series' first sample blurs over half an exposure before it. The sub-poses
+    # there follow the series' first step (not the first sample, clamped: the ship stood still
+    # for half the exposure, and the first rendered approach frame's outer beacons sat 2-4
+    # sigmas off their truth). Along the first step's line the sub-poses are symmetric about the
+    # frame's time, so their mean is the frame's own pose (the truth, at the exposure's middle)
+    # to rounding; and the sub-poses themselves against that line, written out.
+    doc = _doc()
+    doc["motion"] = {**doc["motion"], "exposure_s": 0.02}
+    plan = plan_frames(config_from_dict(doc, "t"))
+    series = load_motion(config_from_dict(doc, "t").motion)
+    rate = (series.roll_rad[1] - series.roll_rad[0]) / (series.t_s[1] - series.t_s[0])
+    first = plan[0]
+    assert first.t_s == series.t_s[0] and len(first.blur_poses) > 1
+    assert np.mean([p.roll_rad for p in first.blur_poses]) == pytest.approx(first.ship.roll_rad, abs=1e-12)
+    assert np.mean([p.heave_m for p in first.blur_poses]) == pytest.approx(first.ship.heave_m, abs=1e-12)
+    k = len(first.blur_poses)
+    ts = first.t_s + 0.02 * ((np.arange(k) + 0.5) / k - 0.5)
+    np.testing.assert_allclose([p.roll_rad for p in first.blur_poses],
+                               series.roll_rad[0] + rate * (ts - series.t_s[0]), atol=1e-12)
+
+
 def test_the_resolved_config_reads_back_and_the_grid_configs_are_unchanged():
     cfg = config_from_dict(_doc(), "t")
     again = config_from_dict(config_to_dict(cfg), "again")
