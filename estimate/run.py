@@ -4,6 +4,13 @@ The CLI (``deckpose estimate``) and the pipeline both call these functions; they
 parse nothing and print nothing. Frames go to :func:`~deckpose.estimate.batch.
 estimate_batch` one camera at a time, which chunks them by its ``CHUNK_FRAMES``
 (the one chunking policy) and advances ``progress`` per chunk.
+
+With ``workers`` (or a Dask ``scheduler``) a run's frames of one camera are split into
+at most one task per worker, each at least :data:`MIN_TASK_FRAMES` frames (fewer run in
+this process: a worker's start-up costs more than it saves), run by
+:func:`deckpose.worker_pool.map_ordered` and put back in frame order. A frame's estimate
+depends on its own detections alone, not on the frames batched with it, so the table is
+the same for any number of workers.
 """
 
 from __future__ import annotations
@@ -30,11 +37,16 @@ from deckpose.shell_command import deckpose_command
 if TYPE_CHECKING:
     from deckpose.run_folder import RunPaths
 
-__all__ = ["EstimateRunResult", "estimate_inputs", "estimate_run", "estimate_table", "method_options",
-           "read_estimate_inputs"]
+__all__ = ["MIN_TASK_FRAMES", "EstimateRunResult", "estimate_inputs", "estimate_run", "estimate_table",
+           "method_options", "read_estimate_inputs"]
 
 #: ``progress(n)``: ``n`` more frames are done (what it returns is ignored).
 Progress = Callable[[int], object]
+
+#: Fewest frames of one camera that a worker estimates as one task; a camera with fewer than
+#: twice as many is estimated in this process. Estimating costs about 0.5 ms a frame, starting
+#: a worker process about 2 s (benchmarks/bench_stage_workers.py), so smaller tasks lose time.
+MIN_TASK_FRAMES = 8192
 
 
 @dataclass(frozen=True)
@@ -79,6 +91,8 @@ def estimate_table(
     sigma_px: float = 1.0,
     source: str = "detections",
     progress: Progress | None = None,
+    workers: int = 1,
+    scheduler: str | None = None,
 ) -> pd.DataFrame:
     """Poses for a detections table of one camera (``deckpose estimate DETECTIONS``).
 
@@ -98,6 +112,11 @@ def estimate_table(
     source : str, keyword-only
         How messages name the table (its path).
     progress : callable, optional, keyword-only
+    workers : int, keyword-only
+        Worker processes (0 or 1: this process), a task of at least :data:`MIN_TASK_FRAMES`
+        frames each; the table does not depend on it.
+    scheduler : str, optional, keyword-only
+        A Dask scheduler's address: the tasks run on its workers instead.
 
     Returns
     -------
@@ -108,9 +127,9 @@ def estimate_table(
 
     frames = detections_from_frame(detections, layout, source)
     frames, unidentified = identify_unassigned(detections, frames, layout, camera)
-    ids = list(frames)
-    results = estimate_batch(spec.name, [frames[i] for i in ids], camera, layout,
-                             method_options(spec, sigma_px), progress=progress)
+    group = _CameraFrames([frames[i] for i in frames], camera, None, np.arange(len(frames)))
+    results = _estimate_groups(spec.name, [group], len(frames), layout, method_options(spec, sigma_px),
+                               workers=workers, scheduler=scheduler, progress=progress)
     df = estimates_frame(results).assign(method=spec.label)
     if unidentified:  # the frame failed for want of ids: say so, not "0 usable"
         miss = df["frame_id"].isin(list(unidentified)) & ~df["ok"].astype(bool)
@@ -126,6 +145,8 @@ def estimate_run(
     sigma_px: float = 1.0,
     radius_m: float | None = None,
     progress: Progress | None = None,
+    workers: int = 1,
+    scheduler: str | None = None,
 ) -> EstimateRunResult:
     """Estimate every frame of a run folder and write ``RUN/estimates/DETECTOR--LABEL.parquet``.
 
@@ -144,6 +165,10 @@ def estimate_run(
     radius_m : float, optional, keyword-only
         Ring radius instead of the run's layout's.
     progress : callable, optional, keyword-only
+    workers : int, keyword-only
+        Worker processes (0 or 1: this process); the table does not depend on it.
+    scheduler : str, optional, keyword-only
+        A Dask scheduler's address: the tasks run on its workers instead.
 
     Returns
     -------
@@ -160,7 +185,8 @@ def estimate_run(
 
     run, detector, layout, frames, cameras, dets = read_estimate_inputs(run_dir, detector=detector,
                                                                       radius_m=radius_m)
-    df = estimate_inputs(frames, dets, cameras, layout, spec, sigma_px=sigma_px, progress=progress)
+    df = estimate_inputs(frames, dets, cameras, layout, spec, sigma_px=sigma_px, progress=progress,
+                         workers=workers, scheduler=scheduler)
     out = run.estimates(detector, spec.label)
     write_table(df, out, "estimates")
     return EstimateRunResult(out, df)
@@ -206,21 +232,86 @@ def read_estimate_inputs(run_dir: str | Path, *, detector: str | None = None, ra
 
 def estimate_inputs(frames: pd.DataFrame, dets: dict[int, Detections], cameras: dict[str, CameraModel],
                     layout: DeckLayout, spec: MethodSpec, *, sigma_px: float = 1.0,
-                    progress: Progress | None = None) -> pd.DataFrame:
-    """The estimates table of a run's frames (:func:`read_estimate_inputs`): frames of one camera as one batch."""
+                    progress: Progress | None = None, workers: int = 1,
+                    scheduler: str | None = None) -> pd.DataFrame:
+    """The estimates table of a run's frames (:func:`read_estimate_inputs`): frames of one camera as one batch.
+
+    With ``workers`` >= 2 (or a ``scheduler``) a camera's frames are split into at most
+    ``workers`` tasks of at least :data:`MIN_TASK_FRAMES` frames each, estimated side by side
+    (:func:`deckpose.worker_pool.map_ordered`); the table is the same for any ``workers``.
+    """
     from deckpose import run_folder as rl
 
-    options = method_options(spec, sigma_px)
     ids = [int(f) for f in frames["frame_id"]]
     R_all = rl.R_world_from_cam_all(frames)
-    results: list[PoseEstimate | None] = [None] * len(ids)
+    no_detections = np.zeros((0, 2))
+    groups = []
     for cam_name, rows in frames.groupby("camera", sort=True).indices.items():
-        dets_cam = [dets.get(ids[k], Detections(np.zeros((0, 2)), np.zeros(0, dtype=np.int64), frame_id=ids[k]))
+        dets_cam = [dets.get(ids[k], Detections(no_detections, np.zeros(0, dtype=np.int64), frame_id=ids[k]))
                     for k in rows]
-        got = estimate_batch(spec.name, dets_cam, cameras[str(cam_name)], layout, options,
-                             R_world_from_cam=R_all[rows], progress=progress)
-        for k, e in zip(rows, got, strict=True):
-            results[k] = e
-    done = [e for e in results if e is not None]
-    assert len(done) == len(ids), "every frame has a camera, so every frame is estimated"
-    return estimates_frame(done).assign(method=spec.label)
+        groups.append(_CameraFrames(dets_cam, cameras[str(cam_name)], R_all[rows], np.asarray(rows)))
+    results = _estimate_groups(spec.name, groups, len(ids), layout, method_options(spec, sigma_px),
+                               workers=workers, scheduler=scheduler, progress=progress)
+    return estimates_frame(results).assign(method=spec.label)
+
+
+@dataclass(frozen=True)
+class _CameraFrames:
+    """Frames of one camera to estimate: their detections, attitudes and places in the output."""
+
+    detections: list[Detections]
+    camera: CameraModel
+    R_world_from_cam: np.ndarray | None
+    positions: np.ndarray
+
+
+def _estimate_groups(name: str, groups: list[_CameraFrames], n_frames: int, layout: DeckLayout,
+                     options: EstimateOptions, *, workers: int, scheduler: str | None,
+                     progress: Progress | None) -> list[PoseEstimate]:
+    """Estimate every group (in tasks of at least :data:`MIN_TASK_FRAMES` frames, one per worker),
+    each estimate in its group's place of the ``n_frames`` of the output."""
+    import contextlib
+
+    from deckpose.worker_pool import map_ordered, task_count
+
+    tasks: list[_EstimateTask] = []
+    places: list[np.ndarray] = []  # each task's places in the output
+    for g in groups:
+        n_tasks = task_count(len(g.detections), MIN_TASK_FRAMES, workers=workers, scheduler=scheduler)
+        for part in np.array_split(np.arange(len(g.detections)), n_tasks):
+            R = None if g.R_world_from_cam is None else g.R_world_from_cam[part]
+            tasks.append(_EstimateTask(name, tuple(g.detections[k] for k in part), g.camera, layout, options, R))
+            places.append(g.positions[part])
+    results: list[PoseEstimate | None] = [None] * n_frames
+    if len(tasks) <= len(groups) and scheduler is None:  # one task a camera, here: progress per chunk
+        for task, at in zip(tasks, places, strict=True):
+            for k, e in zip(at, _estimate_task(task, progress), strict=True):
+                results[k] = e
+    else:
+        with contextlib.closing(map_ordered(_estimate_task, tasks, workers=workers, scheduler=scheduler)) as done:
+            for at, got in zip(places, done, strict=True):
+                for k, e in zip(at, got, strict=True):
+                    results[k] = e
+                if progress is not None:
+                    progress(len(at))
+    out = [e for e in results if e is not None]
+    assert len(out) == n_frames, "every frame is in one group, so every frame is estimated"
+    return out
+
+
+@dataclass(frozen=True)
+class _EstimateTask:
+    """Frames of one camera that a worker estimates as one batch (:func:`_estimate_task`)."""
+
+    name: str
+    detections: tuple[Detections, ...]
+    camera: CameraModel
+    layout: DeckLayout
+    options: EstimateOptions
+    R_world_from_cam: np.ndarray | None
+
+
+def _estimate_task(task: _EstimateTask, progress: Progress | None = None) -> list[PoseEstimate]:
+    """Estimate one task's frames (the workers' entry point)."""
+    return estimate_batch(task.name, task.detections, task.camera, task.layout, task.options,
+                          R_world_from_cam=task.R_world_from_cam, progress=progress)
