@@ -5,12 +5,14 @@ parse nothing and print nothing. Frames go to :func:`~deckpose.estimate.batch.
 estimate_batch` one camera at a time, which chunks them by its ``CHUNK_FRAMES``
 (the one chunking policy) and advances ``progress`` per chunk.
 
-With ``workers`` (or a Dask ``scheduler``) a run's frames of one camera are split into
-at most one task per worker, each at least :data:`MIN_TASK_FRAMES` frames (fewer run in
-this process: a worker's start-up costs more than it saves), run by
-:func:`deckpose.worker_pool.map_ordered` and put back in frame order. A frame's estimate
-depends on its own detections alone, not on the frames batched with it, so the table is
-the same for any number of workers.
+With ``workers`` (or a Dask ``scheduler``) those chunks, a camera's ``CHUNK_FRAMES``
+frames each (and its rest), are the tasks that :func:`deckpose.worker_pool.map_ordered`
+runs side by side; the estimates are put back in frame order. The batches are the same
+as in this process, so the table is the same, to the bit, for any number of workers (a
+frame's estimate depends, at the rounding level, on the frames batched with it: about
+1e-13 relative, so the batches must not depend on the workers). A run of fewer than
+:data:`MIN_PARALLEL_FRAMES` frames is estimated here: a worker's start-up costs more than
+it saves.
 """
 
 from __future__ import annotations
@@ -37,16 +39,15 @@ from deckpose.shell_command import deckpose_command
 if TYPE_CHECKING:
     from deckpose.run_folder import RunPaths
 
-__all__ = ["MIN_TASK_FRAMES", "EstimateRunResult", "estimate_inputs", "estimate_run", "estimate_table",
+__all__ = ["MIN_PARALLEL_FRAMES", "EstimateRunResult", "estimate_inputs", "estimate_run", "estimate_table",
            "method_options", "read_estimate_inputs"]
 
 #: ``progress(n)``: ``n`` more frames are done (what it returns is ignored).
 Progress = Callable[[int], object]
 
-#: Fewest frames of one camera that a worker estimates as one task; a camera with fewer than
-#: twice as many is estimated in this process. Estimating costs about 0.5 ms a frame, starting
-#: a worker process about 2 s (benchmarks/bench_stage_workers.py), so smaller tasks lose time.
-MIN_TASK_FRAMES = 8192
+#: Fewest frames estimated by worker processes; fewer are estimated in this process (starting
+#: the workers costs more than they save: benchmarks/bench_stage_workers.py).
+MIN_PARALLEL_FRAMES = 4096
 
 
 @dataclass(frozen=True)
@@ -113,8 +114,8 @@ def estimate_table(
         How messages name the table (its path).
     progress : callable, optional, keyword-only
     workers : int, keyword-only
-        Worker processes (0 or 1: this process), a task of at least :data:`MIN_TASK_FRAMES`
-        frames each; the table does not depend on it.
+        Worker processes (0 or 1: this process), from :data:`MIN_PARALLEL_FRAMES` frames on;
+        the table does not depend on it.
     scheduler : str, optional, keyword-only
         A Dask scheduler's address: the tasks run on its workers instead.
 
@@ -236,8 +237,8 @@ def estimate_inputs(frames: pd.DataFrame, dets: dict[int, Detections], cameras: 
                     scheduler: str | None = None) -> pd.DataFrame:
     """The estimates table of a run's frames (:func:`read_estimate_inputs`): frames of one camera as one batch.
 
-    With ``workers`` >= 2 (or a ``scheduler``) a camera's frames are split into at most
-    ``workers`` tasks of at least :data:`MIN_TASK_FRAMES` frames each, estimated side by side
+    With ``workers`` >= 2 (or a ``scheduler``) and at least :data:`MIN_PARALLEL_FRAMES`
+    frames, the batches (a camera's ``CHUNK_FRAMES`` frames) are estimated side by side
     (:func:`deckpose.worker_pool.map_ordered`); the table is the same for any ``workers``.
     """
     from deckpose import run_folder as rl
@@ -268,26 +269,32 @@ class _CameraFrames:
 def _estimate_groups(name: str, groups: list[_CameraFrames], n_frames: int, layout: DeckLayout,
                      options: EstimateOptions, *, workers: int, scheduler: str | None,
                      progress: Progress | None) -> list[PoseEstimate]:
-    """Estimate every group (in tasks of at least :data:`MIN_TASK_FRAMES` frames, one per worker),
-    each estimate in its group's place of the ``n_frames`` of the output."""
+    """Estimate every group, each estimate in its group's place of the ``n_frames`` of the output.
+
+    Here: a group a batch (:func:`estimate_batch` chunks it). In workers: a task a chunk of
+    ``CHUNK_FRAMES``, the same batches, so the same estimates.
+    """
     import contextlib
 
-    from deckpose.worker_pool import map_ordered, task_count
+    from deckpose.estimate import batch
 
-    tasks: list[_EstimateTask] = []
-    places: list[np.ndarray] = []  # each task's places in the output
-    for g in groups:
-        n_tasks = task_count(len(g.detections), MIN_TASK_FRAMES, workers=workers, scheduler=scheduler)
-        for part in np.array_split(np.arange(len(g.detections)), n_tasks):
-            R = None if g.R_world_from_cam is None else g.R_world_from_cam[part]
-            tasks.append(_EstimateTask(name, tuple(g.detections[k] for k in part), g.camera, layout, options, R))
-            places.append(g.positions[part])
+    from deckpose.worker_pool import map_ordered
+
     results: list[PoseEstimate | None] = [None] * n_frames
-    if len(tasks) <= len(groups) and scheduler is None:  # one task a camera, here: progress per chunk
-        for task, at in zip(tasks, places, strict=True):
-            for k, e in zip(at, _estimate_task(task, progress), strict=True):
+    if scheduler is None and (workers <= 1 or n_frames < MIN_PARALLEL_FRAMES):
+        for g in groups:
+            task = _EstimateTask(name, tuple(g.detections), g.camera, layout, options, g.R_world_from_cam)
+            for k, e in zip(g.positions, _estimate_task(task, progress), strict=True):
                 results[k] = e
     else:
+        tasks: list[_EstimateTask] = []
+        places: list[np.ndarray] = []  # each task's places in the output
+        for g in groups:
+            for lo in range(0, len(g.detections), batch.CHUNK_FRAMES):
+                part = slice(lo, lo + batch.CHUNK_FRAMES)
+                R = None if g.R_world_from_cam is None else g.R_world_from_cam[part]
+                tasks.append(_EstimateTask(name, tuple(g.detections[part]), g.camera, layout, options, R))
+                places.append(g.positions[part])
         with contextlib.closing(map_ordered(_estimate_task, tasks, workers=workers, scheduler=scheduler)) as done:
             for at, got in zip(places, done, strict=True):
                 for k, e in zip(at, got, strict=True):
