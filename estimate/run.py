@@ -45,8 +45,10 @@ __all__ = ["MIN_PARALLEL_FRAMES", "EstimateRunResult", "estimate_inputs", "estim
 #: ``progress(n)``: ``n`` more frames are done (what it returns is ignored).
 Progress = Callable[[int], object]
 
-#: Fewest frames estimated by worker processes; fewer are estimated in this process (starting
-#: the workers costs more than they save: benchmarks/bench_stage_workers.py).
+#: Fewest frames estimated by worker processes; fewer are estimated in this process. A frame
+#: costs about 7 ms a method at load 7-10, starting two workers that import the estimators 8-14 s,
+#: and on a 990-frame run two workers took 3.0x one (benchmarks/bench_stage_workers.py,
+#: reports/throughput/stage_workers.txt).
 MIN_PARALLEL_FRAMES = 4096
 
 

@@ -88,9 +88,11 @@ __all__ = ["LOG_TASK_FRAMES", "MIN_PARALLEL_LOG_FRAMES", "McapLog", "annotations
 #: Frames of the log built by one worker task: enough to hide the hand-over, few enough that
 #: the built messages waiting to be written (previews included) stay small.
 LOG_TASK_FRAMES = 64
-#: Fewest frames whose log is built by worker processes; a smaller log is built in this
-#: process (starting the workers costs more than they save: benchmarks/bench_stage_workers.py).
-MIN_PARALLEL_LOG_FRAMES = 512
+#: Fewest frames whose log is built by worker processes; a smaller log is built in this process.
+#: A frame's messages cost about 21 ms to build (load 6-7), starting two workers 5 s and more,
+#: and on a 990-frame run two workers took 1.38x one at load 7-10 (benchmarks/bench_stage_workers.py,
+#: reports/throughput/stage_workers.txt).
+MIN_PARALLEL_LOG_FRAMES = 4096
 
 
 class McapLog:

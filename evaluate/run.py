@@ -51,9 +51,10 @@ def frame_crb(run: rl.RunPaths, frames: pd.DataFrame, centroid_rms_px: pd.Series
 
 #: The columns of :func:`frame_crb`'s table.
 CRB_COLUMNS = ("frame_id", "crb_roll_deg", "crb_pitch_deg", "crb_yaw_deg", "crb_height_m")
-#: Fewest frames of one worker's task of :func:`frame_crb` (smaller ones cost more in the workers'
-#: start-up than they save: benchmarks/bench_stage_workers.py).
-MIN_CRB_TASK_FRAMES = 2048
+#: Fewest frames of one worker's task of :func:`frame_crb`: a bound costs about 2 ms (1.8 ms at load
+#: 8), starting two workers that import it 8-14 s on this shared 2-core machine (benchmarks/bench_stage_workers.py,
+#: reports/throughput/stage_workers.txt), so smaller tasks cannot win that back.
+MIN_CRB_TASK_FRAMES = 4096
 
 
 @dataclass(frozen=True)
