@@ -137,7 +137,7 @@ def test_on_dask_the_tables_are_the_same(fake_run: Path, tmp_path: Path, small_t
     here, there = tmp_path / "here", tmp_path / "dask"
     shutil.copytree(fake_run, here)
     shutil.copytree(fake_run, there)
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
                                   local_directory=str(tmp_path / "scratch")) as lc:
         on_dask = _estimates(there, 0, lc.scheduler_address)
         files = _evaluate(there, 0, lc.scheduler_address)
