@@ -32,6 +32,14 @@ def _freeze(a: object, dtype: type | None = None) -> np.ndarray:
     return arr
 
 
+def _read_only(state: dict[str, object]) -> dict[str, object]:
+    """A record's pickled fields with its arrays read-only (unpickled arrays are writable)."""
+    for v in state.values():
+        if isinstance(v, np.ndarray):
+            v.setflags(write=False)
+    return state
+
+
 @dataclass(frozen=True)
 class Frame:
     """One camera image, as a detector sees it (render -> detect).
@@ -157,6 +165,10 @@ class Detections:
     def __len__(self) -> int:
         return int(self.points_px.shape[0])
 
+    def __setstate__(self, state: dict[str, object]) -> None:
+        """Unpickled (in a worker process) with its arrays read-only again."""
+        self.__dict__.update(_read_only(state))
+
 
 #: Order of the 6 pose parameters in :attr:`PoseEstimate.covariance`.
 POSE_PARAMS = ("roll_rad", "pitch_rad", "yaw_rad", "surge_m", "sway_m", "height_m")
@@ -218,6 +230,14 @@ class PoseEstimate:
 
     def __bool__(self) -> bool:
         return self.ok
+
+    def __getstate__(self) -> dict[str, object]:
+        """Pickled (to or from a worker process) with ``extras`` as a dict (a mapping proxy does not pickle)."""
+        return {**self.__dict__, "extras": dict(self.extras)}
+
+    def __setstate__(self, state: dict[str, object]) -> None:
+        """Unpickled with ``extras`` read-only and its covariance read-only again."""
+        self.__dict__.update(_read_only(state), extras=MappingProxyType(dict(state["extras"])))  # type: ignore[arg-type]
 
     @classmethod
     def failed(cls, method: str, reason: str, **extras: float) -> PoseEstimate:

@@ -166,6 +166,8 @@ def estimate_run_with_prior(
     prior: bool = True,
     max_prior_age_s: float = SequenceOptions().max_prior_age_s,
     progress: Progress | None = None,
+    workers: int = 1,
+    scheduler: str | None = None,
 ) -> EstimateRunResult:
     """Estimate every frame of a run folder, identifying by a prior what detection could not.
 
@@ -187,6 +189,12 @@ def estimate_run_with_prior(
     max_prior_age_s : float, keyword-only
         Oldest ok estimate used as a prior, seconds.
     progress : callable, optional, keyword-only
+    workers : int, keyword-only
+        Worker processes of the estimates of each frame alone
+        (:func:`~deckpose.estimate.run.estimate_inputs`; 0 or 1: this process); the walk over
+        each sequence runs here. The table does not depend on it.
+    scheduler : str, optional, keyword-only
+        A Dask scheduler's address: those estimates run on its workers instead.
 
     Returns
     -------
@@ -204,7 +212,8 @@ def estimate_run_with_prior(
     options = SequenceOptions(max_prior_age_s=max_prior_age_s)  # validates before the work
     run, detector, layout, frames, cameras, dets = read_estimate_inputs(run_dir, detector=detector,
                                                                       radius_m=radius_m)
-    df = estimate_inputs(frames, dets, cameras, layout, spec, sigma_px=sigma_px, progress=progress)
+    df = estimate_inputs(frames, dets, cameras, layout, spec, sigma_px=sigma_px, progress=progress,
+                         workers=workers, scheduler=scheduler)
     ids = [int(f) for f in frames["frame_id"]]
     identified = _identified(rl.read_detect_frames(run, detector), dets, ids)
     if prior:

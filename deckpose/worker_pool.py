@@ -1,7 +1,7 @@
 """Local worker processes that a Ctrl-C stops cleanly, within seconds.
 
-Every stage that runs frames in worker processes (render, detect, the thesis tables) opens
-its pool here, so the rule is kept in one place:
+Every stage that runs frames in worker processes (render, detect, estimate, evaluate, the
+thesis tables) opens its pool here, so the rule is kept in one place:
 
 * the workers ignore SIGINT. A Ctrl-C in a terminal goes to every process of the job; a
   worker that took it died with a traceback, and one that died holding the pool's queue lock
@@ -18,6 +18,11 @@ its pool here, so the rule is kept in one place:
 
 The workers are spawned, never forked: each one creates its own GL context and imports
 what it needs.
+
+:func:`map_ordered` is the stages' one way to run chunks of frames side by side and get
+their results back in order (here, in local workers, or on a Dask cluster through
+:func:`connect_scheduler`), so the process that owns the output writes it in frame order,
+whatever the number of workers.
 """
 
 from __future__ import annotations
@@ -26,11 +31,20 @@ import contextlib
 import signal
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Generator, Iterator, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from multiprocessing.context import SpawnContext, SpawnProcess
+from typing import TYPE_CHECKING, TypeVar
 
-__all__ = ["GRACE_S", "ignore_interrupts", "worker_pool"]
+from deckpose.errors import ConfigError
+
+if TYPE_CHECKING:
+    from distributed import Client
+
+__all__ = ["GRACE_S", "connect_scheduler", "ignore_interrupts", "map_ordered", "task_count", "worker_pool"]
+
+T = TypeVar("T")
+R = TypeVar("R")
 
 #: Seconds the workers get to finish their frame in hand after the job is interrupted.
 GRACE_S = 3.0
@@ -132,3 +146,83 @@ def _initialize(then: Callable[[], object] | None) -> None:
     ignore_interrupts()
     if then is not None:
         then()
+
+
+def connect_scheduler(address: str) -> Client:
+    """A Dask client of the scheduler at ``address`` (``tcp://host:8786``), or a clear error.
+
+    Raises
+    ------
+    ConfigError
+        ``dask.distributed`` is not installed, or the scheduler cannot be reached.
+    """
+    try:
+        from distributed import Client
+    except ImportError:
+        raise ConfigError("--scheduler needs dask.distributed: pip install 'deckpose[cluster]'") from None
+    try:
+        return Client(address)
+    except (OSError, ValueError) as exc:  # unreachable (OSError, TimeoutError) or malformed
+        raise ConfigError(f"cannot reach the Dask scheduler at {address!r} ({exc}); start one "
+                          "(dask scheduler) or give its address as --scheduler tcp://HOST:8786") from None
+
+
+def task_count(n_items: int, min_task: int, *, workers: int, scheduler: str | None = None) -> int:
+    """Tasks to split ``n_items`` into: one per worker, none of fewer than ``min_task`` items.
+
+    With a ``scheduler`` the count is not bounded by ``workers`` (the cluster's size is its
+    own). 1 means: run them in this process (:func:`map_ordered` does, for one task).
+    """
+    most = n_items // max(1, min_task)
+    if scheduler is None:
+        most = min(most, workers)
+    return max(1, most)
+
+
+def map_ordered(fn: Callable[[T], R], tasks: Sequence[T], *, workers: int,
+                scheduler: str | None = None) -> Generator[R, None, None]:
+    """``fn(task)`` of every task, yielded in task order, wherever it ran.
+
+    Parameters
+    ----------
+    fn : callable
+        A module-level function (the workers import it), pure: its result depends on its
+        task alone, so where it runs does not change it.
+    tasks : sequence
+        Its arguments, one per call (picklable; a chunk of frames each, not one frame).
+    workers : int
+        Local worker processes (:func:`worker_pool`); with 0 or 1, or a single task, every
+        call runs in this process (a pool would only add its start-up).
+    scheduler : str, optional
+        A Dask scheduler's address: the calls run on its workers instead (``workers`` is
+        then ignored).
+
+    Yields
+    ------
+    object
+        ``fn(tasks[0])``, ``fn(tasks[1])``, ... A generator: close it (``contextlib.closing``)
+        so that an interrupt in the caller's loop stops the workers at once, not when it is
+        collected.
+    """
+    if workers < 0:
+        raise ConfigError(f"workers must be >= 0 (0 or 1: in this process), got {workers}")
+    if scheduler is not None:
+        client = connect_scheduler(scheduler)
+        futures = []
+        try:
+            futures = client.map(fn, list(tasks), pure=False)
+            for fut in futures:
+                yield fut.result()
+                fut.release()
+        finally:
+            client.cancel(futures)
+            client.close()
+        return
+    if workers <= 1 or len(tasks) <= 1:
+        for task in tasks:
+            yield fn(task)
+        return
+    # workers ignore Ctrl-C; on it (or any error) the tasks not started are cancelled and the
+    # workers stopped within seconds
+    with worker_pool(min(workers, len(tasks))) as pool:
+        yield from pool.map(fn, tasks)

@@ -80,7 +80,7 @@ from deckpose.table_schemas import (
     typed_frame,
 )
 from deckpose.tables import write_table
-from deckpose.worker_pool import worker_pool
+from deckpose.worker_pool import connect_scheduler, worker_pool
 
 if TYPE_CHECKING:
     from deckpose.render.scene import DeckRenderer
@@ -381,18 +381,6 @@ def _run_local(cfg: RenderConfig, todo: list[FrameSpec], out: Path, workers: int
             yield fut.result()
 
 
-def _connect(address: str) -> Client:
-    try:
-        from distributed import Client
-    except ImportError:
-        raise ConfigError("--scheduler needs dask.distributed: pip install 'deckpose[cluster]'") from None
-    try:
-        return Client(address)
-    except (OSError, ValueError) as exc:  # unreachable (OSError, TimeoutError) or malformed
-        raise ConfigError(f"cannot reach the Dask scheduler at {address!r} ({exc}); start one "
-                          "(dask scheduler) or give its address as --scheduler tcp://HOST:8786") from None
-
-
 def _run_dask(client: Client, cfg: RenderConfig, todo: list[FrameSpec], out: Path,
               detection: RenderDetection | None = None) -> Generator[int, None, None]:
     """Render on the cluster's workers and write here, as the frames come back.
@@ -606,7 +594,7 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
                               "or set sensor.video: null")
         detection = resolve_detection(detection, sensor_block(cfg))
     fresh = not RunPaths(out).manifest.exists()
-    with _connect(scheduler) if scheduler else contextlib.nullcontext() as client:  # before writing
+    with connect_scheduler(scheduler) if scheduler else contextlib.nullcontext() as client:  # before writing
         _prepare(cfg, plan, out, resume, detection)
         plan = _controlled_exposures(cfg, plan, progress)
         try:

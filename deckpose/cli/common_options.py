@@ -2,6 +2,7 @@
 
 * ``-o/--output``: where a command writes;
 * ``--workers N``: worker processes, by default one per CPU core on every command;
+* ``--scheduler ADDRESS``: a Dask scheduler whose workers run the command's tasks instead;
 * ``--no-progress``: no progress bars (they are off anyway when the output is not a
   terminal: tqdm's ``disable=None``);
 * ``-v/--verbose`` and ``-q/--quiet`` (top level): the log level of the ``deckpose``
@@ -55,6 +56,12 @@ def workers(args: argparse.Namespace) -> int:
 
         raise ConfigError(f"--workers must be >= 0, got {w}")
     return default_workers() if w is None else int(w)
+
+
+def add_scheduler(p: argparse.ArgumentParser, what: str) -> None:
+    """``--scheduler ADDRESS`` (a Dask scheduler; ``None`` when not given)."""
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help=f"Dask scheduler address (tcp://host:8786); {what} run on its workers")
 
 
 def add_output(p: argparse.ArgumentParser, help: str, *, default: Path | None = None,

@@ -6,7 +6,14 @@ import argparse
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from deckpose.cli.common_options import HelpFormatter, add_progress, frame_bar
+from deckpose.cli.common_options import (
+    HelpFormatter,
+    add_progress,
+    add_scheduler,
+    add_workers,
+    frame_bar,
+    workers,
+)
 from deckpose.cli.console import failures, wrote
 from deckpose.cli.exit_codes import frames_exit_code
 from deckpose.counted import counted
@@ -69,6 +76,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    "table's identified_by column says how each frame was identified")
     p.add_argument("--max-prior-age-s", type=float, default=0.5,
                    help="with --run: oldest ok estimate used as a prior, seconds (default 0.5)")
+    add_workers(p, "estimation (a camera's frames in one chunk per worker, when there are enough; the "
+                   "table does not depend on it)", zero="in this process")
+    add_scheduler(p, "the chunks of frames")
     add_progress(p)
     p.add_argument("--strict", action="store_true",
                    help="exit 4 when any frame failed (default: 0 when some succeeded, 3 when none did)")
@@ -88,6 +98,7 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.tables import read_table, write_table
 
     spec = _method_spec(args)
+    n_workers = workers(args)  # a bad count is refused before any work
     if args.run is not None:
         from deckpose.run_folder import read_frames, run_paths
 
@@ -95,7 +106,8 @@ def run(args: argparse.Namespace) -> int:
         with frame_bar(f"estimate ({spec.label})", enabled=not args.no_progress, total=n_frames) as bar:
             res = estimate_run_with_prior(args.run, spec, detector=getattr(args, "detector", None),
                                           sigma_px=args.sigma_px, radius_m=args.radius, prior=not args.no_prior,
-                                          max_prior_age_s=args.max_prior_age_s, progress=bar.update)
+                                          max_prior_age_s=args.max_prior_age_s, progress=bar.update,
+                                          workers=n_workers, scheduler=args.scheduler)
     else:
         if args.no_prior:
             raise ConfigError("--no-prior applies to --run RUN (a table alone has no time sequence); drop it")
@@ -140,7 +152,8 @@ def run(args: argparse.Namespace) -> int:
         n_frames = table["frame_id"].nunique() if "frame_id" in table.columns else None
         with frame_bar(f"estimate ({spec.label})", enabled=not args.no_progress, total=n_frames) as bar:
             df = estimate_table(table, camera, layout, spec, sigma_px=args.sigma_px,
-                                source=str(detections), progress=bar.update)
+                                source=str(detections), progress=bar.update, workers=n_workers,
+                                scheduler=args.scheduler)
         write_table(df, out, "estimates")
         res = EstimateRunResult(out, df)
     wrote(args, res.path, res.summary() + _mean_note(res.table))

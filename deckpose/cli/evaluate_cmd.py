@@ -5,7 +5,15 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from deckpose.cli.common_options import HelpFormatter, add_progress, done_of_total, frame_bar
+from deckpose.cli.common_options import (
+    HelpFormatter,
+    add_progress,
+    add_scheduler,
+    add_workers,
+    done_of_total,
+    frame_bar,
+    workers,
+)
 from deckpose.cli.console import wrote
 
 
@@ -28,6 +36,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--preview-px", type=int, default=PREVIEW_PX,
                    help="long side of the image previews in the log (<= 4096); at the default the render "
                         "stage's previews are used, another size decodes every frame again")
+    add_workers(p, "evaluation (Cramér-Rao bounds and the log's messages, by chunks of frames; the files "
+                   "do not depend on it)", zero="in this process")
+    add_scheduler(p, "the Cramér-Rao bounds (the log's messages, which read the previews, stay on --workers)")
     add_progress(p)
     p.set_defaults(func=run_evaluate)
     r = sub.add_parser(
@@ -46,14 +57,16 @@ def run_evaluate(args: argparse.Namespace) -> int:
     from deckpose.output_folder import claim_output
     from deckpose.run_folder import run_paths
 
+    n_workers = workers(args)  # a bad count is refused before any work
     run = run_paths(args.run)
     if run.root.is_dir():
         claim_output(run.root, what="evaluate")
+    # (the recorded command leaves out --workers and --scheduler: the log does not depend on them)
     command = ["deckpose", "evaluate", str(args.run), *(["--no-mcap"] if args.no_mcap else []),
                "--preview-px", str(args.preview_px)]
     with frame_bar("evaluate", enabled=not args.no_progress) as bar:
         paths = evaluate_run(run, mcap=not args.no_mcap, preview_px=args.preview_px, command=command,
-                             progress=done_of_total(bar))
+                             progress=done_of_total(bar), workers=n_workers, scheduler=args.scheduler)
     wrote(args, paths["errors"], "\n".join(f"{k}: {v}" for k, v in paths.items()))
     return 0
 

@@ -28,6 +28,7 @@ from deckpose.atomic_io import atomic_open
 from deckpose.cli.common_options import (
     HelpFormatter,
     add_progress,
+    add_scheduler,
     add_workers,
     done_of_total,
     frame_bar,
@@ -62,9 +63,9 @@ class PipelineOptions:
         Method labels (an estimator name, optionally ``+refine`` or ``+mean``), each run on
         every detector's detections.
     workers : int
-        Local render and detection worker processes (0: in this process).
+        Local worker processes of every stage (0: in this process); no table depends on it.
     scheduler : str or None
-        Dask scheduler address for the render stage.
+        Dask scheduler address for the render, estimate and evaluate stages.
     mcap : bool
         Write the MCAP log in the evaluate stage.
     progress : bool
@@ -138,8 +139,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--method", type=_csv, default=",".join(DEFAULT_METHODS),
                    help="estimator name(s), comma-separated, each optionally with +refine or +mean "
                    "(posterior mean), e.g. thesis,pnp,pnp+mean")
-    add_workers(p, "local render and detection", zero="render and detect in this process")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS", help="Dask scheduler for the render stage")
+    add_workers(p, "every stage's local", zero="run every stage in this process")
+    add_scheduler(p, "the render, estimate and evaluate stages' tasks (detection stays on --workers)")
     p.add_argument("--no-mcap", action="store_true", help="skip the MCAP log")
     p.add_argument("--publish", type=Path, default=None, metavar="DIR",
                    help="copy report.md, figures and resolution tables into DIR at the end")
@@ -320,7 +321,8 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
             for method in options.methods:
                 spec = parse_method(method)
                 with frame_bar(f"estimate ({spec.label})", enabled=options.progress, total=n_frames) as b:
-                    est = estimate_run_with_prior(run_dir, spec, detector=det, progress=b.update)
+                    est = estimate_run_with_prior(run_dir, spec, detector=det, progress=b.update,
+                                                  workers=options.workers, scheduler=options.scheduler)
                 tell(est.summary())
                 if options.track:
                     from deckpose.tracking.config import TRACKERS, TrackConfig
@@ -337,7 +339,8 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         say(4, total, "evaluate against the ground truth")
         # (the MCAP log is written after the report, which it attaches)
         with frame_bar("evaluate", enabled=options.progress) as b:
-            evaluated = evaluate_run(paths, mcap=False, command=options.command, progress=done_of_total(b))
+            evaluated = evaluate_run(paths, mcap=False, command=options.command, progress=done_of_total(b),
+                                     workers=options.workers, scheduler=options.scheduler)
         for key, path in evaluated.items():
             tell(f"{key}: {path}")
         seconds["evaluate"] = time.perf_counter() - t
@@ -369,7 +372,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     if options.mcap and runs("evaluate"):
         t_log = time.perf_counter()
         say(6, total, "write the MCAP log (with the report attached)")
-        for key, path in write_log(paths, command=options.command).items():
+        for key, path in write_log(paths, command=options.command, workers=options.workers).items():
             tell(f"{key}: {path}")
         record["log_seconds"] = round(time.perf_counter() - t_log, 1)
         with atomic_open(run_dir / PIPELINE_RECORD, "w") as fh:

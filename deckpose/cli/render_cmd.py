@@ -6,7 +6,13 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from deckpose.cli.common_options import add_output, add_progress, add_workers, workers
+from deckpose.cli.common_options import (
+    add_output,
+    add_progress,
+    add_scheduler,
+    add_workers,
+    workers,
+)
 from deckpose.cli.console import say, wrote
 
 
@@ -39,8 +45,7 @@ def register(subparsers: Any) -> None:
     p.add_argument("--backend", choices=["egl", "osmesa"], default=None,
                    help="headless GL backend (overrides the config)")
     p.add_argument("--resume", action="store_true", help="finish an interrupted run of the same config")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
-                   help="Dask scheduler address (tcp://host:8786); frames run on its workers")
+    add_scheduler(p, "frames")
     p.add_argument("--seed", type=int, default=None, help="override the config's seed")
     p.add_argument("--detect", default=None, metavar="DETECTORS",
                    help="also detect each frame as it is rendered, from memory, with these detectors "

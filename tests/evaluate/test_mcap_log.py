@@ -258,7 +258,7 @@ def test_the_log_uses_the_render_stages_previews_and_decodes_no_frame(tmp_path, 
     the log's images are those previews; at another size each is made from the frame."""
     import cv2
     import numpy as np
-    from deckpose.evaluate import mcap_log
+    from deckpose.evaluate import mcap_log, mcap_messages
 
     from deckpose.preview import make_preview
     from deckpose.run_folder import RunPaths
@@ -274,8 +274,8 @@ def test_the_log_uses_the_render_stages_previews_and_decodes_no_frame(tmp_path, 
     man = json.loads(run.manifest.read_text())
     run.manifest.write_text(json.dumps({**man, "preview_px": 256}))
     decoded = []
-    real_decode = mcap_log.decode_image
-    monkeypatch.setattr(mcap_log, "decode_image", lambda *a, **k: decoded.append(a[1]) or real_decode(*a, **k))
+    real_decode = mcap_messages.decode_image
+    monkeypatch.setattr(mcap_messages, "decode_image", lambda *a, **k: decoded.append(a[1]) or real_decode(*a, **k))
     mcap_log.write_run_log(run, preview_px=256)
     assert decoded == []
     stored = [msg.data for _, msg in _decoded(root, "/camera/image")]

@@ -183,7 +183,7 @@ def dask_cluster(tmp_path_factory: pytest.TempPathFactory):
     """Two worker processes (one thread each) with their scratch space in a folder of their own."""
     distributed = pytest.importorskip("distributed")
     scratch = tmp_path_factory.mktemp("dask-scratch")
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
                                   local_directory=str(scratch)) as lc, distributed.Client(lc) as client:
         yield lc, client
 
