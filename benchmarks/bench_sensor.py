@@ -1,177 +1,161 @@
-"""Sensor-model benchmark: ms per frame of :func:`deckpose.render.sensor.expose`, now and before.
+"""Sensor-model benchmark: CPU per frame of :func:`deckpose.render.sensor.expose`, this tree against another.
 
-``before`` is a copy of ``expose`` as of commit 37382e8 (names suffixed; 256-row strips,
-two ``cv2.LUT`` tables, ``cv2.randn`` re-seeded per strip); ``now`` is the module's. Both
-get the same input a frame hands over: an (H, W, 3) uint8 raster (the distorted deck
-and sea; random values here, which cost the same as a real one: every step is a table
-look-up or element-wise), the night radiance scale, and the beacon splats of the default
-layout seen from 30 m. The two run interleaved (``before, now, now, before, ...``) so a
-change in the machine's load hits both; the table gives medians and the ratio of
-medians. Peak extra memory is tracemalloc's peak during one call less the image it
-returns (numpy and OpenCV's numpy-backed arrays are traced).
+Two worker processes, one importing this checkout's ``deckpose`` and one the other
+tree's (``--base``, a checkout of the commit to compare with, e.g. ``git worktree add
+--detach /tmp/base main``; laid out as installed by ``speed_against_tree.link_tree``), so
+the model before is reachable only here, as it was committed. Both get the same inputs,
+made once in this process and pickled: an (H, W, 3) uint8 raster (random values, which
+cost what a real one costs: every step is element-wise or a table look-up), the night
+radiance scale and the beacon splats of the default layout seen from 30 m, the sensor of
+``configs/thesis_sweep.yaml`` (8-bit RGB, read noise 5 e-) unless told otherwise. Each
+worker times ``expose`` (CPU time of its thread with one OpenCV thread; ``--cv-threads
+0``: OpenCV's default pool and the process's CPU time, all threads, as the sweep runs),
+the two in alternating order call by call (``base, this, this, base, ...``) so a change of
+the machine's load hits both. Printed per size: each tree's median and fastest CPU time,
+ns per value, the median and quartiles of the per-call ratios base / this, the 1-minute
+load before and after; and how many values of the first call's two images (same seed)
+differ, with the largest difference.
 
 Usage::
 
-    python benchmarks/bench_sensor.py [--sizes 8mp 64mp] [--repeats 7] [--bit-depth 8]
-                                      [--color rgb]
-
-Measured on the 2-core development machine, 2026-12-02, while two other jobs kept both
-cores busy (load average 3.7-4.2; ``--repeats 9``)::
-
-     size   model  median ms   min ms  ns/value  extra MiB
-      8mp  before        291      162     11.69       56.3
-      8mp     now        121       99      4.86        4.0
-      8mp speed-up now over before: 2.41x (median of paired ratios 1.93x)
-     64mp  before       1369      981      7.11      135.5
-     64mp     now        843      705      4.38        4.0
-     64mp speed-up now over before: 1.62x (median of paired ratios 1.69x)
-
-16-bit mono, 8 MP: 76 -> 46 ms (1.63x paired); 12-bit RGB, 8 MP: 230 -> 142 ms (1.52x).
+    .venv/bin/python benchmarks/bench_sensor.py --base /tmp/base [--sizes 8mp 64mp]
+        [--repeats 9] [--bit-depth 8] [--color rgb] [--cv-threads 1]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import pickle
 import statistics
+import subprocess
+import sys
+import tempfile
 import time
-import tracemalloc
-from collections.abc import Callable
+from pathlib import Path
 
-import cv2
 import numpy as np
-from deckpose.render.beacons import Splat, add_splats, beacon_splats
-from deckpose.render.config import SensorSpec
-from deckpose.render.scene import Lighting, Shading, radiance_scale
-from deckpose.render.sensor import expose
-from numpy.typing import NDArray
 
-from deckpose.camera import preset
-from deckpose.layout import DeckLayout
-from deckpose.pose import CameraPose, ShipPose
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from speed_against_tree import link_tree  # the benchmarks' own helper
 
-_LUMA = np.array([0.299, 0.587, 0.114], np.float32)
-_STRIP_ROWS_BEFORE = 256
-
-Expose = Callable[
-    [NDArray[np.uint8], NDArray[np.float32], list[Splat], SensorSpec, np.random.Generator],
-    np.ndarray,
-]
+REPO = Path(__file__).resolve().parents[1]
 
 
-def _luts_before(scale_e: np.ndarray, sensor: SensorSpec,
-                 dn_per_e: float) -> tuple[np.ndarray, np.ndarray]:
-    v = np.arange(256, dtype=np.float64)[:, None] * scale_e[None, :]
-    mean = (v * dn_per_e).astype(np.float32)
-    sigma = (np.sqrt(v + sensor.read_noise_e ** 2) * dn_per_e).astype(np.float32)
-    C = scale_e.size
-    return mean.reshape(1, 256, C), sigma.reshape(1, 256, C)
+def make_inputs(size: str, bit_depth: int, color: str, folder: Path, seed: int = 1) -> Path:
+    """Raster, radiance scale, splats and sensor of one ``size`` frame, pickled for the workers."""
+    from deckpose.render.beacons import beacon_splats
+    from deckpose.render.config import SensorSpec
+    from deckpose.render.scene import Lighting, Shading, radiance_scale
 
+    from deckpose.camera import preset
+    from deckpose.layout import DeckLayout
+    from deckpose.pose import CameraPose, ShipPose
 
-def expose_before(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: list[Splat],
-                  sensor: SensorSpec, rng: np.random.Generator) -> np.ndarray:
-    """``expose`` as of commit 37382e8, for the comparison (same arguments and result)."""
-    H, W = raster.shape[:2]
-    mono = sensor.color == "mono"
-    dn_max = float(2 ** sensor.bit_depth - 1)
-    dn_per_e = dn_max / sensor.full_well_e
-    e_per_rad = sensor.exposure * sensor.full_well_e
-    scale = np.asarray(scale_rgb, np.float64) * e_per_rad
-    if mono:
-        scale = np.array([scale @ _LUMA])
-    lut_mean, lut_sigma = _luts_before(scale, sensor, dn_per_e)
-    src = cv2.cvtColor(raster, cv2.COLOR_RGB2GRAY) if mono else raster
-    C = 1 if mono else 3
-    depth = cv2.CV_8U if sensor.bit_depth == 8 else cv2.CV_16U
-    out = np.empty((H, W) if mono else (H, W, C), np.uint8 if sensor.bit_depth == 8 else np.uint16)
-    read2 = np.float32(sensor.read_noise_e ** 2)
-    for r0 in range(0, H, _STRIP_ROWS_BEFORE):
-        r1 = min(H, r0 + _STRIP_ROWS_BEFORE)
-        block = src[r0:r1]
-        mean = np.asarray(cv2.LUT(block, lut_mean), dtype=np.float32).reshape(r1 - r0, W, C)
-        touched = add_splats(mean, splats, r0, gain=e_per_rad * dn_per_e)
-        if sensor.noise:
-            sigma = cv2.LUT(block, lut_sigma).reshape(r1 - r0, W, C)
-            for rr, cc in touched:
-                m = mean[rr, cc]
-                sigma[rr, cc] = np.sqrt(np.maximum(m, 0) / np.float32(dn_per_e) + read2) * np.float32(dn_per_e)
-            noise = np.empty(mean.shape, np.float32)
-            cv2.setRNGSeed(int(rng.integers(2**31 - 1)))
-            cv2.randn(noise.reshape(r1 - r0, -1), 0.0, 1.0)  # pyright: ignore[reportCallIssue, reportArgumentType]
-            noise *= sigma
-            shape = out[r0:r1].shape
-            cv2.add(mean.reshape(shape), noise.reshape(shape), dst=out[r0:r1], dtype=depth)
-        else:
-            np.clip(np.rint(mean), 0.0, dn_max, out=mean)
-            out[r0:r1] = mean.reshape(out[r0:r1].shape)
-    if sensor.bit_depth == 12:
-        np.minimum(out, np.uint16(dn_max), out=out)
-    return out
-
-
-def _inputs(size: str, sensor: SensorSpec,
-            seed: int) -> tuple[NDArray[np.uint8], NDArray[np.float32], list[Splat]]:
-    """Raster, radiance scale and beacon splats of one ``size`` frame (night, flat shading)."""
+    sensor = SensorSpec(bit_depth=bit_depth, read_noise_e=5.0, color=color)
     cam = preset(f"{size}-thesis")
-    shape = (cam.height_px, cam.width_px, 3)
-    raster = np.random.default_rng(seed).integers(0, 256, shape, np.uint8)
+    raster = np.random.default_rng(seed).integers(0, 256, (cam.height_px, cam.width_px, 3), np.uint8)
     splats = beacon_splats(DeckLayout(), (ShipPose(),), CameraPose.nadir(30.0), cam, sensor)
-    return raster, radiance_scale(Lighting.NIGHT, Shading.FLAT), splats
+    path = folder / f"{size}.pkl"
+    with open(path, "wb") as f:
+        pickle.dump((raster, radiance_scale(Lighting.NIGHT, Shading.FLAT), splats, sensor), f)
+    return path
 
 
-def _time_s(fn: Expose, args: tuple[NDArray[np.uint8], NDArray[np.float32], list[Splat]],
-            sensor: SensorSpec, seed: int) -> float:
-    t0 = time.perf_counter()
-    fn(*args, sensor, np.random.default_rng(seed))
-    return time.perf_counter() - t0
+def worker(paths: list[str], cv_threads: int, out_dir: str) -> None:
+    """Load the inputs, warm up (saving the first image), then time ``expose`` per stdin line ``i seed``."""
+    import cv2
+    from deckpose.render import sensor as sensor_module
+
+    if cv_threads > 0:
+        cv2.setNumThreads(cv_threads)
+    clock = time.thread_time if cv_threads == 1 else time.process_time
+    inputs = []
+    for i, p in enumerate(paths):
+        with open(p, "rb") as f:
+            raster, scale, splats, sensor = pickle.load(f)
+        img = sensor_module.expose(raster, scale, splats, sensor, np.random.default_rng(0))
+        np.save(Path(out_dir) / f"{i}.npy", img)
+        inputs.append((raster, scale, splats, sensor))
+    print(f"ready {sensor_module.__file__}", flush=True)
+    for line in sys.stdin:
+        i, seed = (int(x) for x in line.split())
+        raster, scale, splats, sensor = inputs[i]
+        c0 = clock()
+        sensor_module.expose(raster, scale, splats, sensor, np.random.default_rng(seed))
+        print(f"{clock() - c0:.6f}", flush=True)
 
 
-def _peak_extra_bytes(fn: Expose, args: tuple[NDArray[np.uint8], NDArray[np.float32], list[Splat]],
-                      sensor: SensorSpec) -> int:
-    tracemalloc.start()
-    tracemalloc.reset_peak()
-    base = tracemalloc.get_traced_memory()[0]
-    img = fn(*args, sensor, np.random.default_rng(0))
-    peak = tracemalloc.get_traced_memory()[1]
-    tracemalloc.stop()
-    return peak - base - img.nbytes
-
-
-def main(argv: list[str] | None = None) -> None:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--base", required=True, help="checkout of the tree to compare with")
     ap.add_argument("--sizes", nargs="+", default=["8mp", "64mp"])
-    ap.add_argument("--repeats", type=int, default=7, help="timed calls of each model per size")
+    ap.add_argument("--repeats", type=int, default=9, help="interleaved calls of each tree per size")
     ap.add_argument("--bit-depth", type=int, default=8, choices=(8, 12, 16))
     ap.add_argument("--color", default="rgb", choices=("rgb", "mono"))
-    args = ap.parse_args(argv)
-    sensor = SensorSpec(bit_depth=args.bit_depth, color=args.color)
-    models: dict[str, Expose] = {"before": expose_before, "now": expose}
-    print(f"sensor: {args.bit_depth}-bit {args.color}, noise on; "
-          f"{args.repeats} interleaved repeats; "
-          f"{os.cpu_count()} CPUs, load average at start {os.getloadavg()[0]:.2f}")
-    print(f"{'size':>5} {'model':>7} {'median ms':>10} {'min ms':>8} {'ns/value':>9} "
-          f"{'extra MiB':>10}")
-    for size in args.sizes:
-        inputs = _inputs(size, sensor, seed=1)
-        n_values = inputs[0].size // (3 if args.color == "mono" else 1)
-        for fn in models.values():  # warm-up: page in the raster, OpenCV's first-call set-up
-            _time_s(fn, inputs, sensor, 0)
-        times: dict[str, list[float]] = {k: [] for k in models}
-        for rep in range(args.repeats):
-            order = list(models) if rep % 2 == 0 else list(models)[::-1]
-            for name in order:
-                times[name].append(_time_s(models[name], inputs, sensor, rep))
-        for name, fn in models.items():
-            med = statistics.median(times[name])
-            extra = _peak_extra_bytes(fn, inputs, sensor) / 2**20
-            print(f"{size:>5} {name:>7} {med * 1e3:10.0f} {min(times[name]) * 1e3:8.0f} "
-                  f"{med / n_values * 1e9:9.2f} {extra:10.1f}")
-        ratio = statistics.median(times["before"]) / statistics.median(times["now"])
-        paired = statistics.median(
-            b / n for b, n in zip(times["before"], times["now"], strict=True))
-        print(f"{size:>5} speed-up now over before: {ratio:.2f}x "
-              f"(median of paired ratios {paired:.2f}x)")
-    print(f"load average at end {os.getloadavg()[0]:.2f}")
+    ap.add_argument("--cv-threads", type=int, default=1,
+                    help="OpenCV threads (1: thread CPU time; 0: OpenCV's default, process CPU time)")
+    ap.add_argument("--worker", nargs="+", help=argparse.SUPPRESS)
+    ap.add_argument("--out", help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.worker:
+        worker(args.worker, args.cv_threads, args.out)
+        return
+    with tempfile.TemporaryDirectory() as tmp:
+        folder = Path(tmp)
+        paths = [make_inputs(s, args.bit_depth, args.color, folder) for s in args.sizes]
+        base_tree = link_tree(Path(args.base), folder)
+        procs, outs = [], []
+        for name, extra in (("base", {"PYTHONPATH": str(base_tree)}), ("this", {})):
+            out = folder / name
+            out.mkdir()
+            cmd = [sys.executable, __file__, "--base", args.base, "--cv-threads", str(args.cv_threads),
+                   "--out", str(out), "--worker", *map(str, paths)]
+            p = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                                 env=dict(os.environ, **extra))
+            assert p.stdout is not None
+            print(f"{name}: {p.stdout.readline().split()[-1]}", flush=True)
+            procs.append(p)
+            outs.append(out)
+
+        def run(p: subprocess.Popen[str], i: int, seed: int) -> float:
+            assert p.stdin is not None and p.stdout is not None
+            p.stdin.write(f"{i} {seed}\n")
+            p.stdin.flush()
+            return float(p.stdout.readline())
+
+        clock = "thread CPU, 1 OpenCV thread" if args.cv_threads == 1 else (
+            f"process CPU, OpenCV threads {args.cv_threads or 'default'}")
+        print(f"sensor: {args.bit_depth}-bit {args.color}, read noise 5 e-, noise on; {args.repeats} "
+              f"interleaved calls per tree and size; {clock}; {os.cpu_count()} CPUs", flush=True)
+        print(f"{'size':>5} {'values':>11} {'base ms':>8} {'this ms':>8} {'base min':>8} {'this min':>8} "
+              f"{'base ns/v':>9} {'this ns/v':>9} {'base/this (quartiles)':>24} {'load':>9} "
+              f"{'values differing (max |diff|)':>30}")
+        for i, size in enumerate(args.sizes):
+            a = np.load(outs[0] / f"{i}.npy", mmap_mode="r")
+            b = np.load(outs[1] / f"{i}.npy", mmap_mode="r")
+            differ = int(np.count_nonzero(a != b))
+            max_diff = int(np.max(np.abs(a.astype(np.int32) - b.astype(np.int32)))) if differ else 0
+            n_values = a.size
+            del a, b
+            load0 = os.getloadavg()[0]
+            t = np.zeros((2, args.repeats))
+            for r in range(args.repeats):
+                for k in ((0, 1) if r % 2 == 0 else (1, 0)):
+                    t[k, r] = run(procs[k], i, 100 + r)
+            load1 = os.getloadavg()[0]
+            ratios = t[0] / t[1]
+            q1, q3 = np.quantile(ratios, [0.25, 0.75])
+            print(f"{size:>5} {n_values:>11,} {statistics.median(t[0]) * 1e3:8.0f} "
+                  f"{statistics.median(t[1]) * 1e3:8.0f} {t[0].min() * 1e3:8.0f} {t[1].min() * 1e3:8.0f} "
+                  f"{statistics.median(t[0]) / n_values * 1e9:9.2f} "
+                  f"{statistics.median(t[1]) / n_values * 1e9:9.2f} "
+                  f"{statistics.median(ratios):10.3f} ({q1:.3f}-{q3:.3f}) {load0:4.1f}-{load1:<4.1f} "
+                  f"{differ:>19,} ({max_diff})", flush=True)
+        for p in procs:
+            assert p.stdin is not None
+            p.stdin.close()
+            p.wait()
 
 
 if __name__ == "__main__":
