@@ -165,15 +165,26 @@ def frame_noise_model(cands: list[Candidate], starts: list[Row | None],
     window_sigma : float
         As :func:`gauss_fit`'s.
     """
-    fits = [_fit(c, s, window_sigma) for c, s in zip(cands, starts)
-            if s is not None and not _clipped(c)]
-    fits = [f for f in fits if f is not None]
+    refined = _with_noise_model(cands, _first_fits(cands, starts, window_sigma))
+    return cands if refined is None else refined
+
+
+def _first_fits(cands: list[Candidate], starts: list[Row | None], window_sigma: float
+                ) -> list[tuple[Row, np.ndarray, np.ndarray] | None]:
+    """:func:`_fit` of each unclipped candidate with a start under its first-guess noise model (else None)."""
+    return [_fit(c, s, window_sigma) if s is not None and not _clipped(c) else None for c, s in zip(cands, starts)]
+
+
+def _with_noise_model(cands: list[Candidate], first: list[tuple[Row, np.ndarray, np.ndarray] | None]
+                      ) -> list[Candidate] | None:
+    """:func:`frame_noise_model` from the first fits; None where the candidates stay as they are."""
+    fits = [f for f in first if f is not None]
     if len(fits) < MIN_FITTED_SPOTS:
-        return cands
+        return None
     model = fitted_noise_model(np.concatenate([f[1] for f in fits]),
                                np.concatenate([f[2] for f in fits]))
     if model is None:
-        return cands
+        return None
     var_dn2, gain = model
     return [replace(c, gain_dn_per_e=gain, noise_dn=c.noise_dn if c.saturated[c.mask].any()
                     else math.sqrt(var_dn2)) for c in cands]
@@ -186,8 +197,14 @@ def measure_gauss(cands: list[Candidate], options: DetectorOptions) -> list[Row 
     """
     # the cog starts of all the candidates together (cog_centroids' batch)
     starts = cog_centroids(cands, options.window_sigma, above_floor=False)
-    cands = frame_noise_model(cands, starts, options.window_sigma)
-    rows = [gauss_fit_from(c, s, options.window_sigma) for c, s in zip(cands, starts)]
+    first = _first_fits(cands, starts, options.window_sigma)
+    refined = _with_noise_model(cands, first)
+    if refined is None:  # the first guesses stay: their fits are the rows
+        rows = [gauss_fit_from(c, s, options.window_sigma) if _clipped(c) else (None if f is None else f[0])
+                for c, s, f in zip(cands, starts, first)]
+    else:
+        cands = refined
+        rows = [gauss_fit_from(c, s, options.window_sigma) for c, s in zip(cands, starts)]
     # Too few unsaturated core pixels to fit: keep the windowed centroid rather than
     # lose the beacon.
     lost = [i for i, (c, r) in enumerate(zip(cands, rows)) if r is None and _clipped(c)]
