@@ -46,6 +46,11 @@ from deckpose.records import Detections, PoseEstimate
 CHUNK_FRAMES = 2048
 
 
+def chunk_slices(n_frames: int) -> list[slice]:
+    """The batches :func:`estimate_batch` makes of ``n_frames`` frames: :data:`CHUNK_FRAMES` each, then the rest."""
+    return [slice(lo, lo + CHUNK_FRAMES) for lo in range(0, n_frames, CHUNK_FRAMES)]
+
+
 def run_estimator(
     name: str, detections: Detections, camera: CameraModel, layout: DeckLayout, options: EstimateOptions
 ) -> PoseEstimate:
@@ -136,8 +141,8 @@ def estimate_batch(
                              "give one camera attitude per frame")
         _check_rotations(R_wc)
     out: list[PoseEstimate] = []
-    for lo in range(0, F, CHUNK_FRAMES):
-        chunk, R_chunk = dets[lo:lo + CHUNK_FRAMES], np.ascontiguousarray(R_wc[lo:lo + CHUNK_FRAMES])
+    for part in chunk_slices(F):
+        chunk, R_chunk = dets[part], np.ascontiguousarray(R_wc[part])
         got: list[PoseEstimate | None]
         if name == "conic":
             got = settle_batch(name, partial(conic_candidates_batch, layout=layout, options=options), chunk,

@@ -292,8 +292,7 @@ def _estimate_groups(name: str, groups: list[_CameraFrames], n_frames: int, layo
         tasks: list[_EstimateTask] = []
         places: list[np.ndarray] = []  # each task's places in the output
         for g in groups:
-            for lo in range(0, len(g.detections), batch.CHUNK_FRAMES):
-                part = slice(lo, lo + batch.CHUNK_FRAMES)
+            for part in batch.chunk_slices(len(g.detections)):  # estimate_batch's own batches
                 R = None if g.R_world_from_cam is None else g.R_world_from_cam[part]
                 tasks.append(_EstimateTask(name, tuple(g.detections[part]), g.camera, layout, options, R))
                 places.append(g.positions[part])
