@@ -36,6 +36,7 @@ from deckpose.cli.common_options import (
 )
 from deckpose.cli.console import is_quiet, wrote
 from deckpose.errors import ConfigError, DeckposeError
+from deckpose.machine_load import LoadSampler, peak_rss_gib
 from deckpose.shell_command import deckpose_command
 
 if TYPE_CHECKING:
@@ -250,6 +251,38 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     dict of str to Path
         ``report``, ``tables``, ``errors`` and (when written) ``mcap`` and ``published``.
     """
+    from deckpose.run_folder import run_paths
+
+    check_names(options)
+    if options.track and config.motion.source.value == "fixed":
+        raise ConfigError("--track needs frames in time, and this config renders fixed attitudes (motion source "
+                          "'fixed'): give it a motion series (motion.source sea_state, file or thesis) or an "
+                          "approach: section, or drop --track")
+
+    def tell(text: str) -> None:  # a summary line (none with quiet)
+        if not options.quiet:
+            print(text, flush=True)
+
+    say = step or (lambda n, total, text: tell(f"[{n}/{total}] {text}"))
+    total = 5 + bool(options.mcap) + (options.publish_dir is not None)
+    first = STAGES.index(options.from_stage)
+    paths = run_paths(Path(options.run_dir))
+    if first > 0 and not paths.manifest.exists():
+        raise DeckposeError(f"--from-stage {options.from_stage} needs a rendered dataset in {options.run_dir}; "
+                            f"run the pipeline from the render stage first")
+    from deckpose.output_folder import claim_output
+
+    claim_output(Path(options.run_dir), what="pipeline")  # the stages run in this process and claim it again
+    sampler = LoadSampler(interval_s=10.0).__enter__()  # stopped below, and on any error by the finally
+    try:
+        return _run_stages(config, options, config_label, say, tell, sampler, total, first)
+    finally:
+        sampler.__exit__(None, None, None)
+
+
+def _run_stages(config: RenderConfig, options: PipelineOptions, config_label: str,
+                say: Callable[[int, int, str], None], tell: Callable[[str], None], sampler: LoadSampler,
+                total: int, first: int) -> dict[str, Path]:
     from deckpose import __version__
     from deckpose.detect.run import detect_run
     from deckpose.estimate.registry import parse_method
@@ -260,33 +293,13 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     from deckpose.run_folder import read_frames, run_paths
     from deckpose.sequence_run import estimate_run_with_prior
 
-    check_names(options)
-    if options.track and config.motion.source.value == "fixed":
-        raise ConfigError("--track needs frames in time, and this config renders fixed attitudes (motion source "
-                          "'fixed'): give it a motion series (motion.source sea_state, file or thesis) or an "
-                          "approach: section, or drop --track")
-    def tell(text: str) -> None:  # a summary line (none with quiet)
-        if not options.quiet:
-            print(text, flush=True)
-
-    say = step or (lambda n, total, text: tell(f"[{n}/{total}] {text}"))
-    run_dir = Path(options.run_dir)
-    total = 5 + bool(options.mcap) + (options.publish_dir is not None)
-    seconds: dict[str, float] = {}
-
-
-    first = STAGES.index(options.from_stage)
-
     def runs(stage: str) -> bool:
         return STAGES.index(stage) >= first
 
+    run_dir = Path(options.run_dir)
     paths = run_paths(run_dir)
-    if first > 0 and not paths.manifest.exists():
-        raise DeckposeError(f"--from-stage {options.from_stage} needs a rendered dataset in {run_dir}; "
-                            f"run the pipeline from the render stage first")
-    from deckpose.output_folder import claim_output
-
-    claim_output(run_dir, what="pipeline")  # the stages run in this process and claim it again
+    seconds: dict[str, float] = {}
+    spans: dict[str, tuple[float, float]] = {}  # each stage's start and end, the load sampler's clock
     t_all = time.perf_counter()
     t = time.perf_counter()
     if runs("render"):
@@ -297,6 +310,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         render_dataset(config, run_dir, workers=options.workers, resume=True, scheduler=options.scheduler,
                        progress=options.progress, detection=detection)
         seconds["render"] = time.perf_counter() - t
+        spans["render"] = (t, time.perf_counter())
         log.info("stage render: %.1f s", seconds["render"])
     t = time.perf_counter()
     if runs("detect") and (options.detect_at_render or _images_not_kept(paths.manifest)):
@@ -311,6 +325,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
             res = detect_run(run_dir, det, progress=options.progress, workers=options.workers)
             tell(res.summary())
         seconds["detect"] = time.perf_counter() - t
+        spans["detect"] = (t, time.perf_counter())
         log.info("stage detect: %.1f s", seconds["detect"])
     t = time.perf_counter()
     if runs("estimate"):
@@ -333,6 +348,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
                                        command=list(options.command), progress=b.update)
                     tell(tr.summary())
         seconds["estimate"] = time.perf_counter() - t
+        spans["estimate"] = (t, time.perf_counter())
         log.info("stage estimate: %.1f s", seconds["estimate"])
     t = time.perf_counter()
     if runs("evaluate"):
@@ -344,6 +360,7 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         for key, path in evaluated.items():
             tell(f"{key}: {path}")
         seconds["evaluate"] = time.perf_counter() - t
+        spans["evaluate"] = (t, time.perf_counter())
         log.info("stage evaluate: %.1f s", seconds["evaluate"])
     previous = _read_record(run_dir)
     stage_seconds = {k: v for k, v in previous.get("stage_seconds", {}).items()
@@ -357,6 +374,8 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
         "images_kept": options.keep_images, "tracked": options.track,
         "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "stage_seconds": {k: stage_seconds[k] for k in STAGES if k in stage_seconds},
+        "stage_load_1min": {k: sampler.summary(*spans[k]).as_dict() for k in STAGES if k in spans},
+        "peak_rss_gib": peak_rss_gib(),
     }
     if first > 0 and previous.get("command"):
         record["earlier_stages_command"] = previous.get("earlier_stages_command", previous["command"])

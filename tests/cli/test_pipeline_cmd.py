@@ -41,6 +41,11 @@ def test_pipeline_runs_every_stage_publishes_and_resumes(tmp_path: Path, capsys:
     assert record["methods"] == ["conic", "pnp+mean"] and record["detectors"] == ["cog"]
     assert record["command"][:4] == ["deckpose", "pipeline", str(cfg), str(run)]
     assert set(record["stage_seconds"]) >= {"render", "detect", "estimate", "evaluate"}
+    # the load each stage ran under and the peak memory: what a stage time means on a shared machine
+    assert set(record["stage_load_1min"]) == set(record["stage_seconds"])
+    for load in record["stage_load_1min"].values():
+        assert 0 <= load["mean"] <= load["max"] and load["samples"] >= 1
+    assert record["peak_rss_gib"]["this_process"] > 0.05  # python with numpy and pyrender loaded
     assert record["log_seconds"] >= 0  # the log is written after the report, which it attaches
     from mcap.reader import make_reader
 
