@@ -131,6 +131,14 @@ def provenance_lines(run: rl.RunPaths) -> list[str]:
         if stages:
             lines.append(f"- Stage times on that machine (the render stage resumes, so it counts only the "
                          f"frames rendered by that command): {stages}.")
+        loads = r.get("stage_load_1min", {})
+        if loads:  # what those times were measured under (a shared machine's load moves them)
+            lines.append("- 1-minute load during each stage, mean (max): " + ", ".join(
+                f"{k} {v['mean']:.1f} ({v['max']:.1f})" for k, v in loads.items()) + ".")
+        peak = r.get("peak_rss_gib", {})
+        if peak:
+            lines.append(f"- Peak memory: the pipeline process {peak.get('this_process', 0.0):.2f} GiB, its "
+                         f"largest worker process {peak.get('largest_worker', 0.0):.2f} GiB.")
         lines.append(f"- Finished {r.get('finished_utc', '?')}.")
     return ["## How this was made", "", *lines, ""] if lines else []
 

@@ -366,6 +366,10 @@ def _run_stages(config: RenderConfig, options: PipelineOptions, config_label: st
     stage_seconds = {k: v for k, v in previous.get("stage_seconds", {}).items()
                      if k in STAGES and not runs(k)}
     stage_seconds.update({k: round(v, 1) for k, v in seconds.items()})
+    stage_load = {k: v for k, v in previous.get("stage_load_1min", {}).items() if k in STAGES and not runs(k)}
+    stage_load.update({k: sampler.summary(*span).as_dict() for k, span in spans.items()})
+    # the peak of every process that made the record's stages (a later --from-stage run adds its own)
+    peak = {k: max(v, float(previous.get("peak_rss_gib", {}).get(k, 0.0))) for k, v in peak_rss_gib().items()}
     record = {
         "command": list(options.command), "config": config_label, "config_name": getattr(config, "name", None),
         "detectors": list(options.detectors), "methods": list(options.methods), "workers": options.workers,
@@ -374,8 +378,8 @@ def _run_stages(config: RenderConfig, options: PipelineOptions, config_label: st
         "images_kept": options.keep_images, "tracked": options.track,
         "finished_utc": time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime()),
         "stage_seconds": {k: stage_seconds[k] for k in STAGES if k in stage_seconds},
-        "stage_load_1min": {k: sampler.summary(*spans[k]).as_dict() for k in STAGES if k in spans},
-        "peak_rss_gib": peak_rss_gib(),
+        "stage_load_1min": {k: stage_load[k] for k in STAGES if k in stage_load},
+        "peak_rss_gib": peak,
     }
     if first > 0 and previous.get("command"):
         record["earlier_stages_command"] = previous.get("earlier_stages_command", previous["command"])

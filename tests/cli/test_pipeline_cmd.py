@@ -100,8 +100,16 @@ def test_from_stage_reuses_earlier_outputs_and_keeps_their_record(tmp_path: Path
     second = json.loads((run / "pipeline.json").read_text())
     assert second["from_stage"] == "report"
     assert second["stage_seconds"]["detect"] == first["stage_seconds"]["detect"]
+    # the earlier stages keep the load they ran under, and the peak memory covers both runs
+    assert second["stage_load_1min"]["detect"] == first["stage_load_1min"]["detect"]
+    for k, v in first["peak_rss_gib"].items():
+        assert second["peak_rss_gib"][k] >= v
     assert second["earlier_stages_command"] == first["command"]
-    assert "came from an earlier run of" in (run / "report" / "report.md").read_text()
+    report = (run / "report" / "report.md").read_text()
+    assert "came from an earlier run of" in report
+    detect = first["stage_load_1min"]["detect"]
+    assert f"detect {detect['mean']:.1f} ({detect['max']:.1f})" in report  # the load each stage ran under
+    assert "Peak memory: the pipeline process" in report
 
 
 def test_from_stage_needs_a_dataset(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
