@@ -1,12 +1,44 @@
-"""The conic method's geometry for many frames at once.
+"""The conic method's geometry, batch-first (a lone frame is a batch of one).
 
-Stacked twins of :func:`estimate.ellipse_fit.fit_ellipse_direct`,
-:func:`estimate.circle_pose.circle_planes`, :func:`estimate.circle_pose.imaged_centre`,
-:func:`estimate.circle_pose.plane_from_centre` and
-:func:`estimate.circle_pose.in_plane_alignment`, step by step the same
-arithmetic, with a validity mask where the single-frame function returns
-``None`` or fewer planes. NaN and inf are expected in the frames that are not valid: call
-these under ``np.errstate(all="ignore")`` (:func:`~estimate.solution_batch.settle_batch` does).
+* :func:`fit_ellipses`: the ring's ellipse, a direct least-squares fit in float64
+  (Fitzgibbon, Pilu & Fisher 1999 in the numerically stable form of Halíř & Flusser
+  1998, with Hartley normalisation: the conic ``a x² + b xy + c y² + d x + e y + f = 0``
+  minimising the algebraic distance subject to ``4ac - b² = 1``, always an ellipse;
+  nothing is rounded to float32, unlike OpenCV's ``fitEllipse*``).
+* :func:`circle_planes`: the two candidate supporting planes of a circle of known
+  radius imaged as a conic (the eigen route).
+* :func:`imaged_centres` and :func:`planes_from_centres`: the image of the deck centre,
+  from the centre beacon and the lines through diametrically opposite ring beacons, and
+  the plane whose vanishing line is its polar (no ambiguity).
+* :func:`in_plane_alignment`: the deck's rotation about the plane normal and its
+  centre offset from the labelled beacons (2-D Procrustes).
+
+Every function takes ``F`` frames stacked and returns a validity mask where a frame has
+no answer. NaN and inf are expected in the frames that are not valid: call these under
+``np.errstate(all="ignore")`` (:func:`~estimate.solution_batch.settle_batch` does).
+
+The geometry. In normalised camera coordinates the image of a circle is the cone
+``X^T C X = 0`` (C symmetric, signature (+, +, -) after a sign flip). With the
+eigenvalues ``l1 >= l2 > 0 > l3`` and eigenvectors ``e1, e2, e3``,
+``C - l2 I = (a.X)(b.X)`` with ``a, b = sqrt(l1 - l2) e1 ± sqrt(l2 - l3) e3``,
+so on every plane ``a.X = k`` (or ``b.X = k``) the cone meets the sphere
+``l2 |X|² + k (b.X) = 0`` through the camera centre: a circle. Those are the two
+candidate supporting planes; the known radius fixes ``k``. The image of the
+circle's centre is the pole of the plane's vanishing line, ``C^-1 n``, which is
+what lets the imaged centre beacon tell the two candidates apart.
+
+Conversely, when the image of the centre is known, the plane follows without
+the eigen-decomposition and its two-fold ambiguity (:func:`planes_from_centres`):
+the centre is the pole of the line at infinity, and poles and polars survive
+projection, so the vanishing line of the deck is the polar ``l = C c`` of the
+imaged centre ``c``, and in normalised coordinates the deck normal is ``l``
+itself. The imaged centre is measured by :func:`imaged_centres`: the centre
+beacon, and the lines through diametrically opposite ring beacons, which all
+meet at the image of the centre (incidence is projective too). Using every
+labelled ring beacon this way makes the normal first-order in the tilt and keeps
+the closed-form pose near the Cramér–Rao bound, where the eigen route, whose
+tilt comes from the ellipse's eccentricity (second order in the tilt), is
+several times above it near nadir.
 """
 
 from __future__ import annotations
@@ -14,13 +46,41 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-from deckpose.estimate.circle_pose import diameter_pairs
-from deckpose.estimate.ellipse_fit import C1_INV
 from deckpose.estimate.least_squares_batch import solve_batch
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
+
+#: Inverse of the ellipse constraint matrix C1 of the Halir-Flusser direct fit (4ac - b^2 = 1).
+C1_INV = np.array([[0.0, 0.0, 0.5], [0.0, -1.0, 0.0], [0.5, 0.0, 0.0]])
+C1_INV.setflags(write=False)
+
+#: Two ring beacons are diametrically opposite when their positions sum to less than this x radius.
+_OPPOSITE_TOL = 1e-9
+
+
+def diameter_pairs(points_deck_m: FloatArray, ring: BoolArray) -> list[tuple[int, int]]:
+    """Pairs of rows whose deck positions are diametrically opposite ring beacons.
+
+    Parameters
+    ----------
+    points_deck_m : (N, 3) array of float
+        Deck positions of the observations, metres (centre at the origin).
+    ring : (N,) array of bool
+        Which rows are ring beacons.
+
+    Returns
+    -------
+    list of (int, int)
+        Row pairs ``(i, j)``, ``i < j``, with ``p_i = -p_j``.
+    """
+    idx = np.flatnonzero(ring)
+    p = points_deck_m[idx, :2]
+    scale = float(np.max(np.linalg.norm(p, axis=1))) if len(idx) else 0.0
+    sums = np.linalg.norm(p[:, None, :] + p[None, :, :], axis=2)
+    a, b = np.nonzero(np.triu(sums <= _OPPOSITE_TOL * max(scale, 1.0), k=1))
+    return [(int(idx[i]), int(idx[j])) for i, j in zip(a, b)]
 
 
 #: Machine epsilon of float64 (numpy.linalg.lstsq's rank cut-off).
@@ -47,7 +107,7 @@ def _diameter_rows_cached(points: bytes, ring: bytes, n: int) -> NDArray[np.int6
 
 
 def _diameter_rows(points_deck_m: FloatArray, ring: BoolArray) -> NDArray[np.int64]:
-    """:func:`~estimate.circle_pose.diameter_pairs` as a (P, 2) array, computed once per beacon set."""
+    """:func:`diameter_pairs` as a (P, 2) array, computed once per beacon set."""
     pts = np.ascontiguousarray(points_deck_m, dtype=np.float64)
     return _diameter_rows_cached(pts.tobytes(), np.ascontiguousarray(ring, dtype=np.bool_).tobytes(),
                                  pts.shape[0])
@@ -144,7 +204,7 @@ def fit_ellipses(points: FloatArray) -> tuple[FloatArray, BoolArray]:
     return C, ok
 
 
-def circle_planes_batch(C: FloatArray, radius_m: float) -> tuple[FloatArray, FloatArray, BoolArray]:
+def circle_planes(C: FloatArray, radius_m: float) -> tuple[FloatArray, FloatArray, BoolArray]:
     """Both candidate supporting planes of a circle imaged as conic ``C``, per frame.
 
     Parameters
@@ -196,7 +256,7 @@ def circle_planes_batch(C: FloatArray, radius_m: float) -> tuple[FloatArray, Flo
     return normals, centres, valid
 
 
-def in_plane_alignment_batch(
+def in_plane_alignment(
     xy: FloatArray, points_deck_m: FloatArray, normal_up: FloatArray, centre_m: FloatArray
 ) -> tuple[FloatArray, FloatArray, BoolArray]:
     """Deck rotation about each frame's plane normal and centre offset (2-D Procrustes).
@@ -250,8 +310,15 @@ def in_plane_alignment_batch(
 
 
 def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, centre: BoolArray
-                   ) -> tuple[FloatArray, BoolArray, BoolArray]:
-    """Least-squares image of the deck centre per frame (the batched :func:`circle_pose.imaged_centre`).
+                   ) -> tuple[FloatArray, BoolArray]:
+    """Least-squares image of the deck centre from the centre beacon and the ring's diameters.
+
+    Every line through two diametrically opposite ring beacons passes through the
+    image of the centre; the centre beacon is an observation of it. The estimate
+    minimises the squared distances to those lines (weight 2: the error of a line
+    at its midpoint is the mean of its two end points' errors) and to the centre
+    beacon (weight 1). A diameter whose two image points coincide has no line: its
+    row is zero, which leaves the least-squares solution as if it were not there.
 
     Parameters
     ----------
@@ -264,22 +331,16 @@ def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, c
     Returns
     -------
     centre_xy : (F, 2) array of float
+        The imaged centre, normalised coordinates (NaN where not ``ok``).
     ok : (F,) array of bool
-        Where the single-frame function returns a centre (not None).
-    unsure : (F,) array of bool
-        Frames where a diameter's two image points coincide: the single-frame
-        function drops that line, which this batch does not model.
+        Where at least two diameters' lines, or the centre beacon, fix it.
     """
     F = xy.shape[0]
     pairs = _diameter_rows(points_deck_m, ring)
     centre_rows = np.flatnonzero(centre)
     n_lines, n_centre = pairs.shape[0], centre_rows.size
     if n_lines < 2 and not n_centre:
-        unsure = np.zeros(F, dtype=bool)
-        if n_lines:
-            p, q = xy[:, pairs[:, 0]], xy[:, pairs[:, 1]]
-            unsure = np.logical_not((np.hypot(p[..., 1] - q[..., 1], q[..., 0] - p[..., 0]) > 0).all(axis=1))
-        return np.full((F, 2), np.nan), np.zeros(F, dtype=bool), unsure
+        return np.full((F, 2), np.nan), np.zeros(F, dtype=bool)
     # rows: every diameter's line (weight 2), then both coordinates of each centre beacon (weight 1),
     # each scaled by the square root of its weight
     A = np.empty((F, n_lines + 2 * n_centre, 2))
@@ -289,14 +350,14 @@ def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, c
     L0, L1, L2 = yi - yj, xj - xi, xi * yj - yi * xj
     norm = np.hypot(L0, L1)
     w = np.sqrt(2.0)
+    if not (norm > 0).all():  # a line of two coincident points (L = 0): a zero row
+        norm = np.where(norm > 0, norm, np.inf)
     A[:, :n_lines, 0] = L0 / norm * w
     A[:, :n_lines, 1] = L1 / norm * w
     b[:, :n_lines] = -(L2 / norm) * w
-    unsure = np.logical_not((norm > 0).all(axis=1))
     A[:, n_lines:] = np.tile(np.eye(2), (n_centre, 1))
     b[:, n_lines:] = xy[:, centre_rows].reshape(F, 2 * n_centre)
     finite = np.isfinite(A).all(axis=(1, 2)) & np.isfinite(b).all(axis=1)
-    unsure |= ~finite
     if not finite.all():
         A[~finite] = np.eye(A.shape[1], 2)
         b[~finite] = 0.0
@@ -310,7 +371,7 @@ def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, c
     ok = finite & (rank >= 2) & np.isfinite(sol).all(axis=1)
     if not ok.all():
         sol[~ok] = np.nan
-    return sol, ok, unsure
+    return sol, ok
 
 
 def planes_from_centres(C: FloatArray, centre_xy: FloatArray, ring_xy: FloatArray, radius_m: float
