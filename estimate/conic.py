@@ -36,7 +36,6 @@ batch of one.
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Sequence
 
 import numpy as np
@@ -97,18 +96,31 @@ def polish(fit: FitBatch, obs: FrameObservations, steps: int) -> FitBatch:
                            (cur.information[active], cur.params[active], cur.gradient[active]))
         cov, ok = covariance_from_information(H)
         p1 = params - np.einsum("fij,fj->fi", cov, grad)
-        go = ok & np.all(np.isfinite(p1), axis=1)
-        rows, p1 = active[go], p1[go]
-        f1 = evaluate_fit_batch(p1, obs if rows.size == F else obs.take(rows))
-        better = f1.chi2 <= cur.chi2[rows]
-        rows = rows[better]
+        go = ok & np.isfinite(p1).all(axis=1)
+        rows = active
+        if not go.all():
+            rows, p1 = active[go], p1[go]
+        whole = rows.size == F
+        f1 = evaluate_fit_batch(p1, obs if whole else obs.take(rows))
+        better = f1.chi2 <= (cur.chi2 if whole else cur.chi2[rows])
+        if not better.all():
+            rows = rows[better]
+            f1 = FitBatch(*(getattr(f1, name)[better] for name in _FIELDS))
         if rows.size == F:  # every frame took its step
             cur = f1
         elif rows.size:
-            cur = _replace_rows(cur, rows, FitBatch(*(getattr(f1, name)[better] for name in _FIELDS)))
+            cur = _replace_rows(cur, rows, f1)
         active = rows
     return FitBatch(cur.params, cur.chi2, cur.information, cur.whitened, cur.residuals_px, cur.gradient,
                     fit.iterations, fit.converged)
+
+
+def _eigen_rows(normals: FloatArray, centres: FloatArray, plane_ok: NDArray[np.bool_]
+                ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+    """Both eigen planes of every frame as 2F rows, plane-major."""
+    F = normals.shape[0]
+    return (normals.transpose(1, 0, 2).reshape(2 * F, 3), centres.transpose(1, 0, 2).reshape(2 * F, 3),
+            plane_ok.T.reshape(2 * F))
 
 
 #: The fields of :class:`FitBatch`, in order.
@@ -164,38 +176,46 @@ def conic_candidates(obs: FrameObservations, layout: DeckLayout,
     if n_ring < MIN_RING_BEACONS or F == 0:
         reason = (f"too few ring beacons for the ellipse fit: {n_ring}, need at least {MIN_RING_BEACONS}")
         return BatchCandidates((), np.zeros((F, 0), dtype=bool), np.ones(F, dtype=bool), reasons=(reason,) * F)
-    C, fit_ok = fit_ellipses(obs.xy[:, ring])
+    ring_xy = obs.xy[:, ring]
+    C, fit_ok = fit_ellipses(ring_xy)
     normals, centres, plane_ok = circle_planes(C, layout.radius_m)
     plane_ok &= fit_ok[:, None]
     # With the imaged centre, its polar is the first plane and the eigen plane farthest from it
     # the competitor, so a real two-fold ambiguity is still tested.
     centre_xy, centre_ok = imaged_centres(obs.xy, obs.points_deck_m, ring, obs.ids == layout.centre_id)
-    n_c, X_c, c_ok = planes_from_centres(C, centre_xy, obs.xy[:, ring], layout.radius_m)
+    n_c, X_c, c_ok = planes_from_centres(C, centre_xy, ring_xy, layout.radius_m)
     c_ok &= centre_ok & fit_ok
     # Both planes of every frame as 2F rows (plane-major): one alignment, one chi2 call.
-    n2, X2 = normals.transpose(1, 0, 2).reshape(2 * F, 3), centres.transpose(1, 0, 2).reshape(2 * F, 3)
-    ok2 = plane_ok.T.reshape(2 * F)
     if c_ok.any():
-        dist = np.sqrt(np.sum((normals - n_c[:, None, :]) ** 2, axis=2))
+        dist = np.sqrt(((normals - n_c[:, None, :]) ** 2).sum(axis=2))
         far = np.where(plane_ok[:, 1] & (~plane_ok[:, 0] | (dist[:, 1] > dist[:, 0])), 1, 0)
         ar = np.arange(F)
-        far_n, far_X, far_ok = normals[ar, far], centres[ar, far], np.asarray(plane_ok.any(axis=1))
-        if c_ok.all():
+        far_n, far_X, far_ok = normals[ar, far], centres[ar, far], plane_ok.any(axis=1)
+        if c_ok.all():  # (the usual case, with a centre beacon or two diameters: no eigen rows made)
             n2, X2 = np.concatenate([n_c, far_n]), np.concatenate([X_c, far_X])
             ok2 = np.concatenate([c_ok, far_ok])
         else:
+            n2, X2, ok2 = _eigen_rows(normals, centres, plane_ok)
             rows = np.flatnonzero(c_ok)
             n2[rows], X2[rows], ok2[rows] = n_c[rows], X_c[rows], True
             n2[F + rows], X2[F + rows], ok2[F + rows] = far_n[rows], far_X[rows], far_ok[rows]
-    xy2 = np.concatenate([obs.xy, obs.xy])
-    R2 = np.concatenate([obs.R_world_from_cam, obs.R_world_from_cam])
-    R, t, ok = in_plane_alignment(xy2, obs.points_deck_m, n2, X2)
-    p = params_from_relative_batch(R, t, R2)
+    else:
+        n2, X2, ok2 = _eigen_rows(normals, centres, plane_ok)
+    # every frame twice (plane-major), as obs.take(np.r_[ar, ar]) would give it
+    obs2 = FrameObservations(obs.ids, obs.points_deck_m, np.concatenate([obs.xy, obs.xy]),
+                             np.concatenate([obs.sqrt_info, obs.sqrt_info]),
+                             np.concatenate([obs.px_from_norm, obs.px_from_norm]),
+                             np.concatenate([obs.R_world_from_cam, obs.R_world_from_cam]))
+    R, t, ok = in_plane_alignment(obs2.xy, obs.points_deck_m, n2, X2)
+    p = params_from_relative_batch(R, t, obs2.R_world_from_cam)
     ok &= ok2 & np.isfinite(p).all(axis=1)
-    rows = np.flatnonzero(ok)
-    chi = np.full(2 * F, np.inf)
-    if rows.size:
-        chi[rows] = chi2_batch(p[rows], obs.take(rows % F))
+    if ok.all():  # (the usual case: no gathers)
+        chi = chi2_batch(p, obs2)
+    else:
+        rows = np.flatnonzero(ok)
+        chi = np.full(2 * F, np.inf)
+        if rows.size:
+            chi[rows] = chi2_batch(p[rows], obs.take(rows % F))
     p0 = np.where(ok[:, None], p, np.nan).reshape(2, F, 6).transpose(1, 0, 2)
     start_ok = ok.reshape(2, F).T
     chi0 = chi.reshape(2, F).T
@@ -204,12 +224,12 @@ def conic_candidates(obs: FrameObservations, layout: DeckLayout,
     first = swap.astype(np.int64)
     second = 1 - first
     ar = np.arange(F)
-    has_first = np.asarray(start_ok.any(axis=1))
+    has_first = start_ok.any(axis=1)
     has_second = start_ok.all(axis=1) & (chi0[ar, second] < chi0[ar, first] + ALT_MARGIN_CHI2)
     # Both slots' starts solved in one stacked call (slot-major rows), then split into slots;
     # a slot no frame has is not listed.
     slots = [present for present in (has_first, has_second) if present.any()]
-    slot_rows = [np.flatnonzero(present) for present in slots]
+    slot_rows = [ar if present.all() else np.flatnonzero(present) for present in slots]
     every = [rows.size == F for rows in slot_rows]
     rows_all = np.concatenate(slot_rows) if len(slot_rows) > 1 else slot_rows[0] if slot_rows else ar[:0]
     fits: list[FitBatch] = []
@@ -217,7 +237,8 @@ def conic_candidates(obs: FrameObservations, layout: DeckLayout,
         which = np.concatenate([first[slot_rows[0]], second[slot_rows[1]]]) if len(slot_rows) > 1 else (
             first if every[0] else first[rows_all])
         starts = p0[rows_all, which]
-        sub = obs if rows_all.size == F and every[0] else obs.take(rows_all)
+        sub = (obs if rows_all.size == F and every[0] else obs2 if len(every) == 2 and all(every)
+               else obs.take(rows_all))
         if options.refine:
             f = levenberg_marquardt_batch(starts, sub)
         else:
@@ -228,7 +249,8 @@ def conic_candidates(obs: FrameObservations, layout: DeckLayout,
             fits.append(part if all_rows else scatter_fit(F, rows, part))
             lo += rows.size
     centre_used = float(layout.centre_id in obs.ids) if layout.centre_id is not None else 0.0
-    valid = np.stack(slots, axis=1) if slots else np.zeros((F, 0), dtype=bool)
+    valid = (slots[0][:, None] if len(slots) == 1 else np.stack(slots, axis=1) if slots
+             else np.zeros((F, 0), dtype=bool))
     reasons = None if has_first.all() else tuple(
         "" if has else "the ring beacons do not fit an ellipse (collinear or degenerate points)" if not fit
         else "the fitted conic is not the image of a circle in front of the camera" if not plane
@@ -244,13 +266,13 @@ def conic_candidates(obs: FrameObservations, layout: DeckLayout,
     choice = pick_batch(cands, ambiguity_chi2=options.ambiguity_chi2)
     unsettled = np.flatnonzero(choice.unresolved)
     if not unsettled.size:  # the choice stands (finish_batch need not make it again)
-        return dataclasses.replace(cands, choice=choice)
+        return BatchCandidates(cands.fits, cands.valid, cands.fallback, cands.extras, choice, cands.reasons)
     for k, present in enumerate(slots):
         rows = unsettled[present[unsettled]]
         if rows.size:
             lm = levenberg_marquardt_batch(fits[k].params[rows], obs.take(rows))
             fits[k] = _replace_rows(fits[k], rows, lm)
-    return dataclasses.replace(cands, fits=tuple(fits))
+    return BatchCandidates(tuple(fits), cands.valid, cands.fallback, cands.extras, reasons=cands.reasons)
 
 
 def _solve_one(obs: Observations, R_world_from_cam: FloatArray, layout: DeckLayout,
