@@ -190,7 +190,7 @@ def conic_candidates(obs: FrameObservations, layout: DeckLayout,
         dist = np.sqrt(((normals - n_c[:, None, :]) ** 2).sum(axis=2))
         far = np.where(plane_ok[:, 1] & (~plane_ok[:, 0] | (dist[:, 1] > dist[:, 0])), 1, 0)
         ar = np.arange(F)
-        far_n, far_X, far_ok = normals[ar, far], centres[ar, far], plane_ok.any(axis=1)
+        far_n, far_X, far_ok = normals[ar, far], centres[ar, far], np.asarray(plane_ok.any(axis=1))
         if c_ok.all():  # (the usual case, with a centre beacon or two diameters: no eigen rows made)
             n2, X2 = np.concatenate([n_c, far_n]), np.concatenate([X_c, far_X])
             ok2 = np.concatenate([c_ok, far_ok])
@@ -224,7 +224,7 @@ def conic_candidates(obs: FrameObservations, layout: DeckLayout,
     first = swap.astype(np.int64)
     second = 1 - first
     ar = np.arange(F)
-    has_first = start_ok.any(axis=1)
+    has_first = np.asarray(start_ok.any(axis=1))
     has_second = start_ok.all(axis=1) & (chi0[ar, second] < chi0[ar, first] + ALT_MARGIN_CHI2)
     # Both slots' starts solved in one stacked call (slot-major rows), then split into slots;
     # a slot no frame has is not listed.
