@@ -9,30 +9,27 @@ maximum-likelihood refinement when ``options.refine`` is set, and
 :func:`estimate_batch` estimates many frames at once: ``conic``, ``pnp`` and
 ``thesis`` (and the refinement) run as stacked array operations over all frames
 that share a beacon set, which costs a small fraction of one call per frame.
-``thesis``, ``pnp`` and the refinement have one implementation each (a lone
-frame is a batch of one of :func:`~deckpose.estimate.thesis.estimate_thesis_frames`,
+``thesis``, ``conic``, ``pnp`` and the refinement have one implementation each (a
+lone frame is a batch of one of :func:`~deckpose.estimate.thesis.estimate_thesis_frames`,
+:func:`~deckpose.estimate.conic.estimate_conic_frames`,
 :func:`~deckpose.estimate.pnp.estimate_pnp_frames` and
-:func:`~deckpose.estimate.refine.refine_estimates`). For ``conic``, frames the
-batched path cannot settle (an outlier to remove, an unresolved ambiguity, any
-failure) are still re-estimated by the single-frame path, so every result is the
-one :func:`run_estimator` gives, to rounding.
+:func:`~deckpose.estimate.refine.refine_estimates`), so every result is the one
+:func:`run_estimator` gives.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Iterable
-from functools import partial
 
 import numpy as np
 from deckpose.estimate import registry
-from deckpose.estimate.conic_batch import conic_candidates_batch
+from deckpose.estimate.conic import estimate_conic_frames
 from deckpose.estimate.pnp import estimate_pnp_frames
 from deckpose.estimate.pose_checks import check_poses
 from deckpose.estimate.posterior_mean import apply_posterior_mean
 from deckpose.estimate.refine import refine_estimate, refine_estimates
 from deckpose.estimate.registry import EstimateOptions
-from deckpose.estimate.solution_batch import settle_batch
 from deckpose.estimate.thesis import estimate_thesis_frames
 from deckpose.estimate.thesis_assumptions import flag_off_centre
 from numpy.typing import NDArray
@@ -143,23 +140,17 @@ def estimate_batch(
     out: list[PoseEstimate] = []
     for part in chunk_slices(F):
         chunk, R_chunk = dets[part], np.ascontiguousarray(R_wc[part])
-        got: list[PoseEstimate | None]
+        ests: list[PoseEstimate]
         if name == "conic":
-            got = settle_batch(name, partial(conic_candidates_batch, layout=layout, options=options), chunk,
-                               camera, layout, options, R_chunk, refined=options.refine)
+            ests = estimate_conic_frames(chunk, camera, layout, options, R_chunk)
         elif name == "pnp":
-            got = list(estimate_pnp_frames(chunk, camera, layout, options, R_chunk))
+            ests = estimate_pnp_frames(chunk, camera, layout, options, R_chunk)
         elif name == "thesis":
-            got = list(estimate_thesis_frames(chunk, camera, layout, R_chunk))
+            ests = estimate_thesis_frames(chunk, camera, layout, R_chunk)
         else:
-            got = [fn(d, camera, layout, _frame_options(options, R)) for d, R in zip(chunk, R_chunk)]
-        todo = [i for i, e in enumerate(got) if e is None]
-        for i in todo:  # the single-frame path for what the batch left open
-            got[i] = run_estimator(name, chunk[i], camera, layout, _frame_options(options, R_chunk[i]))
-        ests: list[PoseEstimate] = got  # type: ignore[assignment]
-        if _checks_centring(name, options):  # the single-frame results in ``todo`` have it
-            single = set(todo)
-            fresh = [i for i in range(len(ests)) if i not in single and ests[i].ok]
+            ests = [fn(d, camera, layout, _frame_options(options, R)) for d, R in zip(chunk, R_chunk)]
+        if _checks_centring(name, options):
+            fresh = [i for i in range(len(ests)) if ests[i].ok]
             if fresh:
                 refs = estimate_batch("pnp", [chunk[i] for i in fresh], camera, layout, options,
                                       R_world_from_cam=R_chunk[fresh])
@@ -169,13 +160,8 @@ def estimate_batch(
                     ests[i] = e
         if options.refine and name not in ("conic", "pnp"):
             ests = refine_estimates(ests, chunk, camera, layout, options, R_chunk)
-        if options.posterior_mean:  # the single-frame results in ``todo`` have theirs already
-            single = set(todo)
-            fresh = [i for i in range(len(ests)) if i not in single]
-            means = apply_posterior_mean([ests[i] for i in fresh], [chunk[i] for i in fresh], camera,
-                                         layout, options, R_chunk[fresh])
-            for i, e in zip(fresh, means):
-                ests[i] = e
+        if options.posterior_mean:
+            ests = apply_posterior_mean(ests, chunk, camera, layout, options, R_chunk)
         out.extend(e.for_frame(d.frame_id) for e, d in zip(check_poses(ests), chunk, strict=True))
         if progress is not None:
             progress(len(chunk))

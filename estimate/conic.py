@@ -2,7 +2,7 @@
 
 1. Undistort the detections and remove ``K`` (any fx, fy, skew, principal point).
 2. Fit the ring beacons' ellipse in float64 (direct, normalised least squares).
-3. Recover the deck plane from the conic (:mod:`~deckpose.estimate.circle_pose`):
+3. Recover the deck plane from the conic (:mod:`~deckpose.estimate.conic_geometry`):
    when the image of the deck centre is known — from the centre beacon and the
    lines through diametrically opposite ring beacons, which all pass through it —
    the plane's normal is the centre's polar (the vanishing line), a single
@@ -26,27 +26,56 @@ assumes an efficient estimate, and with few, noisy beacons far away the pure
 geometric solution can sit several of those sigmas off. With
 ``options.refine`` each candidate is refined to the maximum-likelihood optimum
 before the choice.
+
+Batch-first (a lone frame is a batch of one): :func:`conic_candidates` runs every step
+above as stacked array operations over the frames that share a beacon set. Frames the
+batch cannot settle (an outlier to remove, an unresolved ambiguity, any failure) go
+through the robust search of :mod:`~estimate.solution`, which solves each subset as a
+batch of one.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
-from deckpose.estimate.circle_pose import (
+from deckpose.estimate.conic_geometry import (
     circle_planes,
-    imaged_centre,
+    fit_ellipses,
+    imaged_centres,
     in_plane_alignment,
-    plane_from_centre,
+    planes_from_centres,
 )
-from deckpose.estimate.ellipse_fit import fit_ellipse_direct
-from deckpose.estimate.least_squares import Fit, chi2_at, evaluate_fit, levenberg_marquardt
+from deckpose.estimate.least_squares_batch import (
+    FitBatch,
+    FrameObservations,
+    chi2_batch,
+    covariance_from_information,
+    evaluate_fit_batch,
+    levenberg_marquardt_batch,
+    params_from_relative_batch,
+)
 from deckpose.estimate.observations import Observations
-from deckpose.estimate.pose_model import params_from_relative
+from deckpose.estimate.observations_batch import stack_one
 from deckpose.estimate.registry import EstimateOptions, register
 from deckpose.estimate.solution import Candidate, estimate_robustly, pick_candidate
+from deckpose.estimate.solution_batch import (
+    BatchCandidates,
+    Extra,
+    candidates_of_one,
+    pick_batch,
+    scatter_fit,
+    settle_batch,
+)
+from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
 from deckpose.records import Detections, PoseEstimate
+
+FloatArray = NDArray[np.float64]
+
+METHOD = "conic"
 
 #: Ring beacons the ellipse fit needs (5 determine a conic).
 MIN_RING_BEACONS = 5
@@ -54,94 +83,251 @@ MIN_RING_BEACONS = 5
 ALT_MARGIN_CHI2 = 1000.0
 
 
-def _polish(fit: Fit, obs: Observations, R_world_from_cam: np.ndarray, steps: int) -> Fit:
+def polish(fit: FitBatch, obs: FrameObservations, steps: int) -> FitBatch:
+    """Up to ``steps`` undamped Gauss–Newton steps per frame, each kept only if chi2 does not rise."""
+    F = len(obs)
+    cur = fit
+    active = np.arange(F)
     for _ in range(steps):
-        p1 = fit.gauss_newton_step()
-        if p1 is None or not np.all(np.isfinite(p1)):
+        if not active.size:
             break
-        f1 = evaluate_fit(p1, obs, R_world_from_cam)
-        if not f1.chi2 <= fit.chi2:
-            break
-        fit = f1
-    return fit
+        every = active.size == F  # (then ``active`` is every frame in order: no gathers)
+        H, params, grad = ((cur.information, cur.params, cur.gradient) if every else
+                           (cur.information[active], cur.params[active], cur.gradient[active]))
+        cov, ok = covariance_from_information(H)
+        p1 = params - np.einsum("fij,fj->fi", cov, grad)
+        go = ok & np.isfinite(p1).all(axis=1)
+        rows = active
+        if not go.all():
+            rows, p1 = active[go], p1[go]
+        whole = rows.size == F
+        f1 = evaluate_fit_batch(p1, obs if whole else obs.take(rows))
+        better = f1.chi2 <= (cur.chi2 if whole else cur.chi2[rows])
+        if not better.all():
+            rows = rows[better]
+            f1 = FitBatch(*(getattr(f1, name)[better] for name in _FIELDS))
+        if rows.size == F:  # every frame took its step
+            cur = f1
+        elif rows.size:
+            cur = _replace_rows(cur, rows, f1)
+        active = rows
+    return FitBatch(cur.params, cur.chi2, cur.information, cur.whitened, cur.residuals_px, cur.gradient,
+                    fit.iterations, fit.converged)
 
 
-def conic_candidates(obs: Observations, layout: DeckLayout, R_world_from_cam: np.ndarray,
-                     *, refine: bool, polish_steps: int = 1) -> list[Fit] | str:
-    """The (up to two) pose solutions of the conic method for a set of observations.
+def _eigen_rows(normals: FloatArray, centres: FloatArray, plane_ok: NDArray[np.bool_]
+                ) -> tuple[FloatArray, FloatArray, NDArray[np.bool_]]:
+    """Both eigen planes of every frame as 2F rows, plane-major."""
+    F = normals.shape[0]
+    return (normals.transpose(1, 0, 2).reshape(2 * F, 3), centres.transpose(1, 0, 2).reshape(2 * F, 3),
+            plane_ok.T.reshape(2 * F))
 
-    ``polish_steps`` Gauss-Newton steps on all identified beacons follow the
-    closed-form solution; ``refine`` runs Levenberg-Marquardt to convergence instead.
+
+#: The fields of :class:`FitBatch`, in order.
+_FIELDS = ("params", "chi2", "information", "whitened", "residuals_px", "gradient", "iterations", "converged")
+
+
+def _fit_rows(fit: FitBatch, rows: slice) -> FitBatch:
+    """The frames ``rows`` of ``fit`` (views)."""
+    return FitBatch(*(getattr(fit, name)[rows] for name in _FIELDS))
+
+
+def _replace_rows(fit: FitBatch, rows: np.ndarray, new: FitBatch) -> FitBatch:
+    """``fit`` with frames ``rows`` taken from ``new`` (one row each, in order)."""
+    parts = {}
+    for name in _FIELDS:
+        a = getattr(fit, name).copy()
+        a[rows] = getattr(new, name)
+        parts[name] = a
+    return FitBatch(**parts)
+
+
+def conic_candidates(obs: FrameObservations, layout: DeckLayout,
+                     options: EstimateOptions) -> BatchCandidates:
+    """Up to two conic solutions per frame (see the module docstring).
+
+    Slots in order: the start that reprojects best (the imaged-centre plane's, where the
+    centre is imaged, else an eigen plane's), then the other plane's start if its
+    closed-form chi2 is within :data:`ALT_MARGIN_CHI2`; each polished by
+    ``options.conic_polish_steps`` Gauss-Newton steps, or with ``options.refine``
+    refined by Levenberg-Marquardt. Frames whose polished solutions look ambiguous have
+    both refined to convergence before the choice (unconverged candidates can look
+    ambiguous while they share one minimum). NaN and inf are expected in frames without
+    a solution: call it under ``np.errstate(all="ignore")``
+    (:func:`~estimate.solution_batch.settle_batch` and
+    :func:`~estimate.solution.estimate_robustly` do).
+
+    Parameters
+    ----------
+    obs : FrameObservations
+        ``F`` frames of one beacon set.
+    layout : DeckLayout
+    options : EstimateOptions
+
+    Returns
+    -------
+    BatchCandidates
+        With ``centre_beacon_used`` as an extra, and each frame's failure reason where it
+        has no solution.
     """
+    F = len(obs)
     ring = obs.ids < layout.n_ring
     n_ring = int(np.count_nonzero(ring))
-    if n_ring < MIN_RING_BEACONS:
-        return (f"too few ring beacons for the ellipse fit: {n_ring}, need at least "
-                f"{MIN_RING_BEACONS}")
-    C = fit_ellipse_direct(obs.xy[ring])
-    if C is None:
-        return "the ring beacons do not fit an ellipse (collinear or degenerate points)"
-    planes = circle_planes(C, layout.radius_m)
-    centre = imaged_centre(obs.xy, obs.points_deck_m, ring, obs.ids == layout.centre_id)
-    plane = None if centre is None else plane_from_centre(C, centre, obs.xy[ring], layout.radius_m)
-    if plane is not None:
-        # The imaged-centre plane is the better closed form; the eigen candidate farthest
-        # from it stays as the competitor, so a real two-fold ambiguity is still tested.
-        up = plane.normal_up
-        others = sorted(planes, key=lambda p: -float(np.linalg.norm(p.normal_up - up)))
-        planes = [plane, *others[:1]]
-    if not planes:
-        return "the fitted conic is not the image of a circle in front of the camera"
-    starts = []
-    for plane in planes:
-        aligned = in_plane_alignment(obs.xy, obs.points_deck_m, plane)
-        if aligned is None:
-            continue
-        p0 = params_from_relative(aligned[0], aligned[1], R_world_from_cam)
-        if np.all(np.isfinite(p0)):
-            starts.append((chi2_at(p0, obs, R_world_from_cam), p0))
-    starts.sort(key=lambda s: s[0])
-    fits = []
-    for chi2_0, p0 in starts:
-        if fits and not chi2_0 < starts[0][0] + ALT_MARGIN_CHI2:
-            continue  # the other plane reprojects far worse: not a competing solution
-        if refine:
-            fits.append(levenberg_marquardt(p0, obs, R_world_from_cam))
+    if n_ring < MIN_RING_BEACONS or F == 0:
+        reason = (f"too few ring beacons for the ellipse fit: {n_ring}, need at least {MIN_RING_BEACONS}")
+        return BatchCandidates((), np.zeros((F, 0), dtype=bool), np.ones(F, dtype=bool), reasons=(reason,) * F)
+    ring_xy = obs.xy[:, ring]
+    C, fit_ok = fit_ellipses(ring_xy)
+    normals, centres, plane_ok = circle_planes(C, layout.radius_m)
+    plane_ok &= fit_ok[:, None]
+    # With the imaged centre, its polar is the first plane and the eigen plane farthest from it
+    # the competitor, so a real two-fold ambiguity is still tested.
+    centre_xy, centre_ok = imaged_centres(obs.xy, obs.points_deck_m, ring, obs.ids == layout.centre_id)
+    n_c, X_c, c_ok = planes_from_centres(C, centre_xy, ring_xy, layout.radius_m)
+    c_ok &= centre_ok & fit_ok
+    # Both planes of every frame as 2F rows (plane-major): one alignment, one chi2 call.
+    if c_ok.any():
+        dist = np.sqrt(((normals - n_c[:, None, :]) ** 2).sum(axis=2))
+        far = np.where(plane_ok[:, 1] & (~plane_ok[:, 0] | (dist[:, 1] > dist[:, 0])), 1, 0)
+        ar = np.arange(F)
+        far_n, far_X, far_ok = normals[ar, far], centres[ar, far], np.asarray(plane_ok.any(axis=1))
+        if c_ok.all():  # (the usual case, with a centre beacon or two diameters: no eigen rows made)
+            n2, X2 = np.concatenate([n_c, far_n]), np.concatenate([X_c, far_X])
+            ok2 = np.concatenate([c_ok, far_ok])
         else:
-            fits.append(_polish(evaluate_fit(p0, obs, R_world_from_cam), obs, R_world_from_cam,
-                                polish_steps))
-    if not fits:
-        return "no candidate plane gives a valid pose (rays parallel to the deck)"
-    return fits
+            n2, X2, ok2 = _eigen_rows(normals, centres, plane_ok)
+            rows = np.flatnonzero(c_ok)
+            n2[rows], X2[rows], ok2[rows] = n_c[rows], X_c[rows], True
+            n2[F + rows], X2[F + rows], ok2[F + rows] = far_n[rows], far_X[rows], far_ok[rows]
+    else:
+        n2, X2, ok2 = _eigen_rows(normals, centres, plane_ok)
+    # every frame twice (plane-major), as obs.take(np.r_[ar, ar]) would give it
+    obs2 = FrameObservations(obs.ids, obs.points_deck_m, np.concatenate([obs.xy, obs.xy]),
+                             np.concatenate([obs.sqrt_info, obs.sqrt_info]),
+                             np.concatenate([obs.px_from_norm, obs.px_from_norm]),
+                             np.concatenate([obs.R_world_from_cam, obs.R_world_from_cam]))
+    R, t, ok = in_plane_alignment(obs2.xy, obs.points_deck_m, n2, X2)
+    p = params_from_relative_batch(R, t, obs2.R_world_from_cam)
+    ok &= ok2 & np.isfinite(p).all(axis=1)
+    if ok.all():  # (the usual case: no gathers)
+        chi = chi2_batch(p, obs2)
+    else:
+        rows = np.flatnonzero(ok)
+        chi = np.full(2 * F, np.inf)
+        if rows.size:
+            chi[rows] = chi2_batch(p[rows], obs.take(rows % F))
+    p0 = np.where(ok[:, None], p, np.nan).reshape(2, F, 6).transpose(1, 0, 2)
+    start_ok = ok.reshape(2, F).T
+    chi0 = chi.reshape(2, F).T
+    # Starts sorted by their chi2 (stable); the second competes only within ALT_MARGIN_CHI2.
+    swap = start_ok[:, 1] & (~start_ok[:, 0] | (chi0[:, 1] < chi0[:, 0]))
+    first = swap.astype(np.int64)
+    second = 1 - first
+    ar = np.arange(F)
+    has_first = np.asarray(start_ok.any(axis=1))
+    has_second = start_ok.all(axis=1) & (chi0[ar, second] < chi0[ar, first] + ALT_MARGIN_CHI2)
+    # Both slots' starts solved in one stacked call (slot-major rows), then split into slots;
+    # a slot no frame has is not listed.
+    slots = [present for present in (has_first, has_second) if present.any()]
+    slot_rows = [ar if present.all() else np.flatnonzero(present) for present in slots]
+    every = [rows.size == F for rows in slot_rows]
+    rows_all = np.concatenate(slot_rows) if len(slot_rows) > 1 else slot_rows[0] if slot_rows else ar[:0]
+    fits: list[FitBatch] = []
+    if rows_all.size:
+        which = np.concatenate([first[slot_rows[0]], second[slot_rows[1]]]) if len(slot_rows) > 1 else (
+            first if every[0] else first[rows_all])
+        starts = p0[rows_all, which]
+        sub = (obs if rows_all.size == F and every[0] else obs2 if len(every) == 2 and all(every)
+               else obs.take(rows_all))
+        if options.refine:
+            f = levenberg_marquardt_batch(starts, sub)
+        else:
+            f = polish(evaluate_fit_batch(starts, sub), sub, int(options.conic_polish_steps))
+        lo = 0
+        for rows, all_rows in zip(slot_rows, every):
+            part = f if len(slot_rows) == 1 else _fit_rows(f, slice(lo, lo + rows.size))
+            fits.append(part if all_rows else scatter_fit(F, rows, part))
+            lo += rows.size
+    centre_used = float(layout.centre_id in obs.ids) if layout.centre_id is not None else 0.0
+    valid = (slots[0][:, None] if len(slots) == 1 else np.stack(slots, axis=1) if slots
+             else np.zeros((F, 0), dtype=bool))
+    reasons = None if has_first.all() else tuple(
+        "" if has else "the ring beacons do not fit an ellipse (collinear or degenerate points)" if not fit
+        else "the fitted conic is not the image of a circle in front of the camera" if not plane
+        else "no candidate plane gives a valid pose (rays parallel to the deck)"
+        for has, fit, plane in zip(has_first.tolist(), fit_ok.tolist(), (plane_ok.any(axis=1) | c_ok).tolist()))
+    cands = BatchCandidates(
+        tuple(fits), valid, ~has_first,
+        (Extra("centre_beacon_used", np.full(F, centre_used)),), reasons=reasons)
+    if options.refine or len(fits) < 2 or not cands.valid.all(axis=1).any():
+        return cands  # (an ambiguity needs two solutions)
+    # Unconverged candidates can look ambiguous while they share one minimum: settle those
+    # frames at the optima (both solutions iterated to convergence) before the choice.
+    choice = pick_batch(cands, ambiguity_chi2=options.ambiguity_chi2)
+    unsettled = np.flatnonzero(choice.unresolved)
+    if not unsettled.size:  # the choice stands (finish_batch need not make it again)
+        return BatchCandidates(cands.fits, cands.valid, cands.fallback, cands.extras, choice, cands.reasons)
+    for k, present in enumerate(slots):
+        rows = unsettled[present[unsettled]]
+        if rows.size:
+            lm = levenberg_marquardt_batch(fits[k].params[rows], obs.take(rows))
+            fits[k] = _replace_rows(fits[k], rows, lm)
+    return BatchCandidates(tuple(fits), cands.valid, cands.fallback, cands.extras, reasons=cands.reasons)
 
 
-@register("conic")
+def _solve_one(obs: Observations, R_world_from_cam: FloatArray, layout: DeckLayout,
+               options: EstimateOptions) -> Candidate | str:
+    """One frame's (or subset's) solutions as a batch of one, and the choice between them."""
+    cands = conic_candidates(stack_one(obs, R_world_from_cam), layout, options)
+    if cands.fallback[0]:
+        return cands.reasons[0] if cands.reasons is not None else "no conic solution"
+    fits, extras = candidates_of_one(cands)
+    return pick_candidate(fits, ambiguity_chi2=options.ambiguity_chi2,
+                          assume_level_deck=options.assume_level_deck, extras=extras)
+
+
+def estimate_conic_frames(
+    detections: Sequence[Detections], camera: CameraModel, layout: DeckLayout, options: EstimateOptions,
+    R_world_from_cam: FloatArray,
+) -> list[PoseEstimate]:
+    """Estimate many frames' deck poses from the ring's image conic (see module docstring).
+
+    Parameters
+    ----------
+    detections : sequence of F Detections
+    camera : CameraModel
+    layout : DeckLayout
+    options : EstimateOptions
+    R_world_from_cam : (F, 3, 3) array of float
+        Each frame's camera attitude (instead of ``options.R_world_from_cam``).
+
+    Returns
+    -------
+    list of F PoseEstimate
+        Failures are falsy with a reason; ``extras["refined"]`` is ``options.refine``.
+    """
+    got = settle_batch(METHOD, lambda o: conic_candidates(o, layout, options), detections, camera, layout,
+                       options, R_world_from_cam, refined=options.refine)
+    out: list[PoseEstimate] = []
+    for d, R, e in zip(detections, R_world_from_cam, got, strict=True):
+        if e is None:  # an outlier to remove, an unresolved ambiguity or a failure: the robust search
+            e = estimate_robustly(METHOD, lambda o, R_wc: _solve_one(o, R_wc, layout, options), d, camera,
+                                  layout, options, R_world_from_cam=R, min_points=MIN_RING_BEACONS,
+                                  refined=options.refine)
+        out.append(e)
+    return out
+
+
+@register(METHOD)
 def estimate_conic(
     detections: Detections, camera: CameraModel, layout: DeckLayout, options: EstimateOptions
 ) -> PoseEstimate:
-    """Estimate the deck pose from the ring's image conic (see module docstring).
+    """Estimate one frame's deck pose from the ring's image conic: a batch of one of
+    :func:`estimate_conic_frames`.
 
     Needs at least 5 identified ring beacons; the centre beacon, when detected,
     resolves the two-fold ambiguity. Never raises on bad detections: failures come
     back as a falsy estimate with a reason.
     """
-    def solve(o: Observations, R_wc: np.ndarray) -> Candidate | str:
-        fits = conic_candidates(o, layout, R_wc, refine=options.refine,
-                                polish_steps=options.conic_polish_steps)
-        if isinstance(fits, str):
-            return fits
-        extras = {"centre_beacon_used": float(layout.centre_id in o.ids)
-                  if layout.centre_id is not None else 0.0}
-        cand = pick_candidate(fits, ambiguity_chi2=options.ambiguity_chi2,
-                              assume_level_deck=options.assume_level_deck, extras=extras)
-        if not options.refine and isinstance(cand, Candidate) and (
-                cand.problem or "assumed_level_deck" in cand.extras):
-            # Unconverged candidates can look ambiguous while they share one minimum:
-            # settle it at the optima before reporting an ambiguity.
-            converged = [levenberg_marquardt(f.params, o, R_wc) for f in fits]
-            cand = pick_candidate(converged, ambiguity_chi2=options.ambiguity_chi2,
-                                  assume_level_deck=options.assume_level_deck, extras=extras)
-        return cand
-
-    return estimate_robustly("conic", solve, detections, camera, layout, options,
-                             min_points=MIN_RING_BEACONS, refined=options.refine)
+    R = np.asarray(options.R_world_from_cam, dtype=float)[None]
+    return estimate_conic_frames([detections], camera, layout, options, R)[0]

@@ -2,7 +2,7 @@
 
 1. **Closed form.** The outer edge's fitted conic (undistorted pixels, ``K`` removed) gives
    the two candidate deck planes of a circle of the outer radius
-   (:func:`deckpose.estimate.circle_pose.circle_planes`); on each, the bow mark's two ends
+   (:func:`deckpose.estimate.conic_geometry.circle_planes`); on each, the bow mark's two ends
    (cast onto the plane) give the bow direction, hence yaw.
 2. **Refinement.** From each candidate, the six pose parameters
    (:mod:`deckpose.estimate.pose_model`, the camera attitude known) are fitted to every edge
@@ -51,7 +51,7 @@ import math
 from dataclasses import dataclass, replace
 
 import numpy as np
-from deckpose.estimate.circle_pose import circle_planes
+from deckpose.estimate.conic_geometry import circle_planes
 from deckpose.estimate.pose_model import params_from_relative, relative_from_params
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
@@ -219,8 +219,9 @@ def _candidates(det: RingDetection, camera: CameraModel, ring: PaintedRing, R_wc
     Cn = camera.K.T @ det.conics_px[1] @ camera.K
     ends = _normalised(camera, det.bow_ends_px)
     out = []
-    for plane in circle_planes(Cn, ring.outer_radius_m):
-        n, c = plane.normal_up, plane.centre_m
+    with np.errstate(all="ignore"):  # (NaN where the conic is no circle's image: ``valid`` says so)
+        normals, centres, valid = circle_planes(Cn[None], ring.outer_radius_m)  # a batch of one
+    for n, c in zip(normals[0][valid[0]], centres[0][valid[0]]):
         s = float(n @ c) / (ends @ n)
         v = (s[:, None] * ends).mean(axis=0) - c
         v -= (v @ n) * n  # the ends' midpoint lies on the bow ray from the centre (gap and bar alike)

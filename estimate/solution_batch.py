@@ -5,9 +5,8 @@ ambiguity is resolved, no point is an outlier, and the estimate is ok. For those
 frames :func:`finish_batch` builds exactly the record that
 :func:`estimate.solution.estimate_robustly` builds; every other frame is marked
 for :func:`~estimate.solution.estimate_robustly` (which then removes outliers,
-reports an unresolved ambiguity, or says why it failed): ``pnp`` and the
-refinement solve each of its subsets as a batch of one, ``conic`` still through
-its single-frame path.
+reports an unresolved ambiguity, or says why it failed), which solves each of its
+subsets as a batch of one.
 """
 
 from __future__ import annotations
@@ -73,6 +72,9 @@ class BatchCandidates:
     choice : PickBatch or None
         :func:`pick_batch` of these solutions at the options' ``ambiguity_chi2``, where the
         method has made it already (:func:`finish_batch` makes it otherwise).
+    reasons : tuple of str or None
+        Why each frame has no solution (``""`` where it has one), where the method says;
+        None where every frame has one or the method gives no reasons.
     """
 
     fits: tuple[FitBatch, ...]
@@ -80,6 +82,7 @@ class BatchCandidates:
     fallback: BoolArray
     extras: tuple[Extra, ...] = ()
     choice: PickBatch | None = None
+    reasons: tuple[str, ...] | None = None
 
 
 def scatter_fit(n_frames: int, rows: NDArray[np.int64], fit: FitBatch) -> FitBatch:

@@ -224,7 +224,7 @@ def test_clean_frames_stay_in_the_batch(method, refine):
     """The single-frame path is only the fallback: clean frames, even at 2 px and 80 m, are batched."""
     from functools import partial
 
-    from deckpose.estimate.conic_batch import conic_candidates_batch
+    from deckpose.estimate.conic import conic_candidates
     from deckpose.estimate.pnp import pnp_candidates
     from deckpose.estimate.solution_batch import settle_batch
 
@@ -232,7 +232,7 @@ def test_clean_frames_stay_in_the_batch(method, refine):
     frames = _random_frames(np.random.default_rng(9), 200, camera, 2.0, heights=(70.0, 80.0))
     opts = EstimateOptions(sigma_px=2.0, refine=refine)
     R = np.broadcast_to(opts.R_world_from_cam, (len(frames), 3, 3))
-    candidates = (partial(conic_candidates_batch, layout=LAYOUT, options=opts) if method == "conic"
+    candidates = (partial(conic_candidates, layout=LAYOUT, options=opts) if method == "conic"
                   else pnp_candidates)
     got = settle_batch(method, candidates, frames, camera, LAYOUT, opts, np.ascontiguousarray(R),
                        refined=refine if method == "conic" else True)

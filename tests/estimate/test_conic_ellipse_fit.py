@@ -1,5 +1,14 @@
+"""The ring's direct least-squares ellipse fit (``conic_geometry.fit_ellipses``), frame by frame."""
+
 import numpy as np
-from deckpose.estimate.ellipse_fit import fit_ellipse_direct
+from deckpose.estimate.conic_geometry import fit_ellipses
+
+
+def fit_ellipse_direct(pts):
+    """One frame's conic (a batch of one), None where the points admit no ellipse."""
+    with np.errstate(all="ignore"):
+        C, ok = fit_ellipses(np.asarray(pts, dtype=float)[None])
+    return C[0] if ok[0] else None
 
 
 def test_exact_ellipse_recovered_in_float64():
@@ -20,7 +29,7 @@ def test_exact_ellipse_recovered_in_float64():
 
 
 def test_degenerate_inputs_give_none():
-    assert fit_ellipse_direct(np.zeros((4, 2))) is None
+    assert fit_ellipse_direct(np.zeros((5, 2))) is None
     line = np.column_stack([np.linspace(0, 1, 8), np.linspace(0, 2, 8)])
     assert fit_ellipse_direct(line) is None
     assert fit_ellipse_direct(np.full((6, 2), np.nan)) is None

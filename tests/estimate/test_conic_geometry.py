@@ -1,20 +1,36 @@
-"""The circle's plane from its image: eigen route (two candidates) and imaged-centre route (one)."""
+"""The circle's plane from its image: eigen route (two candidates) and imaged-centre route (one).
+
+Each function is batch-first; these tests give it a batch of one frame (``[None]``), and the
+last ones stack frames to check that a frame's answer does not depend on its neighbours.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
-from deckpose.estimate.circle_pose import (
+from deckpose.estimate.conic_geometry import (
     circle_planes,
     diameter_pairs,
-    imaged_centre,
-    plane_from_centre,
+    fit_ellipses,
+    imaged_centres,
+    planes_from_centres,
 )
-from deckpose.estimate.ellipse_fit import fit_ellipse_direct
 from scipy.spatial.transform import Rotation
 
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose, T_cam_from_deck
+
+
+def imaged_centre(xy, points_deck_m, ring, centre):
+    """One frame's imaged centre (a batch of one), None where there is none."""
+    c, ok = imaged_centres(xy[None], points_deck_m, ring, centre)
+    return c[0] if ok[0] else None
+
+
+def fit_ellipse(xy):
+    C, ok = fit_ellipses(xy[None])
+    assert ok[0]
+    return C
 
 
 def _normalised_view(layout: DeckLayout, ship: ShipPose, cam: CameraPose) -> tuple[np.ndarray, np.ndarray]:
@@ -44,10 +60,10 @@ def test_imaged_centre_plane_is_exact_without_noise(ship, cam, use_centre_beacon
     c = imaged_centre(xy, layout.positions_deck_m(), ring, centre)
     # independent truth: the deck origin projected through T
     assert c == pytest.approx(T[:2, 3] / T[2, 3], abs=1e-12)
-    plane = plane_from_centre(fit_ellipse_direct(xy[ring]), c, xy[ring], layout.radius_m)
-    assert plane is not None
-    assert plane.normal_up == pytest.approx(T[:3, 2], abs=1e-9)  # deck +z in the camera frame
-    assert plane.centre_m == pytest.approx(T[:3, 3], abs=1e-7 * T[2, 3])
+    normal, centre_m, ok = planes_from_centres(fit_ellipse(xy[ring]), c[None], xy[ring][None], layout.radius_m)
+    assert ok[0]
+    assert normal[0] == pytest.approx(T[:3, 2], abs=1e-9)  # deck +z in the camera frame
+    assert centre_m[0] == pytest.approx(T[:3, 3], abs=1e-7 * T[2, 3])
 
 
 def test_the_eigen_route_contains_the_same_plane():
@@ -55,8 +71,12 @@ def test_the_eigen_route_contains_the_same_plane():
     ship, cam = VIEWS[1]
     xy, T = _normalised_view(layout, ship, cam)
     ring = np.arange(layout.n_beacons) < layout.n_ring
-    normals = [p.normal_up for p in circle_planes(fit_ellipse_direct(xy[ring]), layout.radius_m)]
-    assert min(np.linalg.norm(n - T[:3, 2]) for n in normals) < 1e-8
+    normals, centres, valid = circle_planes(fit_ellipse(xy[ring]), layout.radius_m)
+    assert valid[0].all()
+    assert min(np.linalg.norm(n - T[:3, 2]) for n in normals[0]) < 1e-8
+    # the matching plane's centre is the deck origin's
+    k = int(np.argmin(np.linalg.norm(normals[0] - T[:3, 2], axis=1)))
+    assert centres[0, k] == pytest.approx(T[:3, 3], abs=1e-6 * T[2, 3])
 
 
 def test_diameters_need_opposite_beacons():
@@ -123,3 +143,55 @@ def test_pure_geometric_conic_is_near_the_bound_near_nadir():
         errs.append([est.roll_rad - ship.roll_rad, est.pitch_rad - ship.pitch_rad])
     ratio = np.sqrt(np.mean(np.square(errs), axis=0)) / crb
     assert np.all(ratio < 2.0), ratio
+
+
+def test_a_diameter_whose_ends_coincide_is_left_out():
+    """Two opposite beacons imaged on one point have no line: the centre is the one the other
+    diameters and the centre beacon give (the lines' least squares without that row)."""
+    layout = DeckLayout()
+    xy, _ = _normalised_view(layout, *VIEWS[1])
+    ids = np.arange(layout.n_beacons)
+    ring, centre = ids < layout.n_ring, ids == layout.centre_id
+    rng = np.random.default_rng(3)
+    xy = xy + rng.normal(0, 1e-4, xy.shape)
+    bad = xy.copy()
+    bad[6] = bad[0]  # beacons 0 and 6 (a diameter) on one image point
+    without = np.array([i for i in ids if i not in (0, 6)])
+    got = imaged_centre(bad, layout.positions_deck_m(), ring, centre)
+    # independent: the same least squares with the pair's rows removed, by numpy.linalg.lstsq
+    p = layout.positions_deck_m()
+    pairs = [(i, j) for i, j in diameter_pairs(p, ring) if i not in (0, 6)]
+    rows, rhs = [], []
+    for i, j in pairs:
+        n = np.array([xy[i, 1] - xy[j, 1], xy[j, 0] - xy[i, 0]])
+        c = xy[i, 0] * xy[j, 1] - xy[i, 1] * xy[j, 0]
+        rows.append(np.sqrt(2.0) * n / np.linalg.norm(n))
+        rhs.append(-np.sqrt(2.0) * c / np.linalg.norm(n))
+    rows += [[1.0, 0.0], [0.0, 1.0]]
+    rhs += list(xy[layout.centre_id])
+    want = np.linalg.lstsq(np.array(rows), np.array(rhs), rcond=None)[0]
+    assert got == pytest.approx(want, abs=1e-12)
+    assert got == pytest.approx(imaged_centre(xy[without], p[without], ring[without], centre[without]), abs=1e-12)
+
+
+def test_stacked_frames_answer_as_each_alone():
+    """Frames in one batch, one of them degenerate (collinear ring), answer as each frame alone
+    (to rounding: a stacked matrix product may round its last bit differently)."""
+    layout = DeckLayout()
+    ids = np.arange(layout.n_beacons)
+    ring = ids < layout.n_ring
+    frames = [_normalised_view(layout, s, c)[0] for s, c in VIEWS]
+    frames.append(np.column_stack([np.linspace(-1, 1, layout.n_beacons), np.zeros(layout.n_beacons)]))
+    xy = np.stack(frames)
+    with np.errstate(all="ignore"):
+        C, ok = fit_ellipses(xy[:, ring])
+        assert ok.tolist() == [True, True, True, False]
+        for f in range(3):
+            C1, _ = fit_ellipses(xy[f:f + 1, ring])
+            np.testing.assert_allclose(C1[0], C[f], rtol=1e-12, atol=1e-15)
+        n, X, valid = circle_planes(C, layout.radius_m)
+        assert valid[:3].all() and not valid[3].any()
+        for f in range(3):
+            n1, X1, _ = circle_planes(C[f:f + 1], layout.radius_m)
+            np.testing.assert_allclose(n1[0], n[f], rtol=1e-12, atol=1e-15)
+            np.testing.assert_allclose(X1[0], X[f], rtol=1e-12, atol=1e-12)

@@ -1,12 +1,44 @@
-"""The conic method's geometry for many frames at once.
+"""The conic method's geometry, batch-first (a lone frame is a batch of one).
 
-Stacked twins of :func:`estimate.ellipse_fit.fit_ellipse_direct`,
-:func:`estimate.circle_pose.circle_planes`, :func:`estimate.circle_pose.imaged_centre`,
-:func:`estimate.circle_pose.plane_from_centre` and
-:func:`estimate.circle_pose.in_plane_alignment`, step by step the same
-arithmetic, with a validity mask where the single-frame function returns
-``None`` or fewer planes. NaN and inf are expected in the frames that are not valid: call
-these under ``np.errstate(all="ignore")`` (:func:`~estimate.solution_batch.settle_batch` does).
+* :func:`fit_ellipses`: the ring's ellipse, a direct least-squares fit in float64
+  (Fitzgibbon, Pilu & Fisher 1999 in the numerically stable form of Halíř & Flusser
+  1998, with Hartley normalisation: the conic ``a x² + b xy + c y² + d x + e y + f = 0``
+  minimising the algebraic distance subject to ``4ac - b² = 1``, always an ellipse;
+  nothing is rounded to float32, unlike OpenCV's ``fitEllipse*``).
+* :func:`circle_planes`: the two candidate supporting planes of a circle of known
+  radius imaged as a conic (the eigen route).
+* :func:`imaged_centres` and :func:`planes_from_centres`: the image of the deck centre,
+  from the centre beacon and the lines through diametrically opposite ring beacons, and
+  the plane whose vanishing line is its polar (no ambiguity).
+* :func:`in_plane_alignment`: the deck's rotation about the plane normal and its
+  centre offset from the labelled beacons (2-D Procrustes).
+
+Every function takes ``F`` frames stacked and returns a validity mask where a frame has
+no answer. NaN and inf are expected in the frames that are not valid: call these under
+``np.errstate(all="ignore")`` (:func:`~estimate.solution_batch.settle_batch` does).
+
+The geometry. In normalised camera coordinates the image of a circle is the cone
+``X^T C X = 0`` (C symmetric, signature (+, +, -) after a sign flip). With the
+eigenvalues ``l1 >= l2 > 0 > l3`` and eigenvectors ``e1, e2, e3``,
+``C - l2 I = (a.X)(b.X)`` with ``a, b = sqrt(l1 - l2) e1 ± sqrt(l2 - l3) e3``,
+so on every plane ``a.X = k`` (or ``b.X = k``) the cone meets the sphere
+``l2 |X|² + k (b.X) = 0`` through the camera centre: a circle. Those are the two
+candidate supporting planes; the known radius fixes ``k``. The image of the
+circle's centre is the pole of the plane's vanishing line, ``C^-1 n``, which is
+what lets the imaged centre beacon tell the two candidates apart.
+
+Conversely, when the image of the centre is known, the plane follows without
+the eigen-decomposition and its two-fold ambiguity (:func:`planes_from_centres`):
+the centre is the pole of the line at infinity, and poles and polars survive
+projection, so the vanishing line of the deck is the polar ``l = C c`` of the
+imaged centre ``c``, and in normalised coordinates the deck normal is ``l``
+itself. The imaged centre is measured by :func:`imaged_centres`: the centre
+beacon, and the lines through diametrically opposite ring beacons, which all
+meet at the image of the centre (incidence is projective too). Using every
+labelled ring beacon this way makes the normal first-order in the tilt and keeps
+the closed-form pose near the Cramér–Rao bound, where the eigen route, whose
+tilt comes from the ellipse's eccentricity (second order in the tilt), is
+several times above it near nadir.
 """
 
 from __future__ import annotations
@@ -14,14 +46,51 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-from deckpose.estimate.circle_pose import diameter_pairs
-from deckpose.estimate.ellipse_fit import C1_INV
 from deckpose.estimate.least_squares_batch import solve_batch
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
 BoolArray = NDArray[np.bool_]
 
+#: Inverse of the ellipse constraint matrix C1 of the Halir-Flusser direct fit (4ac - b^2 = 1).
+C1_INV = np.array([[0.0, 0.0, 0.5], [0.0, -1.0, 0.0], [0.5, 0.0, 0.0]])
+C1_INV.setflags(write=False)
+
+#: Two ring beacons are diametrically opposite when their positions sum to less than this x radius.
+_OPPOSITE_TOL = 1e-9
+
+
+def diameter_pairs(points_deck_m: FloatArray, ring: BoolArray) -> list[tuple[int, int]]:
+    """Pairs of rows whose deck positions are diametrically opposite ring beacons.
+
+    Parameters
+    ----------
+    points_deck_m : (N, 3) array of float
+        Deck positions of the observations, metres (centre at the origin).
+    ring : (N,) array of bool
+        Which rows are ring beacons.
+
+    Returns
+    -------
+    list of (int, int)
+        Row pairs ``(i, j)``, ``i < j``, with ``p_i = -p_j``.
+    """
+    idx = np.flatnonzero(ring)
+    p = points_deck_m[idx, :2]
+    scale = float(np.max(np.linalg.norm(p, axis=1))) if len(idx) else 0.0
+    sums = np.linalg.norm(p[:, None, :] + p[None, :, :], axis=2)
+    a, b = np.nonzero(np.triu(sums <= _OPPOSITE_TOL * max(scale, 1.0), k=1))
+    return [(int(idx[i]), int(idx[j])) for i, j in zip(a, b)]
+
+
+#: The camera's x and y axes (the in-plane basis of :func:`in_plane_alignment` starts from them).
+_UNIT_X = np.array([1.0, 0.0, 0.0])
+_UNIT_Y = np.array([0.0, 1.0, 0.0])
+_UNIT_X.setflags(write=False)
+_UNIT_Y.setflags(write=False)
+
+_EYE2 = np.eye(2)
+_EYE2.setflags(write=False)
 
 #: Machine epsilon of float64 (numpy.linalg.lstsq's rank cut-off).
 _EPS = float(np.finfo(np.float64).eps)
@@ -47,7 +116,7 @@ def _diameter_rows_cached(points: bytes, ring: bytes, n: int) -> NDArray[np.int6
 
 
 def _diameter_rows(points_deck_m: FloatArray, ring: BoolArray) -> NDArray[np.int64]:
-    """:func:`~estimate.circle_pose.diameter_pairs` as a (P, 2) array, computed once per beacon set."""
+    """:func:`diameter_pairs` as a (P, 2) array, computed once per beacon set."""
     pts = np.ascontiguousarray(points_deck_m, dtype=np.float64)
     return _diameter_rows_cached(pts.tobytes(), np.ascontiguousarray(ring, dtype=np.bool_).tobytes(),
                                  pts.shape[0])
@@ -67,6 +136,12 @@ def _eig_batch(M: FloatArray) -> tuple[FloatArray, FloatArray, BoolArray]:
                 ok[i] = False
     return np.real(w), np.real(V), ok
 
+
+#: Columns of the normalised points whose products are the quadratic terms (x x, x y, y y).
+_QUADRATIC_LEFT = np.array([0, 0, 1])
+_QUADRATIC_RIGHT = np.array([0, 1, 1])
+#: The first two diagonal entries of a 3 x 3 matrix.
+_DIAGONAL_XY = np.array([0, 1])
 
 #: The conic matrix (row-major, 9) of the coefficients ``(A, B, C, D, E, F)`` of
 #: ``A x^2 + B xy + C y^2 + D x + E y + F``: each entry one coefficient times 1 or 1/2 (exact).
@@ -98,11 +173,10 @@ def fit_ellipses(points: FloatArray) -> tuple[FloatArray, BoolArray]:
     s = np.sqrt((q * q).sum(axis=2).sum(axis=1) / n)
     ok = s > 0
     q = q / s[:, None, None]
-    x, y = q[..., 0], q[..., 1]
-    D1 = np.empty(q.shape[:2] + (3,))
-    D1[..., 0], D1[..., 1], D1[..., 2] = x * x, x * y, y * y
+    D1 = q[..., _QUADRATIC_LEFT] * q[..., _QUADRATIC_RIGHT]  # (x x, x y, y y)
     D2 = np.empty(q.shape[:2] + (3,))
-    D2[..., 0], D2[..., 1], D2[..., 2] = x, y, 1.0
+    D2[..., :2] = q
+    D2[..., 2] = 1.0
     D1t = np.swapaxes(D1, 1, 2)
     S1 = D1t @ D1
     S2 = D1t @ D2
@@ -120,8 +194,8 @@ def fit_ellipses(points: FloatArray) -> tuple[FloatArray, BoolArray]:
     ok &= eig_ok
     cond = 4.0 * V[:, 0, :] * V[:, 2, :] - V[:, 1, :] ** 2
     good = cond > 0
-    ok &= np.any(good, axis=1)
-    k = np.argmin(np.where(good, np.abs(w), np.inf), axis=1)
+    ok &= good.any(axis=1)
+    k = np.where(good, np.abs(w), np.inf).argmin(axis=1)
     a1 = V[np.arange(F), :, k]
     coef = np.empty((F, 6))
     coef[:, :3] = a1
@@ -130,13 +204,11 @@ def fit_ellipses(points: FloatArray) -> tuple[FloatArray, BoolArray]:
     Cn = (coef @ _CONIC_FROM_COEFFICIENTS).reshape(F, 3, 3)
     # x_n = N x with N = [[1/s, 0, -mx/s], [0, 1/s, -my/s], [0, 0, 1]]: C = N^T Cn N.
     N = np.zeros((F, 3, 3))
-    inv_s = 1.0 / s
-    N[:, 0, 0] = inv_s
-    N[:, 1, 1] = inv_s
+    N[:, _DIAGONAL_XY, _DIAGONAL_XY] = (1.0 / s)[:, None]
     N[:, :2, 2] = -mean / s[:, None]
     N[:, 2, 2] = 1.0
     Cm = np.swapaxes(N, 1, 2) @ Cn @ N
-    norm = np.sqrt(np.sum(Cm * Cm, axis=(1, 2)))
+    norm = np.sqrt((Cm * Cm).sum(axis=(1, 2)))
     ok &= np.isfinite(norm) & (norm != 0)
     C = Cm / norm[:, None, None]
     if not ok.all():
@@ -144,7 +216,7 @@ def fit_ellipses(points: FloatArray) -> tuple[FloatArray, BoolArray]:
     return C, ok
 
 
-def circle_planes_batch(C: FloatArray, radius_m: float) -> tuple[FloatArray, FloatArray, BoolArray]:
+def circle_planes(C: FloatArray, radius_m: float) -> tuple[FloatArray, FloatArray, BoolArray]:
     """Both candidate supporting planes of a circle imaged as conic ``C``, per frame.
 
     Parameters
@@ -165,38 +237,39 @@ def circle_planes_batch(C: FloatArray, radius_m: float) -> tuple[FloatArray, Flo
         Cs[~finite] = np.diag([1.0, 1.0, -1.0])
     w, V = np.linalg.eigh(Cs)
     flip = w[:, 1] < 0
-    if flip.any():
+    if flip.all():  # (views: no copy)
+        w, V = -w[:, ::-1], V[:, :, ::-1]
+    elif flip.any():
         w = np.where(flip[:, None], -w[:, ::-1], w)
         V = np.where(flip[:, None, None], V[:, :, ::-1], V)
-    l3, l2, l1 = w[:, 0], w[:, 1], w[:, 2]
-    ok = finite & (l1 >= l2) & (l2 > 0) & (0 > l3)
-    s13 = np.sqrt(l1 - l2)[:, None]
-    s23 = np.sqrt(l2 - l3)[:, None]
-    V2, V0 = s13 * V[:, :, 2], s23 * V[:, :, 0]
+    l2 = w[:, 1]
+    ok = finite & (w[:, 2] >= l2) & (l2 > 0) & (0 > w[:, 0])
+    # (sqrt(l2 - l3) V0, sqrt(l1 - l2) V2) as the two columns of one product
+    Vs = V[:, :, ::2] * np.sqrt(w[:, 1:] - w[:, :2])[:, None, :]
+    V0, V2 = Vs[:, :, 0], Vs[:, :, 1]
     # both planes at once: (u, v) = (a, b) for the first, (b, a) for the second, with
     # a = s13 V2 + s23 V0 and b = s13 V2 - s23 V0
     u = np.empty((V.shape[0], 2, 3))
-    u[:, 0] = V2 + V0
-    u[:, 1] = V2 - V0
+    np.add(V2, V0, out=u[:, 0])
+    np.subtract(V2, V0, out=u[:, 1])
     v = u[:, ::-1]
-    uu = np.sum(u * u, axis=2)
+    uu = (u * u).sum(axis=2)
     S = -v / (2.0 * l2[:, None, None])
-    us = np.sum(u * S, axis=2)
+    us = (u * S).sum(axis=2)
     Xc1 = S + ((1.0 - us) / uu)[:, :, None] * u
-    r1_sq = np.sum(S * S, axis=2) - (us - 1.0) ** 2 / uu
+    r1_sq = (S * S).sum(axis=2) - (us - 1.0) ** 2 / uu
     valid = ok[:, None] & (r1_sq > 0)
-    k = radius_m / np.sqrt(r1_sq)
-    centres = k[:, :, None] * Xc1
-    centres = np.where((centres[:, :, 2] < 0)[:, :, None], -centres, centres)
-    n = u / np.sqrt(uu)[:, :, None]
-    normals = np.where((np.sum(n * centres, axis=2) > 0)[:, :, None], -n, n)
+    centres = (radius_m / np.sqrt(r1_sq))[:, :, None] * Xc1
+    np.negative(centres, out=centres, where=(centres[:, :, 2] < 0)[:, :, None])
+    normals = u / np.sqrt(uu)[:, :, None]
+    np.negative(normals, out=normals, where=((normals * centres).sum(axis=2) > 0)[:, :, None])
     if not valid.all():
         normals[~valid] = np.nan
         centres[~valid] = np.nan
     return normals, centres, valid
 
 
-def in_plane_alignment_batch(
+def in_plane_alignment(
     xy: FloatArray, points_deck_m: FloatArray, normal_up: FloatArray, centre_m: FloatArray
 ) -> tuple[FloatArray, FloatArray, BoolArray]:
     """Deck rotation about each frame's plane normal and centre offset (2-D Procrustes).
@@ -218,29 +291,33 @@ def in_plane_alignment_batch(
         is invalid.
     """
     n_up = normal_up
-    d = -np.sum(n_up * centre_m, axis=1)
+    d = -(n_up * centre_m).sum(axis=1)
     den = -(xy @ n_up[:, :2, None])[..., 0] - n_up[:, 2, None]
-    ok = np.all(np.isfinite(n_up), axis=1) & ~np.any(den <= 1e-12, axis=1) & np.all(
-        np.isfinite(den), axis=1)
+    ok = np.all(np.isfinite(n_up), axis=1) & ~np.any(den <= 1e-12, axis=1) & np.all(np.isfinite(den), axis=1)
     s_ray = d[:, None] / den
-    ex = np.array([1.0, 0.0, 0.0]) - n_up[:, 0, None] * n_up
-    alt = np.sum(ex * ex, axis=1) < 1e-12
-    if np.any(alt):
-        ex[alt] = np.array([0.0, 1.0, 0.0]) - n_up[alt, 1, None] * n_up[alt]
-    e1 = ex / np.sqrt(np.sum(ex * ex, axis=1))[:, None]
+    ex = _UNIT_X - n_up[:, 0, None] * n_up
+    ex2 = (ex * ex).sum(axis=1)
+    alt = ex2 < 1e-12
+    if alt.any():
+        ex[alt] = _UNIT_Y - n_up[alt, 1, None] * n_up[alt]
+        ex2 = (ex * ex).sum(axis=1)
+    e1 = ex / np.sqrt(ex2)[:, None]
     e2 = _cross(n_up, e1)
     E = np.empty((e1.shape[0], 2, 3))
     E[:, 0], E[:, 1] = e1, e2
     q = ((xy @ np.swapaxes(E[:, :, :2], 1, 2)) + E[:, None, :, 2]) * s_ray[:, :, None] - (
         E @ centre_m[:, :, None])[:, None, :, 0]
     p = points_deck_m[:, :2]
-    qm, pm = q.mean(axis=1), p.mean(axis=0)
+    qm, pm = q.sum(axis=1) / q.shape[1], p.sum(axis=0) / p.shape[0]  # (np.mean's arithmetic)
     qc, pc = q - qm[:, None, :], p - pm
-    sin_sum = np.sum(pc[:, 0] * qc[:, :, 1] - pc[:, 1] * qc[:, :, 0], axis=1)
-    cos_sum = np.sum(pc[:, 0] * qc[:, :, 0] + pc[:, 1] * qc[:, :, 1], axis=1)
+    sin_sum = (pc[:, 0] * qc[:, :, 1] - pc[:, 1] * qc[:, :, 0]).sum(axis=1)
+    cos_sum = (pc[:, 0] * qc[:, :, 0] + pc[:, 1] * qc[:, :, 1]).sum(axis=1)
     psi = np.arctan2(sin_sum, cos_sum)
     c, s = np.cos(psi), np.sin(psi)
-    shift = qm - np.stack([c * pm[0] - s * pm[1], s * pm[0] + c * pm[1]], axis=1)
+    rot = np.empty((c.shape[0], 2))
+    rot[:, 0] = c * pm[0] - s * pm[1]
+    rot[:, 1] = s * pm[0] + c * pm[1]
+    shift = qm - rot
     x_deck = c[:, None] * e1 + s[:, None] * e2
     y_deck = _cross(n_up, x_deck)
     R = np.empty((n_up.shape[0], 3, 3))
@@ -250,8 +327,15 @@ def in_plane_alignment_batch(
 
 
 def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, centre: BoolArray
-                   ) -> tuple[FloatArray, BoolArray, BoolArray]:
-    """Least-squares image of the deck centre per frame (the batched :func:`circle_pose.imaged_centre`).
+                   ) -> tuple[FloatArray, BoolArray]:
+    """Least-squares image of the deck centre from the centre beacon and the ring's diameters.
+
+    Every line through two diametrically opposite ring beacons passes through the
+    image of the centre; the centre beacon is an observation of it. The estimate
+    minimises the squared distances to those lines (weight 2: the error of a line
+    at its midpoint is the mean of its two end points' errors) and to the centre
+    beacon (weight 1). A diameter whose two image points coincide has no line: its
+    row is zero, which leaves the least-squares solution as if it were not there.
 
     Parameters
     ----------
@@ -264,22 +348,16 @@ def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, c
     Returns
     -------
     centre_xy : (F, 2) array of float
+        The imaged centre, normalised coordinates (NaN where not ``ok``).
     ok : (F,) array of bool
-        Where the single-frame function returns a centre (not None).
-    unsure : (F,) array of bool
-        Frames where a diameter's two image points coincide: the single-frame
-        function drops that line, which this batch does not model.
+        Where at least two diameters' lines, or the centre beacon, fix it.
     """
     F = xy.shape[0]
     pairs = _diameter_rows(points_deck_m, ring)
     centre_rows = np.flatnonzero(centre)
     n_lines, n_centre = pairs.shape[0], centre_rows.size
     if n_lines < 2 and not n_centre:
-        unsure = np.zeros(F, dtype=bool)
-        if n_lines:
-            p, q = xy[:, pairs[:, 0]], xy[:, pairs[:, 1]]
-            unsure = np.logical_not((np.hypot(p[..., 1] - q[..., 1], q[..., 0] - p[..., 0]) > 0).all(axis=1))
-        return np.full((F, 2), np.nan), np.zeros(F, dtype=bool), unsure
+        return np.full((F, 2), np.nan), np.zeros(F, dtype=bool)
     # rows: every diameter's line (weight 2), then both coordinates of each centre beacon (weight 1),
     # each scaled by the square root of its weight
     A = np.empty((F, n_lines + 2 * n_centre, 2))
@@ -289,14 +367,14 @@ def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, c
     L0, L1, L2 = yi - yj, xj - xi, xi * yj - yi * xj
     norm = np.hypot(L0, L1)
     w = np.sqrt(2.0)
+    if not (norm > 0).all():  # a line of two coincident points (L = 0): a zero row
+        norm = np.where(norm > 0, norm, np.inf)
     A[:, :n_lines, 0] = L0 / norm * w
     A[:, :n_lines, 1] = L1 / norm * w
     b[:, :n_lines] = -(L2 / norm) * w
-    unsure = np.logical_not((norm > 0).all(axis=1))
-    A[:, n_lines:] = np.tile(np.eye(2), (n_centre, 1))
+    A[:, n_lines:] = _EYE2 if n_centre == 1 else np.tile(_EYE2, (n_centre, 1))
     b[:, n_lines:] = xy[:, centre_rows].reshape(F, 2 * n_centre)
     finite = np.isfinite(A).all(axis=(1, 2)) & np.isfinite(b).all(axis=1)
-    unsure |= ~finite
     if not finite.all():
         A[~finite] = np.eye(A.shape[1], 2)
         b[~finite] = 0.0
@@ -310,7 +388,7 @@ def imaged_centres(xy: FloatArray, points_deck_m: FloatArray, ring: BoolArray, c
     ok = finite & (rank >= 2) & np.isfinite(sol).all(axis=1)
     if not ok.all():
         sol[~ok] = np.nan
-    return sol, ok, unsure
+    return sol, ok
 
 
 def planes_from_centres(C: FloatArray, centre_xy: FloatArray, ring_xy: FloatArray, radius_m: float
@@ -332,21 +410,27 @@ def planes_from_centres(C: FloatArray, centre_xy: FloatArray, ring_xy: FloatArra
         the camera, and the ring has a size.
     """
     F = C.shape[0]
-    c = np.concatenate([centre_xy, np.ones((F, 1))], axis=1)
+    c = np.empty((F, 3))
+    c[:, :2] = centre_xy
+    c[:, 2] = 1.0
     line = ((0.5 * (C + np.swapaxes(C, 1, 2))) @ c[:, :, None])[:, :, 0]
-    norm = np.sqrt(np.sum(line * line, axis=1))
+    norm = np.sqrt((line * line).sum(axis=1))
     ok = np.isfinite(norm) & (norm > 0)
     n_up = line / norm[:, None]
-    n_up = np.where((np.sum(n_up * c, axis=1) > 0)[:, None], -n_up, n_up)
-    u = np.concatenate([ring_xy, np.ones(ring_xy.shape[:2] + (1,))], axis=2)
+    # the camera (origin) is on the +n_up side: n_up . c < 0, and den_c = -n_up . c = |n_up . c|
+    dot = (n_up * c).sum(axis=1)
+    np.negative(n_up, out=n_up, where=(dot > 0)[:, None])
+    den_c = np.abs(dot)
+    u = np.empty(ring_xy.shape[:2] + (3,))
+    u[:, :, :2] = ring_xy
+    u[:, :, 2] = 1.0
     den_ring = -(u @ n_up[:, :, None])[:, :, 0]
-    den_c = -np.sum(n_up * c, axis=1)
-    ok &= (den_c > 1e-12) & np.all(den_ring > 1e-12, axis=1)
+    ok &= (den_c > 1e-12) & (den_ring > 1e-12).all(axis=1)
+    # back-projections onto the plane -n_up . X = 1
     diff = u / den_ring[:, :, None] - (c / den_c[:, None])[:, None, :]
-    spread = np.mean(np.sqrt(np.sum(diff * diff, axis=2)), axis=1)
+    spread = np.sqrt((diff * diff).sum(axis=2)).sum(axis=1) / diff.shape[1]
     ok &= spread > 0
-    d = radius_m / spread
-    centre_m = d[:, None] * c / den_c[:, None]
+    centre_m = (radius_m / spread)[:, None] * c / den_c[:, None]
     if not ok.all():
         n_up[~ok] = np.nan
         centre_m[~ok] = np.nan
