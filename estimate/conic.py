@@ -37,6 +37,7 @@ batch of one.
 from __future__ import annotations
 
 from collections.abc import Sequence
+from functools import partial
 
 import numpy as np
 from deckpose.estimate.conic_geometry import (
@@ -55,17 +56,13 @@ from deckpose.estimate.least_squares_batch import (
     levenberg_marquardt_batch,
     params_from_relative_batch,
 )
-from deckpose.estimate.observations import Observations
-from deckpose.estimate.observations_batch import stack_one
 from deckpose.estimate.registry import EstimateOptions, register
-from deckpose.estimate.solution import Candidate, estimate_robustly, pick_candidate
 from deckpose.estimate.solution_batch import (
     BatchCandidates,
     Extra,
-    candidates_of_one,
+    estimate_frames,
     pick_batch,
     scatter_fit,
-    settle_batch,
 )
 from numpy.typing import NDArray
 
@@ -275,17 +272,6 @@ def conic_candidates(obs: FrameObservations, layout: DeckLayout,
     return BatchCandidates(tuple(fits), cands.valid, cands.fallback, cands.extras, reasons=cands.reasons)
 
 
-def _solve_one(obs: Observations, R_world_from_cam: FloatArray, layout: DeckLayout,
-               options: EstimateOptions) -> Candidate | str:
-    """One frame's (or subset's) solutions as a batch of one, and the choice between them."""
-    cands = conic_candidates(stack_one(obs, R_world_from_cam), layout, options)
-    if cands.fallback[0]:
-        return cands.reasons[0] if cands.reasons is not None else "no conic solution"
-    fits, extras = candidates_of_one(cands)
-    return pick_candidate(fits, ambiguity_chi2=options.ambiguity_chi2,
-                          assume_level_deck=options.assume_level_deck, extras=extras)
-
-
 def estimate_conic_frames(
     detections: Sequence[Detections], camera: CameraModel, layout: DeckLayout, options: EstimateOptions,
     R_world_from_cam: FloatArray,
@@ -306,16 +292,9 @@ def estimate_conic_frames(
     list of F PoseEstimate
         Failures are falsy with a reason; ``extras["refined"]`` is ``options.refine``.
     """
-    got = settle_batch(METHOD, lambda o: conic_candidates(o, layout, options), detections, camera, layout,
-                       options, R_world_from_cam, refined=options.refine)
-    out: list[PoseEstimate] = []
-    for d, R, e in zip(detections, R_world_from_cam, got, strict=True):
-        if e is None:  # an outlier to remove, an unresolved ambiguity or a failure: the robust search
-            e = estimate_robustly(METHOD, lambda o, R_wc: _solve_one(o, R_wc, layout, options), d, camera,
-                                  layout, options, R_world_from_cam=R, min_points=MIN_RING_BEACONS,
-                                  refined=options.refine)
-        out.append(e)
-    return out
+    return estimate_frames(METHOD, partial(conic_candidates, layout=layout, options=options), detections, camera,
+                           layout, options, R_world_from_cam, refined=options.refine,
+                           min_points=MIN_RING_BEACONS, no_solution="no conic solution")
 
 
 @register(METHOD)

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from functools import partial
 from typing import cast
 
 import cv2
@@ -33,16 +34,12 @@ from deckpose.estimate.least_squares_batch import (
     levenberg_marquardt_batch,
     params_from_relative_batch,
 )
-from deckpose.estimate.observations import Observations
-from deckpose.estimate.observations_batch import stack_one
 from deckpose.estimate.registry import EstimateOptions, register
-from deckpose.estimate.solution import Candidate, estimate_robustly, pick_candidate
 from deckpose.estimate.solution_batch import (
     BatchCandidates,
     Extra,
-    candidates_of_one,
+    estimate_frames,
     scatter_fit,
-    settle_batch,
 )
 from numpy.typing import NDArray
 
@@ -214,7 +211,8 @@ def pnp_candidates(obs: FrameObservations, *, raise_errors: bool = False) -> Bat
     """
     F = len(obs)
     if len(obs.ids) < MIN_BEACONS or F == 0:
-        return BatchCandidates((), np.zeros((F, 0), dtype=bool), np.ones(F, dtype=bool))
+        reason = f"too few identified beacons for PnP: {len(obs.ids)}, need at least {MIN_BEACONS}"
+        return BatchCandidates((), np.zeros((F, 0), dtype=bool), np.ones(F, dtype=bool), reasons=(reason,) * F)
     rt, errs, n_ippe = _opencv_starts(obs, raise_errors=raise_errors)
     # The three starts of every frame as 3F rows (NaN where a solver gave none: NaN propagates).
     Rwc3 = np.repeat(obs.R_world_from_cam, 3, axis=0)
@@ -273,18 +271,6 @@ def _refine_rows(n_frames: int, rows: NDArray[np.int64], starts: FloatArray, obs
     return scatter_fit(n_frames, rows, levenberg_marquardt_batch(starts, obs.take(rows)))
 
 
-def _solve_one(obs: Observations, R_world_from_cam: FloatArray, options: EstimateOptions) -> Candidate | str:
-    """One frame's (or subset's) solutions as a batch of one, and the choice between them."""
-    if len(obs) < MIN_BEACONS:
-        return f"too few identified beacons for PnP: {len(obs)}, need at least {MIN_BEACONS}"
-    cands = pnp_candidates(stack_one(obs, R_world_from_cam), raise_errors=True)
-    if cands.fallback[0]:
-        return "PnP found no pose (degenerate beacon configuration)"
-    fits, extras = candidates_of_one(cands)
-    return pick_candidate(fits, ambiguity_chi2=options.ambiguity_chi2,
-                          assume_level_deck=options.assume_level_deck, extras=extras)
-
-
 def estimate_pnp_frames(
     detections: Sequence[Detections], camera: CameraModel, layout: DeckLayout, options: EstimateOptions,
     R_world_from_cam: FloatArray,
@@ -307,15 +293,10 @@ def estimate_pnp_frames(
         detections' covariances (or ``sigma_px``), so each is the maximum-likelihood
         estimate with or without ``options.refine``.
     """
-    got = settle_batch(METHOD, pnp_candidates, detections, camera, layout, options, R_world_from_cam,
-                       refined=True)
-    out: list[PoseEstimate] = []
-    for d, R, e in zip(detections, R_world_from_cam, got, strict=True):
-        if e is None:  # an outlier to remove, an unresolved ambiguity or a failure: the robust search
-            e = estimate_robustly(METHOD, lambda o, R_wc: _solve_one(o, R_wc, options), d, camera, layout,
-                                  options, R_world_from_cam=R, min_points=MIN_BEACONS, refined=True)
-        out.append(e)
-    return out
+    return estimate_frames(METHOD, pnp_candidates, detections, camera, layout, options, R_world_from_cam,
+                           refined=True, min_points=MIN_BEACONS,
+                           no_solution="PnP found no pose (degenerate beacon configuration)",
+                           subset_candidates=partial(pnp_candidates, raise_errors=True))
 
 
 @register(METHOD)

@@ -24,9 +24,17 @@ from deckpose.estimate.least_squares_batch import (
     rotation_vectors,
     solve_batch,
 )
-from deckpose.estimate.observations_batch import group_observations, stack_detections
+from deckpose.estimate.observations import Observations
+from deckpose.estimate.observations_batch import group_observations, stack_detections, stack_one
 from deckpose.estimate.registry import EstimateOptions
-from deckpose.estimate.solution import ambiguity_resolved, covariance_scale, pose_constrained
+from deckpose.estimate.solution import (
+    Candidate,
+    ambiguity_resolved,
+    covariance_scale,
+    estimate_robustly,
+    pick_candidate,
+    pose_constrained,
+)
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -347,4 +355,63 @@ def settle_batch(
             return ests  # one beacon set (a lone frame, or every beacon seen): the frames in order
         for f, e in zip(g.frames.tolist(), ests):
             out[f] = e
+    return out
+
+
+def estimate_frames(
+    method: str, candidates: CandidatesFn, detections: Sequence[Detections], camera: CameraModel,
+    layout: DeckLayout, options: EstimateOptions, R_world_from_cam: FloatArray, *, refined: bool,
+    min_points: int, no_solution: str, subset_candidates: CandidatesFn | None = None,
+) -> list[PoseEstimate]:
+    """A batch-first estimator's records for many frames: the one driver of ``conic`` and ``pnp``.
+
+    The batch settles what it can (:func:`settle_batch`); every other frame (an outlier to
+    remove, an unresolved ambiguity, a failure) goes through the robust search
+    (:func:`~estimate.solution.estimate_robustly`), which solves each subset of the frame's
+    points as a batch of one and chooses between its solutions with
+    :func:`~estimate.solution.pick_candidate`.
+
+    Parameters
+    ----------
+    method : str
+    candidates : callable
+        ``candidates(observations)``: the method's solutions for the frames of one beacon set.
+    detections : sequence of F Detections
+    camera, layout, options
+    R_world_from_cam : (F, 3, 3) array of float
+        Each frame's camera attitude.
+    refined : bool, keyword-only
+        The records' ``refined`` extra.
+    min_points : int, keyword-only
+        Fewest points the method solves from.
+    no_solution : str, keyword-only
+        The failure reason of a subset without a solution where the method gives none
+        (:attr:`BatchCandidates.reasons`).
+    subset_candidates : callable, optional, keyword-only
+        The solutions of one subset, where they differ from ``candidates`` (e.g. letting
+        a numerical error propagate to the robust search, which reports it).
+
+    Returns
+    -------
+    list of F PoseEstimate
+        Failures are falsy with a reason.
+    """
+    got = settle_batch(method, candidates, detections, camera, layout, options, R_world_from_cam,
+                       refined=refined)
+    alone = subset_candidates or candidates
+
+    def solve_one(obs: Observations, R_wc: FloatArray) -> Candidate | str:
+        cands = alone(stack_one(obs, R_wc))
+        if cands.fallback[0]:
+            return cands.reasons[0] if cands.reasons is not None else no_solution
+        fits, extras = candidates_of_one(cands)
+        return pick_candidate(fits, ambiguity_chi2=options.ambiguity_chi2,
+                              assume_level_deck=options.assume_level_deck, extras=extras)
+
+    out: list[PoseEstimate] = []
+    for d, R, e in zip(detections, R_world_from_cam, got, strict=True):
+        if e is None:
+            e = estimate_robustly(method, solve_one, d, camera, layout, options, R_world_from_cam=R,
+                                  min_points=min_points, refined=refined)
+        out.append(e)
     return out
