@@ -94,14 +94,15 @@ def covariance_scale(point_chi2: np.ndarray) -> np.ndarray:
     n = pc.shape[-1]
     if n < MIN_POINTS_FOR_SCALE:
         return np.ones(pc.shape[:-1])
-    with np.errstate(invalid="ignore"):
-        # the median through one sort (np.median's dispatch costs more than the sort of a few points)
-        srt = np.sort(pc, axis=-1)
-        h = n // 2
-        med = srt[..., h] if n % 2 else (srt[..., h - 1] + srt[..., h]) / 2.0
-        med = np.where(np.isnan(srt[..., -1]), np.nan, med)  # NaN sorts last; np.median gives NaN
-        s2 = med / (_MEDIAN_CHI2_2 * (n - 3) / n)
-        return np.where(s2 > SCALE_TRIGGER, s2, 1.0)
+    # (no errstate: NaN and inf here only propagate or compare, which numpy does without a warning;
+    # the values are squares, so no inf - inf arises)
+    # the median through one sort (np.median's dispatch costs more than the sort of a few points)
+    srt = np.sort(pc, axis=-1)
+    h = n // 2
+    med = srt[..., h] if n % 2 else (srt[..., h - 1] + srt[..., h]) / 2.0
+    med = np.where(np.isnan(srt[..., -1]), np.nan, med)  # NaN sorts last; np.median gives NaN
+    s2 = med / (_MEDIAN_CHI2_2 * (n - 3) / n)
+    return np.where(s2 > SCALE_TRIGGER, s2, 1.0)
 
 
 def _param_delta(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -321,9 +322,9 @@ def pose_constrained(params: np.ndarray, sigmas: np.ndarray) -> np.ndarray:
     -------
     (F,) array of bool
     """
-    with np.errstate(invalid="ignore"):
-        return (np.isfinite(sigmas).all(axis=1) & (sigmas[:, 5] < np.abs(params[:, 5]))
-                & (sigmas[:, :3] < MAX_ANGLE_SIGMA_RAD).all(axis=1))
+    # (comparisons with NaN give False without a warning: no errstate needed)
+    return (np.isfinite(sigmas).all(axis=1) & (sigmas[:, 5] < np.abs(params[:, 5]))
+            & (sigmas[:, :3] < MAX_ANGLE_SIGMA_RAD).all(axis=1))
 
 
 def make_estimate(
