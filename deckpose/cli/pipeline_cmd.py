@@ -273,11 +273,8 @@ def run_pipeline(config: RenderConfig, options: PipelineOptions, config_label: s
     from deckpose.output_folder import claim_output
 
     claim_output(Path(options.run_dir), what="pipeline")  # the stages run in this process and claim it again
-    sampler = LoadSampler(interval_s=10.0).__enter__()  # stopped below, and on any error by the finally
-    try:
+    with LoadSampler(interval_s=10.0) as sampler:  # the load each stage runs under, for pipeline.json
         return _run_stages(config, options, config_label, say, tell, sampler, total, first)
-    finally:
-        sampler.__exit__(None, None, None)
 
 
 def _run_stages(config: RenderConfig, options: PipelineOptions, config_label: str,
@@ -298,8 +295,7 @@ def _run_stages(config: RenderConfig, options: PipelineOptions, config_label: st
 
     run_dir = Path(options.run_dir)
     paths = run_paths(run_dir)
-    seconds: dict[str, float] = {}
-    spans: dict[str, tuple[float, float]] = {}  # each stage's start and end, the load sampler's clock
+    spans: dict[str, tuple[float, float]] = {}  # each stage's start and end (perf_counter, the sampler's clock)
     t_all = time.perf_counter()
     t = time.perf_counter()
     if runs("render"):
@@ -309,9 +305,8 @@ def _run_stages(config: RenderConfig, options: PipelineOptions, config_label: st
                      if options.detect_at_render else None)
         render_dataset(config, run_dir, workers=options.workers, resume=True, scheduler=options.scheduler,
                        progress=options.progress, detection=detection)
-        seconds["render"] = time.perf_counter() - t
         spans["render"] = (t, time.perf_counter())
-        log.info("stage render: %.1f s", seconds["render"])
+        log.info("stage render: %.1f s", spans["render"][1] - t)
     t = time.perf_counter()
     if runs("detect") and (options.detect_at_render or _images_not_kept(paths.manifest)):
         say(2, total, f"detect beacons ({', '.join(options.detectors)}): done at render time")
@@ -324,9 +319,8 @@ def _run_stages(config: RenderConfig, options: PipelineOptions, config_label: st
         for det in options.detectors:  # a stage whose every frame failed still ran: the report says so
             res = detect_run(run_dir, det, progress=options.progress, workers=options.workers)
             tell(res.summary())
-        seconds["detect"] = time.perf_counter() - t
         spans["detect"] = (t, time.perf_counter())
-        log.info("stage detect: %.1f s", seconds["detect"])
+        log.info("stage detect: %.1f s", spans["detect"][1] - t)
     t = time.perf_counter()
     if runs("estimate"):
         say(3, total, f"estimate the pose ({', '.join(options.methods)})"
@@ -347,9 +341,8 @@ def _run_stages(config: RenderConfig, options: PipelineOptions, config_label: st
                         tr = track_run(run_dir, TrackConfig(), tracker=TRACKERS[0], detector=det, method=spec.label,
                                        command=list(options.command), progress=b.update)
                     tell(tr.summary())
-        seconds["estimate"] = time.perf_counter() - t
         spans["estimate"] = (t, time.perf_counter())
-        log.info("stage estimate: %.1f s", seconds["estimate"])
+        log.info("stage estimate: %.1f s", spans["estimate"][1] - t)
     t = time.perf_counter()
     if runs("evaluate"):
         say(4, total, "evaluate against the ground truth")
@@ -359,13 +352,12 @@ def _run_stages(config: RenderConfig, options: PipelineOptions, config_label: st
                                      workers=options.workers, scheduler=options.scheduler)
         for key, path in evaluated.items():
             tell(f"{key}: {path}")
-        seconds["evaluate"] = time.perf_counter() - t
         spans["evaluate"] = (t, time.perf_counter())
-        log.info("stage evaluate: %.1f s", seconds["evaluate"])
+        log.info("stage evaluate: %.1f s", spans["evaluate"][1] - t)
     previous = _read_record(run_dir)
     stage_seconds = {k: v for k, v in previous.get("stage_seconds", {}).items()
                      if k in STAGES and not runs(k)}
-    stage_seconds.update({k: round(v, 1) for k, v in seconds.items()})
+    stage_seconds.update({k: round(end - start, 1) for k, (start, end) in spans.items()})
     stage_load = {k: v for k, v in previous.get("stage_load_1min", {}).items() if k in STAGES and not runs(k)}
     stage_load.update({k: sampler.summary(*span).as_dict() for k, span in spans.items()})
     # the peak of every process that made the record's stages (a later --from-stage run adds its own)
