@@ -41,7 +41,7 @@ from bench_estimators import load_attitudes  # this folder is on sys.path when r
 from deckpose.estimate.batch import estimate_batch
 from deckpose.estimate.crb import cramer_rao_bound
 from deckpose.estimate.least_squares import evaluate_fit, levenberg_marquardt
-from deckpose.estimate.observations import build_observations
+from deckpose.estimate.observations import observe_frame
 from deckpose.estimate.pnp import K_NORMALISED, params_from_rodrigues
 from deckpose.estimate.registry import EstimateOptions
 from scipy import stats
@@ -87,22 +87,25 @@ def analyse(sigma_px: float, height_m: float, cam_name: str, trials: int, seed: 
         if not (est.ok and pm.ok):
             continue
         out["mean"].append(_err(np.array([getattr(pm, q) for q in POSE_PARAMS]), truth) / s)
-        obs = build_observations(det, camera, layout, sigma_px=sigma_px)
+        obs = observe_frame(det, camera, layout, R_wc, sigma_px=sigma_px, use_detection_covariance=True).observations
         p_ml = np.array([getattr(est, q) for q in POSE_PARAMS])
-        f_t = evaluate_fit(truth, obs, R_wc)
-        lin = -np.linalg.solve(f_t.information, f_t.gradient)
-        n, rv, tv, _ = cv2.solvePnPGeneric(np.ascontiguousarray(obs.points_deck_m), np.ascontiguousarray(obs.xy),
+        f_t = evaluate_fit(truth[None], obs)
+        lin = -np.linalg.solve(f_t.information[0], f_t.gradient[0])
+        n, rv, tv, _ = cv2.solvePnPGeneric(np.ascontiguousarray(obs.points_deck_m), np.ascontiguousarray(obs.xy[0]),
                                            K_NORMALISED, None, flags=cv2.SOLVEPNP_IPPE)
-        branches = [levenberg_marquardt(params_from_rodrigues(a, b, R_wc), obs, R_wc) for a, b in zip(rv[:n], tv[:n])]
-        e_br = [_err(f.params, truth) / s for f in branches if np.isfinite(f.chi2)]
-        from_truth = levenberg_marquardt(truth, obs, R_wc)
+        starts = np.array([params_from_rodrigues(a, b, R_wc) for a, b in zip(rv[:n], tv[:n])])
+        fits = levenberg_marquardt(starts, obs.take(np.zeros(n, dtype=np.int64)))  # the branches, one batch
+        branches = [(fits.params[k], float(fits.chi2[k])) for k in range(n)]
+        e_br = [_err(p, truth) / s for p, c in branches if np.isfinite(c)]
+        fit_t = levenberg_marquardt(truth[None], obs)
+        from_truth = (fit_t.params[0], float(fit_t.chi2[0]))
         out["ml"].append(_err(p_ml, truth) / s)
         out["linear"].append(lin / s)
         out["oracle"].append(min(e_br, key=lambda e: float(np.linalg.norm(e))))
         out["same_minimum"].append(len(branches) == 2 and np.allclose(
-            branches[0].params, branches[1].params, rtol=0, atol=1e-3 * float(np.min(s))))
-        out["truth_lower"].append(from_truth.chi2 < est.extras["chi2"] - 1e-6 and np.any(
-            np.abs(_err(from_truth.params, p_ml)) > 0.1 * s))
+            branches[0][0], branches[1][0], rtol=0, atol=1e-3 * float(np.min(s))))
+        out["truth_lower"].append(from_truth[1] < est.extras["chi2"] - 1e-6 and np.any(
+            np.abs(_err(from_truth[0], p_ml)) > 0.1 * s))
         out["tilt"].append(float(np.hypot(truth[0], truth[1])))
     return {k: np.array(v) for k, v in out.items()}
 

@@ -47,23 +47,18 @@ from deckpose.estimate.conic_geometry import (
     in_plane_alignment,
     planes_from_centres,
 )
-from deckpose.estimate.least_squares_batch import (
-    FitBatch,
-    FrameObservations,
-    chi2_batch,
+from deckpose.estimate.least_squares import (
+    Fit,
+    chi2_at,
     covariance_from_information,
-    evaluate_fit_batch,
-    levenberg_marquardt_batch,
-    params_from_relative_batch,
+    evaluate_fit,
+    levenberg_marquardt,
 )
+from deckpose.estimate.observations import Observations
+from deckpose.estimate.pose_candidates import BatchCandidates, Extra, pick_batch, scatter_fit
+from deckpose.estimate.pose_model import params_from_relative
 from deckpose.estimate.registry import EstimateOptions, register
-from deckpose.estimate.solution_batch import (
-    BatchCandidates,
-    Extra,
-    estimate_frames,
-    pick_batch,
-    scatter_fit,
-)
+from deckpose.estimate.solution_batch import estimate_frames
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -80,7 +75,7 @@ MIN_RING_BEACONS = 5
 ALT_MARGIN_CHI2 = 1000.0
 
 
-def polish(fit: FitBatch, obs: FrameObservations, steps: int) -> FitBatch:
+def polish(fit: Fit, obs: Observations, steps: int) -> Fit:
     """Up to ``steps`` undamped Gauss–Newton steps per frame, each kept only if chi2 does not rise."""
     F = len(obs)
     cur = fit
@@ -98,17 +93,17 @@ def polish(fit: FitBatch, obs: FrameObservations, steps: int) -> FitBatch:
         if not go.all():
             rows, p1 = active[go], p1[go]
         whole = rows.size == F
-        f1 = evaluate_fit_batch(p1, obs if whole else obs.take(rows))
+        f1 = evaluate_fit(p1, obs if whole else obs.take(rows))
         better = f1.chi2 <= (cur.chi2 if whole else cur.chi2[rows])
         if not better.all():
             rows = rows[better]
-            f1 = FitBatch(*(getattr(f1, name)[better] for name in _FIELDS))
+            f1 = Fit(*(getattr(f1, name)[better] for name in _FIELDS))
         if rows.size == F:  # every frame took its step
             cur = f1
         elif rows.size:
             cur = _replace_rows(cur, rows, f1)
         active = rows
-    return FitBatch(cur.params, cur.chi2, cur.information, cur.whitened, cur.residuals_px, cur.gradient,
+    return Fit(cur.params, cur.chi2, cur.information, cur.whitened, cur.residuals_px, cur.gradient,
                     fit.iterations, fit.converged)
 
 
@@ -120,26 +115,26 @@ def _eigen_rows(normals: FloatArray, centres: FloatArray, plane_ok: NDArray[np.b
             plane_ok.T.reshape(2 * F))
 
 
-#: The fields of :class:`FitBatch`, in order.
+#: The fields of :class:`Fit`, in order.
 _FIELDS = ("params", "chi2", "information", "whitened", "residuals_px", "gradient", "iterations", "converged")
 
 
-def _fit_rows(fit: FitBatch, rows: slice) -> FitBatch:
+def _fit_rows(fit: Fit, rows: slice) -> Fit:
     """The frames ``rows`` of ``fit`` (views)."""
-    return FitBatch(*(getattr(fit, name)[rows] for name in _FIELDS))
+    return Fit(*(getattr(fit, name)[rows] for name in _FIELDS))
 
 
-def _replace_rows(fit: FitBatch, rows: np.ndarray, new: FitBatch) -> FitBatch:
+def _replace_rows(fit: Fit, rows: np.ndarray, new: Fit) -> Fit:
     """``fit`` with frames ``rows`` taken from ``new`` (one row each, in order)."""
     parts = {}
     for name in _FIELDS:
         a = getattr(fit, name).copy()
         a[rows] = getattr(new, name)
         parts[name] = a
-    return FitBatch(**parts)
+    return Fit(**parts)
 
 
-def conic_candidates(obs: FrameObservations, layout: DeckLayout,
+def conic_candidates(obs: Observations, layout: DeckLayout,
                      options: EstimateOptions) -> BatchCandidates:
     """Up to two conic solutions per frame (see the module docstring).
 
@@ -156,7 +151,7 @@ def conic_candidates(obs: FrameObservations, layout: DeckLayout,
 
     Parameters
     ----------
-    obs : FrameObservations
+    obs : Observations
         ``F`` frames of one beacon set.
     layout : DeckLayout
     options : EstimateOptions
@@ -199,20 +194,20 @@ def conic_candidates(obs: FrameObservations, layout: DeckLayout,
     else:
         n2, X2, ok2 = _eigen_rows(normals, centres, plane_ok)
     # every frame twice (plane-major), as obs.take(np.r_[ar, ar]) would give it
-    obs2 = FrameObservations(obs.ids, obs.points_deck_m, np.concatenate([obs.xy, obs.xy]),
+    obs2 = Observations(obs.ids, obs.points_deck_m, np.concatenate([obs.xy, obs.xy]),
                              np.concatenate([obs.sqrt_info, obs.sqrt_info]),
                              np.concatenate([obs.px_from_norm, obs.px_from_norm]),
                              np.concatenate([obs.R_world_from_cam, obs.R_world_from_cam]))
     R, t, ok = in_plane_alignment(obs2.xy, obs.points_deck_m, n2, X2)
-    p = params_from_relative_batch(R, t, obs2.R_world_from_cam)
+    p = params_from_relative(R, t, obs2.R_world_from_cam)
     ok &= ok2 & np.isfinite(p).all(axis=1)
     if ok.all():  # (the usual case: no gathers)
-        chi = chi2_batch(p, obs2)
+        chi = chi2_at(p, obs2)
     else:
         rows = np.flatnonzero(ok)
         chi = np.full(2 * F, np.inf)
         if rows.size:
-            chi[rows] = chi2_batch(p[rows], obs.take(rows % F))
+            chi[rows] = chi2_at(p[rows], obs.take(rows % F))
     p0 = np.where(ok[:, None], p, np.nan).reshape(2, F, 6).transpose(1, 0, 2)
     start_ok = ok.reshape(2, F).T
     chi0 = chi.reshape(2, F).T
@@ -229,7 +224,7 @@ def conic_candidates(obs: FrameObservations, layout: DeckLayout,
     slot_rows = [ar if present.all() else np.flatnonzero(present) for present in slots]
     every = [rows.size == F for rows in slot_rows]
     rows_all = np.concatenate(slot_rows) if len(slot_rows) > 1 else slot_rows[0] if slot_rows else ar[:0]
-    fits: list[FitBatch] = []
+    fits: list[Fit] = []
     if rows_all.size:
         which = np.concatenate([first[slot_rows[0]], second[slot_rows[1]]]) if len(slot_rows) > 1 else (
             first if every[0] else first[rows_all])
@@ -237,9 +232,9 @@ def conic_candidates(obs: FrameObservations, layout: DeckLayout,
         sub = (obs if rows_all.size == F and every[0] else obs2 if len(every) == 2 and all(every)
                else obs.take(rows_all))
         if options.refine:
-            f = levenberg_marquardt_batch(starts, sub)
+            f = levenberg_marquardt(starts, sub)
         else:
-            f = polish(evaluate_fit_batch(starts, sub), sub, int(options.conic_polish_steps))
+            f = polish(evaluate_fit(starts, sub), sub, int(options.conic_polish_steps))
         lo = 0
         for rows, all_rows in zip(slot_rows, every):
             part = f if len(slot_rows) == 1 else _fit_rows(f, slice(lo, lo + rows.size))
@@ -267,7 +262,7 @@ def conic_candidates(obs: FrameObservations, layout: DeckLayout,
     for k, present in enumerate(slots):
         rows = unsettled[present[unsettled]]
         if rows.size:
-            lm = levenberg_marquardt_batch(fits[k].params[rows], obs.take(rows))
+            lm = levenberg_marquardt(fits[k].params[rows], obs.take(rows))
             fits[k] = _replace_rows(fits[k], rows, lm)
     return BatchCandidates(tuple(fits), cands.valid, cands.fallback, cands.extras, reasons=cands.reasons)
 

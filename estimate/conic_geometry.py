@@ -46,7 +46,7 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-from deckpose.estimate.least_squares_batch import solve_batch
+from deckpose.estimate.least_squares import solve_batch
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from deckpose.estimate.least_squares import evaluate_fit
-from deckpose.estimate.observations import build_observations
+from deckpose.estimate.observations import observe_frame
 from deckpose.estimate.pose_model import params_from_relative
 from deckpose.estimate.registry import SIGMA_PX_RANGE
 from numpy.typing import NDArray
@@ -104,12 +104,11 @@ def cramer_rao_bound(
                 f"covariance_px2 must have shape ({layout.n_beacons}, 2, 2), got {cov_all.shape}")
         cov = cov_all[ids]
     det = Detections(proj.points_px[ids], ids, cov)
-    obs = build_observations(det, camera, layout, sigma_px=sigma_px, use_detection_covariance=True)
-    T = T_cam_from_deck(ship, camera_pose)
     R_wc = camera_pose.R_world_from_cam
+    obs = observe_frame(det, camera, layout, R_wc, sigma_px=sigma_px, use_detection_covariance=True).observations
+    T = T_cam_from_deck(ship, camera_pose)
     params = params_from_relative(T[:3, :3], T[:3, 3], R_wc)
-    fit = evaluate_fit(params, obs, R_wc)
-    c = fit.covariance
-    out = np.full((6, 6), np.nan) if c is None or len(obs) < 3 else c
+    cov, ok = evaluate_fit(params[None], obs).covariance()
+    out = cov[0] if ok[0] and obs.n_points >= 3 else np.full((6, 6), np.nan)
     return CramerRaoBound(out, tuple(int(i) for i in obs.ids),
                           float(sigma_px) if covariance_px2 is None else float("nan"))

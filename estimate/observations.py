@@ -7,14 +7,23 @@ square root of its information matrix in those coordinates, mapped from the
 detection's pixel covariance through the local Jacobian of the camera model, so
 a whitened residual ``L @ (predicted - observed)`` is distributed as N(0, I)
 to first order.
+
+Batch-first: :func:`group_observations` selects the usable detections of many frames,
+undistorts every point with one OpenCV call and whitens them together; frames whose
+usable detections carry the same beacon ids in the same order form a group
+(:class:`Observations`) that the solvers handle together. With every beacon
+identified a run is one group; a lone frame is a batch of one (:func:`observe_frame`).
 """
 
 from __future__ import annotations
 
 import functools
+from collections.abc import Sequence
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
+from deckpose.estimate.pose_model import TRANSLATION_SIGN
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -29,43 +38,65 @@ _DIFF_STEP = 1e-6
 
 @dataclass(frozen=True)
 class Observations:
-    """Identified beacons ready for fitting (internal to the estimators).
+    """Identified beacons of ``F`` frames that share one beacon set, ready for fitting.
+
+    Internal to the estimators; one frame is a batch of one (``F = 1``).
 
     Attributes
     ----------
-    ids : (N,) array of int
-        Layout id of each observation.
-    index : (N,) array of int
-        Row of each observation in the source :class:`~deckpose.records.Detections`.
-    points_deck_m : (N, 3) array of float
+    ids : (M,) array of int
+        Layout id of each observation, the same for every frame.
+    points_deck_m : (M, 3) array of float
         Layout position of each observation's beacon, deck frame, metres.
-    xy : (N, 2) array of float
+    xy : (F, M, 2) array of float
         Undistorted normalised image coordinates.
-    sqrt_info : (N, 2, 2) array of float
-        ``L`` with ``L.T @ L`` the inverse covariance of ``xy``.
-    px_from_norm : (N, 2, 2) array of float
-        Local Jacobian d(pixel)/d(normalised), to express residuals in pixels.
-    n_ignored : int
-        Detections not used: unassigned, unknown id, non-finite point or covariance.
+    sqrt_info : (F, M, 2, 2) or (F, 1, 2, 2) array of float
+        ``L`` with ``L.T @ L`` the inverse covariance of ``xy`` (one per frame
+        when it is the same for all points).
+    px_from_norm : (F, M, 2, 2) or (F, 1, 2, 2) array of float
+        Local Jacobian d(pixel)/d(normalised).
+    R_world_from_cam : (F, 3, 3) array of float
+        Camera attitude of each frame.
     """
 
     ids: NDArray[np.int64]
-    index: NDArray[np.int64]
     points_deck_m: FloatArray
     xy: FloatArray
     sqrt_info: FloatArray
     px_from_norm: FloatArray
-    n_ignored: int = 0
+    R_world_from_cam: FloatArray
 
     def __len__(self) -> int:
+        return int(self.xy.shape[0])
+
+    @property
+    def n_points(self) -> int:
+        """Observations per frame, ``M``."""
         return int(self.ids.shape[0])
 
-    def subset(self, keep: NDArray[np.bool_] | NDArray[np.int64]) -> Observations:
-        """The observations selected by a boolean mask or an index array."""
-        return Observations(
-            self.ids[keep], self.index[keep], self.points_deck_m[keep], self.xy[keep],
-            self.sqrt_info[keep], self.px_from_norm[keep], self.n_ignored,
-        )
+    @cached_property
+    def R_cam_from_world(self) -> FloatArray:
+        """``R_world_from_cam`` transposed, (F, 3, 3) (computed once: every iteration needs it)."""
+        return np.swapaxes(self.R_world_from_cam, 1, 2)
+
+    @cached_property
+    def translation_jacobian(self) -> FloatArray:
+        """d(camera-frame point)/d(surge, sway, height), (F, 1, 3, 3): the same for every point."""
+        return (self.R_cam_from_world * TRANSLATION_SIGN)[:, None]
+
+    def take(self, rows: NDArray[np.int64]) -> Observations:
+        """The frames ``rows`` (index array)."""
+        return Observations(self.ids, self.points_deck_m, self.xy[rows], self.sqrt_info[rows],
+                            self.px_from_norm[rows], self.R_world_from_cam[rows])
+
+    def points(self, keep: NDArray[np.bool_] | NDArray[np.int64]) -> Observations:
+        """The observations ``keep`` (a mask or index array over the ``M`` points) of every frame."""
+        M = self.ids.shape[0]
+        # (F, 1, 2, 2): one matrix serves every point and stays as it is
+        return Observations(self.ids[keep], self.points_deck_m[keep], self.xy[:, keep],
+                            self.sqrt_info if self.sqrt_info.shape[1] != M else self.sqrt_info[:, keep],
+                            self.px_from_norm if self.px_from_norm.shape[1] != M else self.px_from_norm[:, keep],
+                            self.R_world_from_cam)
 
 
 def pixel_covariances(detections: Detections, sigma_px: float, use_detection_covariance: bool) -> FloatArray:
@@ -80,17 +111,6 @@ def pixel_covariances(detections: Detections, sigma_px: float, use_detection_cov
     if use_detection_covariance and n and not np.all(cov == np.eye(2)):
         return cov
     return np.broadcast_to(np.eye(2) * sigma_px**2, (n, 2, 2))
-
-
-def _common_isotropic_sigma(cov: np.ndarray) -> float | None:
-    """``s`` when every covariance is ``s**2 * I`` with the same ``s > 0``, else None."""
-    if cov.shape[0] == 0:
-        return None
-    c0 = cov[0]
-    if not (c0[0, 1] == 0.0 and c0[1, 0] == 0.0 and c0[0, 0] == c0[1, 1] and c0[0, 0] > 0
-            and np.isfinite(c0[0, 0]) and np.all(cov == c0)):
-        return None
-    return float(np.sqrt(c0[0, 0]))
 
 
 @functools.lru_cache(maxsize=64)
@@ -112,66 +132,276 @@ def distortion_jacobian(camera: CameraModel, xy: FloatArray) -> FloatArray:
     return D
 
 
-def build_observations(
-    detections: Detections,
+@dataclass(frozen=True)
+class ObservationGroup:
+    """Frames with one beacon set, and where they sit in the input.
+
+    Attributes
+    ----------
+    frames : (F,) array of int
+        Position of each frame in the input sequence.
+    observations : Observations
+    n_ignored : (F,) array of int
+        Detections of each frame not used (unassigned, unknown id, non-finite).
+    detection_rows : (F, M) array of int
+        Row of each observation in its frame's :class:`~deckpose.records.Detections`.
+    """
+
+    frames: NDArray[np.int64]
+    observations: Observations
+    n_ignored: NDArray[np.int64]
+    detection_rows: NDArray[np.int64]
+
+
+@dataclass(frozen=True)
+class StackedDetections:
+    """All frames' detections concatenated (internal).
+
+    Attributes
+    ----------
+    counts : (F,) array of int
+        Detections per frame.
+    starts : (F,) array of int
+        Row of each frame's first detection.
+    points_px : (T, 2) array of float
+    beacon_ids : (T,) array of int
+    covariance_px2 : (T, 2, 2) array of float
+        As given (identity = unknown).
+    """
+
+    counts: NDArray[np.int64]
+    starts: NDArray[np.int64]
+    points_px: FloatArray
+    beacon_ids: NDArray[np.int64]
+    covariance_px2: FloatArray
+
+    @property
+    def frame_of(self) -> NDArray[np.int64]:
+        """Frame of each detection, (T,)."""
+        return np.repeat(np.arange(self.counts.size), self.counts)
+
+
+def stack_detections(detections: Sequence[Detections]) -> StackedDetections:
+    """Concatenate the frames' detections (no copies of the records' own arrays are kept)."""
+    if len(detections) == 1:  # a lone frame: its arrays are the stack
+        d = detections[0]
+        return StackedDetections(np.array([len(d)], dtype=np.int64), np.zeros(1, dtype=np.int64),
+                                 d.points_px, d.beacon_ids, d.covariance_px2)
+    counts = np.fromiter((len(d) for d in detections), dtype=np.int64, count=len(detections))
+    starts = np.zeros_like(counts)
+    np.cumsum(counts[:-1], out=starts[1:])
+    if counts.size == 0 or counts.sum() == 0:
+        return StackedDetections(counts, starts, np.zeros((0, 2)), np.zeros(0, dtype=np.int64),
+                                 np.zeros((0, 2, 2)))
+    pts = np.concatenate([d.points_px for d in detections])
+    ids = np.concatenate([d.beacon_ids for d in detections])
+    cov = np.concatenate([d.covariance_px2 for d in detections])
+    return StackedDetections(counts, starts, pts, ids, cov)
+
+
+#: The 2x2 identity: the covariance a detection without its own carries ("unknown").
+_EYE2 = np.eye(2)
+_EYE2.setflags(write=False)
+
+
+@functools.lru_cache(maxsize=16)
+def _normalising_map(K_bytes: bytes) -> tuple[FloatArray, FloatArray]:
+    """``(A, b)`` with ``xy = px @ A + b`` the normalised coordinates of pixels, for ``K`` as bytes (cached)."""
+    Kinv = np.asarray(np.linalg.inv(np.frombuffer(K_bytes, dtype=np.float64).reshape(3, 3)), dtype=np.float64)
+    A, b = Kinv[:2, :2].T.copy(), Kinv[:2, 2].copy()
+    A.setflags(write=False)
+    b.setflags(write=False)
+    return A, b
+
+
+def _per_frame_all(flags: NDArray[np.bool_], frame_of: NDArray[np.int64], n_frames: int) -> NDArray[np.bool_]:
+    """Per frame: every flag of the frame's detections is True (True for a frame without any)."""
+    bad = np.bincount(frame_of, weights=~flags, minlength=n_frames)
+    return bad == 0
+
+
+def group_observations(
+    stacked: StackedDetections,
     camera: CameraModel,
     layout: DeckLayout,
+    R_world_from_cam: FloatArray,
     *,
     sigma_px: float,
-    use_detection_covariance: bool = True,
-) -> Observations:
-    """Select the identified detections and express them in normalised, whitened form.
+    use_detection_covariance: bool,
+) -> list[ObservationGroup]:
+    """Usable detections of every frame, whitened, grouped by beacon set.
+
+    Frame by frame: a frame's detector covariances are used when ``use_detection_covariance``
+    and not all of them are the identity, else ``sigma_px**2 * I``; detections
+    with an unknown id, a non-finite point or (for non-isotropic frames) an
+    invalid covariance are ignored.
 
     Parameters
     ----------
-    detections : Detections
-        Distorted pixel positions with ids and covariances.
+    stacked : StackedDetections
     camera : CameraModel
     layout : DeckLayout
+    R_world_from_cam : (F, 3, 3) array of float
     sigma_px : float, keyword-only
-        Pixel noise assumed when the detections carry no covariance.
     use_detection_covariance : bool, keyword-only
 
     Returns
     -------
-    Observations
-        Possibly empty; never raises for bad values in ``detections``.
+    list of ObservationGroup
+        Every frame in exactly one group (a frame without usable detections is
+        in a group with ``M = 0``).
     """
-    ids_all = np.asarray(detections.beacon_ids, dtype=np.int64)
-    pts_all = np.asarray(detections.points_px, dtype=float)
-    cov_all = pixel_covariances(detections, sigma_px, use_detection_covariance)
-    sigma_iso = _common_isotropic_sigma(cov_all)
-    with np.errstate(invalid="ignore"):
-        keep = (ids_all >= 0) & (ids_all < layout.n_beacons) & np.isfinite(pts_all).all(axis=1)
-        if sigma_iso is None:
-            a, b, c = cov_all[:, 0, 0], cov_all[:, 0, 1], cov_all[:, 1, 1]
-            keep &= np.isfinite(cov_all).all(axis=(1, 2)) & (a > 0) & (a * c - b * b > 0) & (
-                np.abs(cov_all[:, 1, 0] - b) <= 1e-9 * (np.abs(b) + a + c))
+    F = stacked.counts.size
+    ids_all = stacked.beacon_ids
+    pts_all = stacked.points_px
+    raw = stacked.covariance_px2
+    distorted = camera.has_distortion
+    if F == 1:  # a lone frame: its own covariances or not, isotropic or not, without per-frame reductions
+        frame_of = np.zeros(ids_all.size, dtype=np.int64)
+        own1 = bool(use_detection_covariance and ids_all.size and not np.all(raw == _EYE2))
+        cov = raw if own1 else np.broadcast_to(_EYE2 * sigma_px**2, raw.shape)
+        c0 = cov[0] if ids_all.size else _EYE2
+        iso1 = bool(ids_all.size and c0[0, 1] == 0.0 and c0[1, 0] == 0.0 and c0[0, 0] == c0[1, 1]
+                    and 0.0 < c0[0, 0] < np.inf and (not own1 or np.all(cov == c0)))
+        iso = np.array([iso1])
+        sigma_iso = np.array([np.sqrt(c0[0, 0]) if iso1 else np.nan])
+    else:
+        frame_of = stacked.frame_of
+        own = use_detection_covariance & ~_per_frame_all(np.all(raw == _EYE2, axis=(1, 2)), frame_of, F)
+        has_any = stacked.counts > 0
+        own &= has_any
+        any_own = bool(own.any())
+        cov = raw if own.all() else np.where(own[frame_of, None, None], raw, _EYE2 * sigma_px**2)
+        # One isotropic sigma for the whole frame (one whitening matrix for all its points).
+        iso = np.zeros(F, dtype=bool)
+        sigma_iso = np.full(F, np.nan)
+        has = np.flatnonzero(has_any)
+        if has.size and not any_own and 0.0 < sigma_px**2 < np.inf:  # every frame at sigma_px**2 * I
+            iso[has] = True
+            sigma_iso[has] = np.sqrt(sigma_px**2)
+        elif has.size:
+            c0 = cov[stacked.starts[has]]
+            with np.errstate(invalid="ignore"):
+                first_iso = ((c0[:, 0, 1] == 0.0) & (c0[:, 1, 0] == 0.0) & (c0[:, 0, 0] == c0[:, 1, 1])
+                             & (c0[:, 0, 0] > 0) & np.isfinite(c0[:, 0, 0]))
+            c0_full = np.zeros((F, 2, 2))
+            c0_full[has] = c0
+            same = _per_frame_all(np.all(cov == c0_full[frame_of], axis=(1, 2)), frame_of, F)
+            iso[has] = first_iso & same[has]
+            sigma_iso[iso] = np.sqrt(c0_full[iso, 0, 0])
+    keep = (ids_all >= 0) & (ids_all < layout.n_beacons) & np.isfinite(pts_all).all(axis=1)
+    iso_point = iso[frame_of]
+    if not iso_point.all():  # a frame with its own covariances: each must be a valid one
+        with np.errstate(invalid="ignore"):
+            a, b, c = cov[:, 0, 0], cov[:, 0, 1], cov[:, 1, 1]
+            cov_ok = np.isfinite(cov).all(axis=(1, 2)) & (a > 0) & (a * c - b * b > 0) & (
+                np.abs(cov[:, 1, 0] - b) <= 1e-9 * (np.abs(b) + a + c))
+        keep &= iso_point | cov_ok
     index = np.flatnonzero(keep)
-    ids = ids_all[index]
-    P = layout_positions_m(layout)[ids]
+    fidx = frame_of[index]
     K = camera.K
-    Kinv = np.linalg.inv(K)
-    und = camera.undistort(pts_all[index]) if camera.has_distortion else pts_all[index]
-    xy = und @ Kinv[:2, :2].T + Kinv[:2, 2]
-    n = len(index)
-    if not camera.has_distortion and sigma_iso is not None:
-        # Fast path: linear camera, one isotropic noise level: one whitening matrix for all.
-        D = np.broadcast_to(K[:2, :2], (n, 2, 2))
-        L = np.broadcast_to(K[:2, :2] / sigma_iso, (n, 2, 2))
-        return Observations(ids, index, P, xy, L, D, int(len(ids_all) - n))
-    if camera.has_distortion and n:
+    A_norm, b_norm = _normalising_map(np.ascontiguousarray(K, dtype=np.float64).tobytes())
+    und = camera.undistort(pts_all[index]) if distorted else pts_all[index]
+    xy = und @ A_norm + b_norm
+    n = index.size
+    K22 = K[:2, :2]
+    if distorted and n:
         D = distortion_jacobian(camera, xy)
     else:
-        D = np.broadcast_to(K[:2, :2], (n, 2, 2))
-    A = np.linalg.inv(D) if len(index) else np.zeros((0, 2, 2))
-    cov_n = A @ cov_all[index] @ np.swapaxes(A, 1, 2)
-    # L = C^-1 with cov_n = C C^T (lower Cholesky) gives L^T L = cov_n^-1.
-    ok = np.isfinite(cov_n).all(axis=(1, 2)) & np.isfinite(xy).all(axis=1)
-    if not ok.all():
-        index, ids, P, xy, cov_n, D = index[ok], ids[ok], P[ok], xy[ok], cov_n[ok], D[ok]
-    if len(index):
-        L = np.asarray(np.linalg.inv(np.linalg.cholesky(cov_n)), dtype=np.float64)
+        D = np.broadcast_to(K22, (n, 2, 2))
+    general = ~iso[fidx] | distorted
+    if not general.any():  # one whitening matrix per frame
+        L = K22[None] / sigma_iso[fidx, None, None]
     else:
-        L = np.zeros((0, 2, 2))
-    return Observations(ids, index, P, xy, L, np.array(D), int(len(ids_all) - len(index)))
+        L = np.empty((n, 2, 2))
+        fast = ~general
+        L[fast] = K22[None] / sigma_iso[fidx[fast], None, None]
+    if np.any(general):
+        gi = np.flatnonzero(general)
+        # 2x2 inverses where they exist: a point far outside the image (-8e170 px) makes a
+        # distortion Jacobian singular, and one LinAlgError ended every frame of a batch
+        Dg = np.asarray(D)[gi]
+        det = Dg[:, 0, 0] * Dg[:, 1, 1] - Dg[:, 0, 1] * Dg[:, 1, 0]
+        scale = np.abs(Dg).reshape(-1, 4).max(axis=1)
+        with np.errstate(all="ignore"):
+            invertible = np.isfinite(det) & (np.abs(det) > 1e-12 * scale**2)
+            A = np.zeros_like(Dg)
+            A[:, 0, 0], A[:, 1, 1] = Dg[:, 1, 1], Dg[:, 0, 0]
+            A[:, 0, 1], A[:, 1, 0] = -Dg[:, 0, 1], -Dg[:, 1, 0]
+            A /= np.where(invertible, det, 1.0)[:, None, None]
+            cov_n = A @ cov[index[gi]] @ np.swapaxes(A, 1, 2)
+            cn_det = cov_n[:, 0, 0] * cov_n[:, 1, 1] - cov_n[:, 0, 1] * cov_n[:, 1, 0]
+        ok = (invertible & np.isfinite(cov_n).all(axis=(1, 2)) & np.isfinite(xy[gi]).all(axis=1)
+              & (cov_n[:, 0, 0] > 0) & (cn_det > 0))
+        drop = gi[~ok]
+        gi, cov_n = gi[ok], cov_n[ok]
+        if gi.size:
+            L[gi] = np.linalg.inv(np.linalg.cholesky(cov_n))
+        if drop.size:
+            sel = np.ones(n, dtype=bool)
+            sel[drop] = False
+            index, fidx, xy, D, L = index[sel], fidx[sel], xy[sel], np.asarray(D)[sel], L[sel]
+            general = general[sel]
+            n = index.size
+    ids = ids_all[index]
+    pos = layout_positions_m(layout)
+    D = np.ascontiguousarray(D)
+    if F == 1:  # a lone frame is its own group: no grouping, its arrays are the stack
+        if ids.size and not general[0]:
+            Lg, Dg = L[None, :1], D[None, :1]
+        else:
+            Lg, Dg = L[None], D[None]
+        obs = Observations(ids, pos[ids], xy[None], Lg, Dg, R_world_from_cam)
+        return [ObservationGroup(np.zeros(1, dtype=np.int64), obs, stacked.counts - ids.size, index[None])]
+    used = np.bincount(fidx, minlength=F)
+    first = np.zeros_like(used)
+    np.cumsum(used[:-1], out=first[1:])
+    groups: dict[bytes, list[int]] = {}
+    for f in range(F):
+        key = ids[first[f]:first[f] + used[f]].tobytes()
+        groups.setdefault(key, []).append(f)
+    out = []
+    for key, members in groups.items():
+        fr = np.array(members, dtype=np.int64)
+        g_ids = np.frombuffer(key, dtype=np.int64).copy()
+        M = g_ids.size
+        rows = first[fr, None] + np.arange(M)[None, :]
+        if M and not np.any(general[rows]):
+            # Linear camera, one isotropic sigma per frame: one whitening matrix per frame.
+            Lg, Dg = L[rows[:, :1]], D[rows[:, :1]]
+        else:
+            Lg, Dg = L[rows], D[rows]
+        obs = Observations(g_ids, pos[g_ids], xy[rows], Lg, Dg, R_world_from_cam[fr])
+        out.append(ObservationGroup(fr, obs, stacked.counts[fr] - used[fr], index[rows] - stacked.starts[fr, None]))
+    return out
+
+
+def observe_frame(
+    detections: Detections,
+    camera: CameraModel,
+    layout: DeckLayout,
+    R_world_from_cam: FloatArray,
+    *,
+    sigma_px: float,
+    use_detection_covariance: bool,
+) -> ObservationGroup:
+    """One frame's usable detections, whitened: :func:`group_observations` of a batch of one.
+
+    Parameters
+    ----------
+    detections : Detections
+    camera : CameraModel
+    layout : DeckLayout
+    R_world_from_cam : (3, 3) array of float
+    sigma_px : float, keyword-only
+    use_detection_covariance : bool, keyword-only
+
+    Returns
+    -------
+    ObservationGroup
+        ``F = 1``; possibly with no observation (``M = 0``). Never raises for bad
+        values in ``detections``.
+    """
+    return group_observations(stack_detections([detections]), camera, layout,
+                              np.asarray(R_world_from_cam, dtype=float)[None], sigma_px=sigma_px,
+                              use_detection_covariance=use_detection_covariance)[0]

@@ -26,21 +26,12 @@ from typing import cast
 
 import cv2
 import numpy as np
-from deckpose.estimate.least_squares_batch import (
-    RODRIGUES_LOOP_MAX,
-    FitBatch,
-    FrameObservations,
-    chi2_batch,
-    levenberg_marquardt_batch,
-    params_from_relative_batch,
-)
+from deckpose.estimate.least_squares import Fit, chi2_at, levenberg_marquardt
+from deckpose.estimate.observations import Observations
+from deckpose.estimate.pose_candidates import BatchCandidates, Extra, scatter_fit
+from deckpose.estimate.pose_model import RODRIGUES_LOOP_MAX, params_from_relative
 from deckpose.estimate.registry import EstimateOptions, register
-from deckpose.estimate.solution_batch import (
-    BatchCandidates,
-    Extra,
-    estimate_frames,
-    scatter_fit,
-)
+from deckpose.estimate.solution_batch import estimate_frames
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -65,11 +56,11 @@ def params_from_rodrigues(rvec: np.ndarray, tvec: np.ndarray, R_world_from_cam: 
     """Pose parameters (6,) from an OpenCV ``rvec, tvec`` (``T_cam_from_deck``) and the camera attitude.
 
     A batch of one of the starts of :func:`pnp_candidates` (:func:`rotation_matrices`,
-    :func:`~estimate.least_squares_batch.params_from_relative_batch`).
+    :func:`~estimate.pose_model.params_from_relative`).
     """
     R = rotation_matrices(np.asarray(rvec, dtype=float).reshape(1, 3))
     t = np.asarray(tvec, dtype=float).reshape(1, 3)
-    return params_from_relative_batch(R, t, np.asarray(R_world_from_cam, dtype=float)[None])[0]
+    return params_from_relative(R, t, np.asarray(R_world_from_cam, dtype=float)[None])[0]
 
 
 #: Two pose solutions are one when every angle, and every translation relative to the height,
@@ -140,7 +131,7 @@ def rotation_matrices(rvec: FloatArray) -> FloatArray:
 _N_COLUMNS = 21
 
 
-def _opencv_starts(obs: FrameObservations, *, raise_errors: bool = False
+def _opencv_starts(obs: Observations, *, raise_errors: bool = False
                    ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """SQPnP's and IPPE's two solutions of each frame.
 
@@ -186,7 +177,7 @@ def _opencv_starts(obs: FrameObservations, *, raise_errors: bool = False
 _ALT_RANKS = np.array([1, 2])
 
 
-def pnp_candidates(obs: FrameObservations, *, raise_errors: bool = False) -> BatchCandidates:
+def pnp_candidates(obs: Observations, *, raise_errors: bool = False) -> BatchCandidates:
     """SQPnP and both IPPE solutions of each frame, each refined by weighted least squares.
 
     Slots in order: the refinement of the start with the lowest chi2, then the others
@@ -199,7 +190,7 @@ def pnp_candidates(obs: FrameObservations, *, raise_errors: bool = False) -> Bat
 
     Parameters
     ----------
-    obs : FrameObservations
+    obs : Observations
         ``F`` frames of one beacon set.
     raise_errors : bool, keyword-only
         Let an OpenCV error propagate instead of marking the frame ``fallback``.
@@ -216,7 +207,7 @@ def pnp_candidates(obs: FrameObservations, *, raise_errors: bool = False) -> Bat
     rt, errs, n_ippe = _opencv_starts(obs, raise_errors=raise_errors)
     # The three starts of every frame as 3F rows (NaN where a solver gave none: NaN propagates).
     Rwc3 = np.repeat(obs.R_world_from_cam, 3, axis=0)
-    flat = params_from_relative_batch(rotation_matrices(rt[:, :, :3].reshape(-1, 3)), rt[:, :, 3:].reshape(-1, 3),
+    flat = params_from_relative(rotation_matrices(rt[:, :, :3].reshape(-1, 3)), rt[:, :, 3:].reshape(-1, 3),
                                       Rwc3)
     starts = flat.reshape(F, 3, 6)
     n_ippe2 = n_ippe >= 2
@@ -231,9 +222,9 @@ def pnp_candidates(obs: FrameObservations, *, raise_errors: bool = False) -> Bat
     valid = cast(BoolArray, np.isfinite(flat).all(axis=1)).reshape(F, 3)
     valid[:, 0] &= ~poses_close(starts[:, :1], starts[:, 1:], SAME_TOL).any(axis=1)
     # Every start's chi2 in one stacked call (the frames repeated per slot), ordered (stable).
-    obs3 = FrameObservations(obs.ids, obs.points_deck_m, np.repeat(obs.xy, 3, axis=0),
+    obs3 = Observations(obs.ids, obs.points_deck_m, np.repeat(obs.xy, 3, axis=0),
                              np.repeat(obs.sqrt_info, 3, axis=0), np.repeat(obs.px_from_norm, 3, axis=0), Rwc3)
-    chi_raw = np.where(valid, chi2_batch(flat, obs3).reshape(F, 3), np.inf)
+    chi_raw = np.where(valid, chi2_at(flat, obs3).reshape(F, 3), np.inf)
     order = np.argsort(chi_raw, axis=1, kind="stable")
     n_valid = valid.sum(axis=1)
     ar = np.arange(F)
@@ -264,11 +255,11 @@ def pnp_candidates(obs: FrameObservations, *, raise_errors: bool = False) -> Bat
     return BatchCandidates(tuple(fits), np.stack(kept, axis=1), failed, extras)
 
 
-def _refine_rows(n_frames: int, rows: NDArray[np.int64], starts: FloatArray, obs: FrameObservations) -> FitBatch:
+def _refine_rows(n_frames: int, rows: NDArray[np.int64], starts: FloatArray, obs: Observations) -> Fit:
     """Levenberg–Marquardt from ``starts`` for frames ``rows``, scattered into ``n_frames`` frames."""
     if rows.size == n_frames:  # every frame: no gather, no scatter
-        return levenberg_marquardt_batch(starts, obs)
-    return scatter_fit(n_frames, rows, levenberg_marquardt_batch(starts, obs.take(rows)))
+        return levenberg_marquardt(starts, obs)
+    return scatter_fit(n_frames, rows, levenberg_marquardt(starts, obs.take(rows)))
 
 
 def estimate_pnp_frames(

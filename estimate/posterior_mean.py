@@ -29,7 +29,13 @@ from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
-from deckpose.estimate.least_squares_batch import FrameObservations, project_normalised_batch
+from deckpose.estimate.observations import (
+    Observations,
+    group_observations,
+    observe_frame,
+    stack_detections,
+)
+from deckpose.estimate.pose_model import project_normalised, relative_from_params, rotation_vectors
 from numpy.typing import NDArray
 from scipy import stats
 from scipy.stats import qmc
@@ -79,17 +85,17 @@ def unit_nodes() -> tuple[FloatArray, FloatArray]:
     return x, log_q
 
 
-def chi2_at_nodes(params: FloatArray, obs: FrameObservations) -> FloatArray:
+def chi2_at_nodes(params: FloatArray, obs: Observations) -> FloatArray:
     """Chi-square of ``S`` poses of each of ``F`` frames against that frame's observations.
 
-    :func:`~estimate.least_squares_batch.chi2_batch` for ``S`` poses per frame, without
+    :func:`~estimate.least_squares.chi2_at` for ``S`` poses per frame, without
     copying the observations ``S`` times.
 
     Parameters
     ----------
     params : (F, S, 6) array of float
         Pose parameters (roll, pitch, yaw in rad; surge, sway, height in m).
-    obs : FrameObservations
+    obs : Observations
         ``F`` frames.
 
     Returns
@@ -99,7 +105,7 @@ def chi2_at_nodes(params: FloatArray, obs: FrameObservations) -> FloatArray:
     """
     F, S = params.shape[:2]
     R_wc = np.broadcast_to(obs.R_world_from_cam[:, None], (F, S, 3, 3)).reshape(F * S, 3, 3)
-    xy, _, Z = project_normalised_batch(params.reshape(F * S, 6), obs.points_deck_m, R_wc, jacobian=False)
+    xy, _, Z = project_normalised(params.reshape(F * S, 6), obs.points_deck_m, R_wc, jacobian=False)
     M = obs.points_deck_m.shape[0]
     xy, Z = xy.reshape(F, S, M, 2), Z.reshape(F, S, M)
     rx = xy[..., 0] - obs.xy[:, None, :, 0]
@@ -112,7 +118,7 @@ def chi2_at_nodes(params: FloatArray, obs: FrameObservations) -> FloatArray:
 
 
 def posterior_moments_batch(
-    params_ml: FloatArray, covariance_ml: FloatArray, obs: FrameObservations
+    params_ml: FloatArray, covariance_ml: FloatArray, obs: Observations
 ) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Posterior mean and covariance of the pose of ``F`` frames under a uniform prior.
 
@@ -124,7 +130,7 @@ def posterior_moments_batch(
     covariance_ml : (F, 6, 6) array of float
         Their covariance ``(J^T Sigma^-1 J)^-1``, the proposal's scale; must be
         positive definite.
-    obs : FrameObservations
+    obs : Observations
         The observations the likelihood is evaluated on (whitened as in the fit).
 
     Returns
@@ -178,27 +184,25 @@ def _inlier_detections(det: Detections, est: PoseEstimate, camera: CameraModel, 
     others were removed as outliers); it is the one nearest the estimate's
     projection of that beacon. None if the inliers cannot be matched.
     """
-    from deckpose.estimate.observations import build_observations
-    from deckpose.estimate.pose_model import project_normalised
-
     ids = np.asarray(det.beacon_ids)
     inliers = np.asarray(est.inliers, dtype=np.int64)
     if ids.size == inliers.size and np.array_equal(np.sort(ids), np.sort(inliers)):
         return det
     keep = np.isin(ids, inliers)
     if np.count_nonzero(keep) > inliers.size:  # a beacon detected twice: keep the row the fit kept
-        obs = build_observations(det, camera, layout, sigma_px=options.sigma_px,
-                                 use_detection_covariance=options.use_detection_covariance)
-        p = np.array([getattr(est, q) for q in POSE_PARAMS])
-        xy, _, _ = project_normalised(p, obs.points_deck_m, R_world_from_cam, jacobian=False)
-        r = obs.sqrt_info @ (obs.xy - xy)[:, :, None]
-        dist = np.sum(r * r, axis=(1, 2))
+        group = observe_frame(det, camera, layout, R_world_from_cam, sigma_px=options.sigma_px,
+                              use_detection_covariance=options.use_detection_covariance)
+        obs = group.observations
+        p = np.array([[getattr(est, q) for q in POSE_PARAMS]])
+        xy, _, _ = project_normalised(p, obs.points_deck_m, obs.R_world_from_cam, jacobian=False)
+        r = obs.sqrt_info @ (obs.xy - xy)[:, :, :, None]
+        dist = np.sum(r * r, axis=(2, 3))[0]
         keep = np.zeros(ids.size, dtype=bool)
         for b in inliers:
             rows = np.flatnonzero(obs.ids == b)
             if rows.size == 0:
                 return None
-            keep[obs.index[rows[np.argmin(dist[rows])]]] = True
+            keep[group.detection_rows[0, rows[np.argmin(dist[rows])]]] = True
     if np.count_nonzero(keep) != inliers.size:
         return None
     return Detections(np.asarray(det.points_px)[keep], ids[keep], np.asarray(det.covariance_px2)[keep],
@@ -241,9 +245,6 @@ def apply_posterior_mean(
         apart from the others, the estimate keeps its ML pose with
         ``posterior_mean = 0``.
     """
-    from deckpose.estimate.least_squares_batch import relative_from_params_batch, rotation_vectors
-    from deckpose.estimate.observations_batch import group_observations, stack_detections
-
     out = list(estimates)
     todo, sub = [], []
     for i, e in enumerate(estimates):
@@ -269,7 +270,7 @@ def apply_posterior_mean(
         cov_ml = np.array([estimates[i].covariance for i in frames])
         with np.errstate(all="ignore"):
             mean, cov, ess = posterior_moments_batch(p_ml, cov_ml, obs)
-            R_cd, t_cd = relative_from_params_batch(np.nan_to_num(mean), obs.R_world_from_cam)
+            R_cd, t_cd = relative_from_params(np.nan_to_num(mean), obs.R_world_from_cam)
             rvec = rotation_vectors(R_cd)
         for k, i in enumerate(frames):
             out[i] = _with_mean(estimates[i], mean[k], cov[k], float(ess[k]), rvec[k], t_cd[k])

@@ -17,13 +17,12 @@ import math
 from collections.abc import Sequence
 
 import numpy as np
-from deckpose.estimate.least_squares import fit_of_row
-from deckpose.estimate.least_squares_batch import levenberg_marquardt_batch
-from deckpose.estimate.observations import Observations
-from deckpose.estimate.observations_batch import group_observations, stack_detections, stack_one
+from deckpose.estimate.least_squares import levenberg_marquardt
+from deckpose.estimate.observations import Observations, group_observations, stack_detections
+from deckpose.estimate.pose_candidates import BatchCandidates, Candidate
 from deckpose.estimate.registry import EstimateOptions
-from deckpose.estimate.solution import Candidate, estimate_robustly
-from deckpose.estimate.solution_batch import BatchCandidates, finish_batch
+from deckpose.estimate.solution import estimate_robustly
+from deckpose.estimate.solution_batch import finish_batch
 
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
@@ -71,8 +70,8 @@ def refine_estimate(
 def _refine_robustly(estimate: PoseEstimate, p0: np.ndarray, detections: Detections, camera: CameraModel,
                      layout: DeckLayout, options: EstimateOptions, R_world_from_cam: np.ndarray) -> PoseEstimate:
     """One frame the batch left open, through the robust search (each subset a batch of one)."""
-    def solve(o: Observations, R_wc: np.ndarray) -> Candidate | str:
-        return Candidate(fit_of_row(levenberg_marquardt_batch(p0[None], stack_one(o, R_wc)), 0))
+    def solve(o: Observations) -> Candidate | str:
+        return Candidate(levenberg_marquardt(p0[None], o))
 
     refined = estimate_robustly(estimate.method, solve, detections, camera, layout, options,
                                 min_points=MIN_BEACONS, refined=True,
@@ -140,7 +139,7 @@ def refine_estimates(
         frames = [todo[f] for f in g.frames.tolist()]
         starts = np.array([p0[i] for i in frames])
         with np.errstate(all="ignore"):
-            fit = levenberg_marquardt_batch(starts, g.observations)
+            fit = levenberg_marquardt(starts, g.observations)
             F = len(frames)
             cands = BatchCandidates((fit,), np.ones((F, 1), dtype=bool), np.zeros(F, dtype=bool))
             ests = finish_batch("", cands, g.observations, g.n_ignored, ambiguity_chi2=options.ambiguity_chi2,

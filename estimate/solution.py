@@ -1,9 +1,8 @@
-"""From candidate fits to an honest :class:`~deckpose.records.PoseEstimate`.
+"""From one frame's candidate fits to an honest :class:`~deckpose.records.PoseEstimate`.
 
-Shared by every estimator of this package:
+Shared by every estimator of this package, for the frames their batches do not
+settle (:mod:`~estimate.solution_batch`); each works on a batch of one frame:
 
-* :func:`pick_candidate` — resolve the planar two-fold ambiguity by chi-square and
-  say when it cannot be resolved;
 * :func:`solve_robust` — detect spurious points and wrong ids by their
   Mahalanobis reprojection residual and remove them (leave-one-out);
 * :func:`make_estimate` — covariance ``(J^T Sigma^-1 J)^-1``, per-parameter sigma,
@@ -14,20 +13,17 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, overload
+from typing import TYPE_CHECKING
 
 import cv2
 import numpy as np
-from deckpose.estimate.least_squares import Fit
-from deckpose.estimate.least_squares_batch import FrameObservations, levenberg_marquardt_batch
-from deckpose.estimate.observations import Observations
+from deckpose.estimate.least_squares import levenberg_marquardt
+from deckpose.estimate.observations import Observations, observe_frame
+from deckpose.estimate.pose_candidates import Candidate
 from deckpose.estimate.pose_model import relative_from_params
-from numpy.typing import NDArray
 
 from deckpose.estimates_schema import MAX_OUTLIER_IDS
 from deckpose.records import POSE_PARAMS, PoseEstimate
-from deckpose.rotation import wrap_angle_rad
 
 if TYPE_CHECKING:
     from deckpose.estimate.registry import EstimateOptions
@@ -37,24 +33,7 @@ if TYPE_CHECKING:
     from deckpose.records import Detections
 
 
-@dataclass(frozen=True)
-class Candidate:
-    """A solution of one estimator on one set of observations.
-
-    Attributes
-    ----------
-    fit : Fit
-    extras : dict of str to float
-        Method-specific diagnostics.
-    problem : str
-        Non-empty when the solution must not be trusted (e.g. unresolved ambiguity).
-    """
-
-    fit: Fit
-    extras: dict[str, float] = field(default_factory=dict)
-    problem: str = ""
-
-
+#: ``solve(observations) -> Candidate or failure reason`` for the observations of one frame.
 SolveFn = Callable[[Observations], "Candidate | str"]
 
 #: Median of a chi-square variable with 2 degrees of freedom (a point's squared Mahalanobis residual).
@@ -105,96 +84,11 @@ def covariance_scale(point_chi2: np.ndarray) -> np.ndarray:
     return np.where(s2 > SCALE_TRIGGER, s2, 1.0)
 
 
-def _param_delta(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
-    d[:3] = wrap_angle_rad(d[:3])
-    return d
-
-
-#: The planar ambiguity's two solutions are one pose when their Mahalanobis distance (in the
-#: best fit's covariance) is at most this.
-AMBIGUITY_SIGMAS = 3.0
-
-
-@overload
-def ambiguity_resolved(delta_chi2: float, mahalanobis: float, ambiguity_chi2: float) -> bool: ...
-
-
-@overload
-def ambiguity_resolved(delta_chi2: NDArray[np.float64], mahalanobis: NDArray[np.float64],
-                       ambiguity_chi2: float) -> NDArray[np.bool_]: ...
-
-
-def ambiguity_resolved(delta_chi2: Any, mahalanobis: Any, ambiguity_chi2: float) -> Any:
-    """Whether the best solution is told from the runner-up: the one home of this test.
-
-    Resolved when the runner-up's chi-square exceeds the best one's by at least
-    ``ambiguity_chi2``, or the two poses lie within :data:`AMBIGUITY_SIGMAS` of each other.
-
-    Parameters
-    ----------
-    delta_chi2, mahalanobis : float or (F,) array of float
-        Runner-up minus best chi-square; the distance between the two poses.
-    ambiguity_chi2 : float
-
-    Returns
-    -------
-    bool or (F,) array of bool
-        False where a value is NaN.
-    """
-    return (delta_chi2 >= ambiguity_chi2) | (mahalanobis <= AMBIGUITY_SIGMAS)
-
-
-def pick_candidate(
-    fits: list[Fit], *, ambiguity_chi2: float, assume_level_deck: bool, extras: dict[str, float]
-) -> Candidate | str:
-    """Choose between the (up to two) solutions of the planar ambiguity.
-
-    The lower chi-square wins. When the runner-up is within ``ambiguity_chi2`` of
-    it while the two poses differ by more than 3 sigma (Mahalanobis, best fit's
-    covariance), the ambiguity is unresolved: the candidate carries a problem, or,
-    with ``assume_level_deck``, the more level deck is chosen and
-    ``extras["assumed_level_deck"] = 1`` says so.
-    """
-    good = [f for f in fits if math.isfinite(f.chi2) and np.all(np.isfinite(f.params))]
-    if not good:
-        return "no valid pose solution (points behind the camera or non-finite fit)"
-    good.sort(key=lambda f: f.chi2)
-    best = good[0]
-    ex = dict(extras)
-    ex["n_solutions"] = float(len(good))
-    if len(good) == 1:
-        return Candidate(best, ex)
-    alt = good[1]
-    delta = _param_delta(alt.params, best.params)
-    cov = best.covariance
-    maha = float(np.sqrt(delta @ np.linalg.solve(cov, delta))) if cov is not None else math.inf
-    dchi2 = alt.chi2 - best.chi2
-    ex.update(ambiguity_delta_chi2=dchi2, ambiguity_mahalanobis=maha,
-              alt_roll_rad=float(alt.params[0]), alt_pitch_rad=float(alt.params[1]),
-              alt_yaw_rad=float(alt.params[2]), alt_height_m=float(alt.params[5]))
-    if ambiguity_resolved(dchi2, maha, ambiguity_chi2):
-        return Candidate(best, ex)
-    if assume_level_deck:
-        levelness = [math.cos(f.params[0]) * math.cos(f.params[1]) for f in (best, alt)]
-        ex["assumed_level_deck"] = 1.0
-        if levelness[0] >= levelness[1]:
-            return Candidate(best, ex)
-        # The runner-up is chosen: "alt_*" now describe the rejected (lower chi2) solution.
-        ex.update(alt_roll_rad=float(best.params[0]), alt_pitch_rad=float(best.params[1]),
-                  alt_yaw_rad=float(best.params[2]), alt_height_m=float(best.params[5]))
-        return Candidate(alt, ex)
-    return Candidate(best, ex, (
-        f"two-fold planar ambiguity unresolved: the second solution fits almost as well "
-        f"(delta chi2 = {dchi2:.2f} < {ambiguity_chi2}) but differs by {maha:.1f} sigma; "
-        "add beacons (the centre beacon) or set assume_level_deck"))
-
-
 #: Levenberg-Marquardt iterations of a leave-one-out trial (:func:`solve_robust`): a trial
 #: only ranks which point to drop, from the current fit's pose.
 TRIAL_ITERATIONS = 8
 
-#: ``(observations, params) -> chi2 of each leave-one-out subset`` (n,).
+#: ``(observations of one frame, params (6,)) -> chi2 of each leave-one-out subset`` (n,).
 RefitFn = Callable[[Observations, np.ndarray], np.ndarray]
 
 
@@ -223,7 +117,7 @@ def solve_robust(
     -------
     (Candidate or failure reason, observations used, ids removed)
     """
-    first = solve(obs) if len(obs) >= min_points else _too_few(obs, min_points)
+    first = solve(obs) if obs.n_points >= min_points else _too_few(obs, min_points)
     states: list[tuple[Candidate, Observations, list[int]]] = []
     result, used, removed, residual_failure = _remove_outliers(
         obs, solve, first, min_points=min_points, threshold=outlier_chi2, max_outliers=max_outliers,
@@ -231,7 +125,7 @@ def solve_robust(
     if not (residual_failure and isinstance(result, Candidate)):
         return result, used, removed
     # The scale from the fit without the worst points, where a wrong point no longer smears.
-    pc = result.fit.point_chi2()
+    pc = result.fit.point_chi2()[0]
     scale = float(covariance_scale(pc)) if np.all(np.isfinite(pc)) else 1.0
     if scale <= 1.0:
         return result, used, removed
@@ -240,9 +134,9 @@ def solve_robust(
     # state of the search above whose residuals all lie within the scaled threshold. None
     # does: it gives up where the search above did.
     for c, c_obs, c_removed in states:
-        c_pc = c.fit.point_chi2()
+        c_pc = c.fit.point_chi2()[0]
         if c_pc.size == 0 or float(np.max(c_pc)) <= outlier_chi2 * scale:
-            if c.fit.rms_px <= SCALED_MAX_RMS_PX:
+            if float(c.fit.rms_px[0]) <= SCALED_MAX_RMS_PX:
                 return c, c_obs, c_removed
             break
     return result, used, removed
@@ -260,10 +154,10 @@ def _remove_outliers(
     while isinstance(result, Candidate):
         if states is not None:
             states.append((result, obs, list(removed)))
-        pc = result.fit.point_chi2()
+        pc = result.fit.point_chi2()[0]
         if pc.size == 0 or float(np.max(pc)) <= threshold:
             return result, obs, removed, False
-        if len(removed) >= max_outliers or len(obs) - 1 < min_points:
+        if len(removed) >= max_outliers or obs.n_points - 1 < min_points:
             worst = int(obs.ids[int(np.argmax(pc))])
             return Candidate(result.fit, result.extras, (
                 f"reprojection residual of beacon {worst} is {math.sqrt(float(np.max(pc))):.1f} sigma "
@@ -271,32 +165,32 @@ def _remove_outliers(
             )), obs, removed, True
         best: tuple[float, int, Candidate | None] = (math.inf, -1, None)
         if refit is not None:  # all trials in one batch; the chosen subset is solved below
-            chi2 = np.asarray(refit(obs, result.fit.params), float)
+            chi2 = np.asarray(refit(obs, result.fit.params[0]), float)
             chi2 = np.where(np.isfinite(chi2), chi2, np.inf)
             if chi2.size and np.isfinite(chi2.min()):
                 best = (float(chi2.min()), int(np.argmin(chi2)), None)
         else:
-            for i in range(len(obs)):
-                keep = np.ones(len(obs), dtype=bool)
+            for i in range(obs.n_points):
+                keep = np.ones(obs.n_points, dtype=bool)
                 keep[i] = False
-                r = solve(obs.subset(keep))
-                if isinstance(r, Candidate) and r.fit.chi2 < best[0]:
-                    best = (r.fit.chi2, i, r)
+                r = solve(obs.points(keep))
+                if isinstance(r, Candidate) and float(r.fit.chi2[0]) < best[0]:
+                    best = (float(r.fit.chi2[0]), i, r)
         if best[1] < 0:
             return result, obs, removed, False
-        keep = np.ones(len(obs), dtype=bool)
+        keep = np.ones(obs.n_points, dtype=bool)
         keep[best[1]] = False
-        chosen = best[2] if best[2] is not None else solve(obs.subset(keep))
+        chosen = best[2] if best[2] is not None else solve(obs.points(keep))
         if not isinstance(chosen, Candidate):
             return result, obs, removed, False
         removed.append(int(obs.ids[best[1]]))
-        obs = obs.subset(keep)
+        obs = obs.points(keep)
         result = chosen
     return result, obs, removed, False
 
 
 def _too_few(obs: Observations, min_points: int) -> str:
-    return f"too few identified beacons: {len(obs)} usable, this method needs at least {min_points}"
+    return f"too few identified beacons: {obs.n_points} usable, this method needs at least {min_points}"
 
 
 #: An estimate whose angle sigmas exceed this (or whose height sigma exceeds its height) is not ok.
@@ -331,36 +225,57 @@ def make_estimate(
     method: str,
     result: Candidate | str,
     obs: Observations,
+    n_ignored: int,
     removed: list[int],
     *,
-    R_world_from_cam: np.ndarray,
     max_reprojection_rms_px: float,
     refined: bool,
 ) -> PoseEstimate:
-    """Assemble the estimate with covariance, sigmas, reprojection RMS and honest flags."""
-    base = {"n_points": float(len(obs)), "n_ignored": float(obs.n_ignored),
+    """Assemble one frame's estimate with covariance, sigmas, reprojection RMS and honest flags.
+
+    Parameters
+    ----------
+    method : str
+    result : Candidate or str
+        The robust search's result (a failure reason as a str).
+    obs : Observations
+        The points it used, of one frame (``F = 1``).
+    n_ignored : int
+        The frame's detections not used.
+    removed : list of int
+        Ids removed as outliers.
+    max_reprojection_rms_px : float, keyword-only
+    refined : bool, keyword-only
+
+    Returns
+    -------
+    PoseEstimate
+    """
+    base = {"n_points": float(obs.n_points), "n_ignored": float(n_ignored),
             "n_outliers_removed": float(len(removed)), "refined": float(refined)}
     for k, i in enumerate(removed[:MAX_OUTLIER_IDS]):
         base[f"outlier_id_{k}"] = float(i)
     if isinstance(result, str):
         return PoseEstimate.failed(method, result, **base)
     fit = result.fit
-    p = fit.params
+    p = fit.params[0]
+    rms_px, chi2 = float(fit.rms_px[0]), float(fit.chi2[0])
     extras = dict(base)
     extras.update(result.extras)
-    extras["reprojection_rms_px"] = fit.rms_px
-    extras["chi2"] = fit.chi2
-    extras["dof"] = float(2 * len(obs) - 6)
+    extras["reprojection_rms_px"] = rms_px
+    extras["chi2"] = chi2
+    extras["dof"] = float(2 * obs.n_points - 6)
     problems = []
     if result.problem:
         problems.append(result.problem)
-    cov = fit.covariance if np.all(np.isfinite(p)) else None
-    pc = fit.point_chi2()
+    covs, cov_ok = fit.covariance()
+    cov = covs[0] if cov_ok[0] and np.all(np.isfinite(p)) else None
+    pc = fit.point_chi2()[0]
     scale = float(covariance_scale(pc)) if pc.size and np.all(np.isfinite(pc)) else 1.0
     if cov is not None and scale > 1.0:
         # the residuals say the detections' covariances are too small: widen the pose's alike
         cov = cov * scale
-    if not np.all(np.isfinite(p)) or not math.isfinite(fit.chi2):
+    if not np.all(np.isfinite(p)) or not math.isfinite(chi2):
         problems.append("non-finite pose or reprojection error")
     elif cov is None:
         problems.append("covariance undefined: the beacons do not constrain all six parameters")
@@ -369,16 +284,16 @@ def make_estimate(
             f"the beacons hardly constrain the pose: sigma height {np.sqrt(cov[5, 5]):.3g} m for a height of "
             f"{p[5]:.3g} m, sigma roll/pitch/yaw up to {np.degrees(np.sqrt(np.max(np.diag(cov)[:3]))):.3g} deg "
             f"(limits: sigma height < height, angle sigmas < {np.degrees(MAX_ANGLE_SIGMA_RAD):.0f} deg)")
-    if math.isfinite(fit.rms_px) and fit.rms_px > max_reprojection_rms_px:
+    if math.isfinite(rms_px) and rms_px > max_reprojection_rms_px:
         problems.append(
-            f"reprojection RMS {fit.rms_px:.2f} px exceeds max_reprojection_rms_px={max_reprojection_rms_px}")
-    elif not math.isfinite(fit.rms_px):
+            f"reprojection RMS {rms_px:.2f} px exceeds max_reprojection_rms_px={max_reprojection_rms_px}")
+    elif not math.isfinite(rms_px):
         problems.append("reprojection error is not finite")
     if cov is not None:
         for name, v in zip(POSE_PARAMS, np.diag(cov)):
             extras["sigma_" + name] = float(np.sqrt(v))
     if np.all(np.isfinite(p)):
-        R_cd, t_cd = relative_from_params(p, R_world_from_cam)
+        R_cd, t_cd = relative_from_params(p, obs.R_world_from_cam[0])
         rvec = cv2.Rodrigues(R_cd)[0].ravel()
         for k, ax in enumerate("xyz"):
             extras[f"rvec_cam_from_deck_{ax}"] = float(rvec[k])
@@ -392,28 +307,28 @@ def make_estimate(
     return PoseEstimate(
         method=method, ok=True, roll_rad=float(p[0]), pitch_rad=float(p[1]), yaw_rad=float(p[2]),
         height_m=float(p[5]), surge_m=float(p[3]), sway_m=float(p[4]), covariance=cov,
-        inliers=tuple(int(i) for i in obs.ids), extras=extras,
+        inliers=tuple(obs.ids.tolist()), extras=extras,
     )
 
 
-def _trial_chi2(obs: Observations, params: np.ndarray, R_wc: np.ndarray) -> np.ndarray:
-    """chi2 of each subset of ``obs`` without one point, (n,), after :data:`TRIAL_ITERATIONS`
-    LM iterations from ``params``: all subsets as one batch, the left-out point given zero
-    weight (it must still lie in front of the camera)."""
-    n = len(obs)
-    sqrt_info = np.repeat(obs.sqrt_info[None], n, axis=0)
+def _trial_chi2(obs: Observations, params: np.ndarray) -> np.ndarray:
+    """chi2 of each subset of one frame's ``obs`` without one point, (n,), after
+    :data:`TRIAL_ITERATIONS` LM iterations from ``params`` (6,): all subsets as one batch, the
+    left-out point given zero weight (it must still lie in front of the camera)."""
+    n = obs.n_points
+    sqrt_info = np.repeat(np.broadcast_to(obs.sqrt_info, (1, n, 2, 2)), n, axis=0)
     sqrt_info[np.arange(n), np.arange(n)] = 0.0
-    stacked = FrameObservations(
-        obs.ids, obs.points_deck_m, np.repeat(obs.xy[None], n, axis=0), sqrt_info,
-        np.repeat(obs.px_from_norm[None], n, axis=0), np.repeat(R_wc[None], n, axis=0))
-    fit = levenberg_marquardt_batch(np.repeat(np.asarray(params, float)[None], n, axis=0), stacked,
-                                    max_iterations=TRIAL_ITERATIONS)
+    rows = np.zeros(n, dtype=np.int64)
+    stacked = Observations(obs.ids, obs.points_deck_m, obs.xy[rows], sqrt_info, obs.px_from_norm[rows],
+                           obs.R_world_from_cam[rows])
+    fit = levenberg_marquardt(np.repeat(np.asarray(params, float)[None], n, axis=0), stacked,
+                              max_iterations=TRIAL_ITERATIONS)
     return np.where(np.isfinite(fit.chi2), fit.chi2, np.inf)
 
 
 def estimate_robustly(
     method: str,
-    solve: Callable[[Observations, np.ndarray], Candidate | str],
+    solve: SolveFn,
     detections: Detections,
     camera: CameraModel,
     layout: DeckLayout,
@@ -426,24 +341,21 @@ def estimate_robustly(
 ) -> PoseEstimate:
     """The shared frame of every least-squares estimator here.
 
-    Builds the observations, runs ``solve(observations, R_world_from_cam)`` under
+    Builds the frame's observations (a batch of one), runs ``solve(observations)`` under
     :func:`solve_robust` (outlier removal), and turns the result into a
     :class:`PoseEstimate`; a numerical exception becomes a failed estimate whose
     reason starts with ``failure_prefix``. ``R_world_from_cam`` (3, 3), when given, is the
     frame's camera attitude instead of ``options.R_world_from_cam``.
     """
-    from deckpose.estimate.observations import build_observations
-
     R_wc = np.asarray(options.R_world_from_cam if R_world_from_cam is None else R_world_from_cam, dtype=float)
     with np.errstate(all="ignore"):
         try:
-            obs = build_observations(detections, camera, layout, sigma_px=options.sigma_px,
-                                     use_detection_covariance=options.use_detection_covariance)
+            group = observe_frame(detections, camera, layout, R_wc, sigma_px=options.sigma_px,
+                                  use_detection_covariance=options.use_detection_covariance)
             result, used, removed = solve_robust(
-                obs, lambda o: solve(o, R_wc), min_points=min_points,
-                outlier_chi2=options.outlier_chi2, max_outliers=options.max_outliers,
-                refit=lambda o, p: _trial_chi2(o, p, R_wc))
-            return make_estimate(method, result, used, removed, R_world_from_cam=R_wc,
+                group.observations, solve, min_points=min_points,
+                outlier_chi2=options.outlier_chi2, max_outliers=options.max_outliers, refit=_trial_chi2)
+            return make_estimate(method, result, used, int(group.n_ignored[0]), removed,
                                  max_reprojection_rms_px=options.max_reprojection_rms_px,
                                  refined=refined)
         except (np.linalg.LinAlgError, ValueError, ZeroDivisionError, cv2.error) as exc:

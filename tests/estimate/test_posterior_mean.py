@@ -6,8 +6,8 @@ import dataclasses
 import numpy as np
 import pytest
 from deckpose.estimate.batch import estimate_batch, run_estimator
-from deckpose.estimate.least_squares_batch import chi2_batch
-from deckpose.estimate.observations_batch import group_observations, stack_detections
+from deckpose.estimate.least_squares import chi2_at
+from deckpose.estimate.observations import group_observations, stack_detections
 from deckpose.estimate.posterior_mean import (
     MIN_EFFECTIVE_NODES,
     N_NODES,
@@ -68,7 +68,7 @@ def test_chi2_at_nodes_is_the_fit_chi2():
     P = np.array([[s.roll_rad, s.pitch_rad, s.yaw_rad, 0.0, 0.0, 40.0] for _, s, _ in frames])
     theta = P[:, None, :] + rng.normal(0, [0.03, 0.03, 0.03, 0.5, 0.5, 1.0], (5, 7, 6))
     got = chi2_at_nodes(theta, obs)
-    ref = np.array([chi2_batch(theta[f], obs.take(np.full(7, f))) for f in range(5)])
+    ref = np.array([chi2_at(theta[f], obs.take(np.full(7, f))) for f in range(5)])
     np.testing.assert_allclose(got, ref, rtol=1e-10)
     theta[0, 0, 5] = -40.0  # deck behind the camera
     assert np.isinf(chi2_at_nodes(theta, obs)[0, 0])
