@@ -30,7 +30,7 @@ before the choice.
 Batch-first (a lone frame is a batch of one): :func:`conic_candidates` runs every step
 above as stacked array operations over the frames that share a beacon set. Frames the
 batch cannot settle (an outlier to remove, an unresolved ambiguity, any failure) go
-through the robust search of :mod:`~estimate.solution`, which solves each subset as a
+through the robust search of :mod:`~estimate.robust_search`, which solves each subset as a
 batch of one.
 """
 
@@ -47,6 +47,7 @@ from deckpose.estimate.conic_geometry import (
     in_plane_alignment,
     planes_from_centres,
 )
+from deckpose.estimate.frames_driver import estimate_frames
 from deckpose.estimate.least_squares import (
     Fit,
     chi2_at,
@@ -58,7 +59,6 @@ from deckpose.estimate.observations import Observations
 from deckpose.estimate.pose_candidates import BatchCandidates, Extra, pick_batch, scatter_fit
 from deckpose.estimate.pose_model import params_from_relative
 from deckpose.estimate.registry import EstimateOptions, register
-from deckpose.estimate.solution_batch import estimate_frames
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -146,8 +146,8 @@ def conic_candidates(obs: Observations, layout: DeckLayout,
     both refined to convergence before the choice (unconverged candidates can look
     ambiguous while they share one minimum). NaN and inf are expected in frames without
     a solution: call it under ``np.errstate(all="ignore")``
-    (:func:`~estimate.solution_batch.settle_batch` and
-    :func:`~estimate.solution.estimate_robustly` do).
+    (:func:`~estimate.frames_driver.settle_batch` and
+    :func:`~estimate.robust_search.estimate_robustly` do).
 
     Parameters
     ----------

@@ -15,7 +15,7 @@
 
 Every function takes ``F`` frames stacked and returns a validity mask where a frame has
 no answer. NaN and inf are expected in the frames that are not valid: call these under
-``np.errstate(all="ignore")`` (:func:`~estimate.solution_batch.settle_batch` does).
+``np.errstate(all="ignore")`` (:func:`~estimate.frames_driver.settle_batch` does).
 
 The geometry. In normalised camera coordinates the image of a circle is the cone
 ``X^T C X = 0`` (C symmetric, signature (+, +, -) after a sign flip). With the

@@ -14,7 +14,7 @@ chi-square, the Levenberg–Marquardt refinements and the tests that decide whic
 starts compete — is stacked over the frames that share a beacon set
 (:func:`pnp_candidates`). Frames the batch cannot settle (an outlier to remove,
 an unresolved ambiguity, any failure) go through the robust search of
-:mod:`~estimate.solution`, which solves each subset as a batch of one.
+:mod:`~estimate.robust_search`, which solves each subset as a batch of one.
 """
 
 from __future__ import annotations
@@ -26,12 +26,12 @@ from typing import cast
 
 import cv2
 import numpy as np
+from deckpose.estimate.frames_driver import estimate_frames
 from deckpose.estimate.least_squares import Fit, chi2_at, levenberg_marquardt
 from deckpose.estimate.observations import Observations
 from deckpose.estimate.pose_candidates import BatchCandidates, Extra, scatter_fit
 from deckpose.estimate.pose_model import RODRIGUES_LOOP_MAX, params_from_relative
 from deckpose.estimate.registry import EstimateOptions, register
-from deckpose.estimate.solution_batch import estimate_frames
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -185,8 +185,8 @@ def pnp_candidates(obs: Observations, *, raise_errors: bool = False) -> BatchCan
     refined one, not in its basin, :data:`BASIN_TOL`) and do not converge to a solution
     already listed (:data:`SAME_TOL`). SQPnP's start joins unless it repeats an IPPE one.
     NaN starts and comparisons with NaN are expected: call it under
-    ``np.errstate(invalid="ignore")`` (:func:`~estimate.solution_batch.settle_batch` and
-    :func:`~estimate.solution.estimate_robustly` do).
+    ``np.errstate(invalid="ignore")`` (:func:`~estimate.frames_driver.settle_batch` and
+    :func:`~estimate.robust_search.estimate_robustly` do).
 
     Parameters
     ----------

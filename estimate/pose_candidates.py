@@ -5,7 +5,7 @@ well. Every estimator here lists up to ``K`` solutions per frame
 (:class:`BatchCandidates`); :func:`pick_batch` takes the lowest chi-square and says
 whether the runner-up is told apart from it (:func:`ambiguity_resolved`, the one
 home of that test). :func:`pick_candidate` is the choice for one frame (a batch of
-one) as the robust search (:mod:`~estimate.solution`) takes it, with the problem it
+one) as the robust search (:mod:`~estimate.robust_search`) takes it, with the problem it
 reports when the ambiguity stays unresolved.
 """
 

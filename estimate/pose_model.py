@@ -183,11 +183,10 @@ def params_from_relative(R_cam_from_deck: FloatArray, t_cam_from_deck: FloatArra
     (..., 6) array of float
         ``(roll_rad, pitch_rad, yaw_rad, surge_m, sway_m, height_m)`` (module docstring).
     """
-    R_wc = np.asarray(R_world_from_cam, dtype=float)
-    R_wd = R_wc @ np.asarray(R_cam_from_deck, dtype=float)
+    R_wd = R_world_from_cam @ R_cam_from_deck
     out = np.empty(R_wd.shape[:-2] + (6,))
     out[..., 0], out[..., 1], out[..., 2] = zyx_from_R(R_wd)
-    out[..., 3:] = (R_wc @ np.asarray(t_cam_from_deck, dtype=float)[..., None])[..., 0]
+    out[..., 3:] = (R_world_from_cam @ t_cam_from_deck[..., None])[..., 0]
     out[..., 5] *= -1.0
     return out
 
@@ -205,10 +204,9 @@ def relative_from_params(params: FloatArray, R_world_from_cam: FloatArray) -> tu
     R_cam_from_deck : (..., 3, 3) array of float
     t_cam_from_deck : (..., 3) array of float, metres
     """
-    p = np.asarray(params, dtype=float)
     R_cw = np.swapaxes(R_world_from_cam, -1, -2)
-    R_wd = deck_rotations(p[..., :3])
-    tw = p[..., 3:, None] * TRANSLATION_SIGN[:, None]  # (surge, sway, -height)
+    R_wd = deck_rotations(params[..., :3])
+    tw = params[..., 3:, None] * TRANSLATION_SIGN[:, None]  # (surge, sway, -height)
     return R_cw @ R_wd, (R_cw @ tw)[..., 0]
 
 

@@ -7,7 +7,7 @@ same outlier removal, covariance and flags as the package's own estimators.
 :func:`refine_estimates` runs one stacked Levenberg–Marquardt per beacon set; a
 lone frame (:func:`refine_estimate`) is a batch of one. Frames the batch cannot
 settle (an outlier to remove, any failure) go through the robust search of
-:mod:`~estimate.solution`, which refines each subset of their points as a batch
+:mod:`~estimate.robust_search`, which refines each subset of their points as a batch
 of one.
 """
 
@@ -20,9 +20,9 @@ import numpy as np
 from deckpose.estimate.least_squares import levenberg_marquardt
 from deckpose.estimate.observations import Observations, group_observations, stack_detections
 from deckpose.estimate.pose_candidates import BatchCandidates, Candidate
+from deckpose.estimate.pose_records import finish_batch
 from deckpose.estimate.registry import EstimateOptions
-from deckpose.estimate.solution import estimate_robustly
-from deckpose.estimate.solution_batch import finish_batch
+from deckpose.estimate.robust_search import estimate_robustly
 
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout

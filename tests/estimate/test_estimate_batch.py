@@ -225,8 +225,8 @@ def test_clean_frames_stay_in_the_batch(method, refine):
     from functools import partial
 
     from deckpose.estimate.conic import conic_candidates
+    from deckpose.estimate.frames_driver import settle_batch
     from deckpose.estimate.pnp import pnp_candidates
-    from deckpose.estimate.solution_batch import settle_batch
 
     camera = preset("4mp")
     frames = _random_frames(np.random.default_rng(9), 200, camera, 2.0, heights=(70.0, 80.0))

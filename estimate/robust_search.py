@@ -1,12 +1,11 @@
-"""From one frame's candidate fits to an honest :class:`~deckpose.records.PoseEstimate`.
+"""The robust search of one frame: outliers removed by leave-one-out, the result made a record.
 
-Shared by every estimator of this package, for the frames their batches do not
-settle (:mod:`~estimate.solution_batch`); each works on a batch of one frame:
-
-* :func:`solve_robust` — detect spurious points and wrong ids by their
-  Mahalanobis reprojection residual and remove them (leave-one-out);
-* :func:`make_estimate` — covariance ``(J^T Sigma^-1 J)^-1``, per-parameter sigma,
-  reprojection RMS and the ``ok`` flag with its reason.
+For the frames an estimator's batch does not settle (:mod:`~estimate.frames_driver`): a
+spurious point or a wrong id shows in its Mahalanobis reprojection residual, and the
+search removes, one at a time, the point whose removal fits best
+(:func:`solve_robust`); :func:`estimate_robustly` builds the frame's observations (a
+batch of one), runs the search and makes the record
+(:func:`~estimate.pose_records.make_estimate`).
 """
 
 from __future__ import annotations
@@ -20,10 +19,9 @@ import numpy as np
 from deckpose.estimate.least_squares import levenberg_marquardt
 from deckpose.estimate.observations import Observations, observe_frame
 from deckpose.estimate.pose_candidates import Candidate
-from deckpose.estimate.pose_model import relative_from_params
+from deckpose.estimate.pose_records import covariance_scale, make_estimate
 
-from deckpose.estimates_schema import MAX_OUTLIER_IDS
-from deckpose.records import POSE_PARAMS, PoseEstimate
+from deckpose.records import PoseEstimate
 
 if TYPE_CHECKING:
     from deckpose.estimate.registry import EstimateOptions
@@ -36,60 +34,20 @@ if TYPE_CHECKING:
 #: ``solve(observations) -> Candidate or failure reason`` for the observations of one frame.
 SolveFn = Callable[[Observations], "Candidate | str"]
 
-#: Median of a chi-square variable with 2 degrees of freedom (a point's squared Mahalanobis residual).
-_MEDIAN_CHI2_2 = 2.0 * math.log(2.0)
-#: Fewest points for which the residuals say anything about the detections' covariance scale.
-MIN_POINTS_FOR_SCALE = 7
-#: The detections' covariances are taken as underestimated when the robust scale exceeds this.
-SCALE_TRIGGER = 2.0
+
 #: A fit accepted under the widened outlier threshold must have a reprojection RMS of at most
 #: this: a larger residual is no centroid error a covariance understates but wrong points.
 SCALED_MAX_RMS_PX = 1.0
-
-
-def covariance_scale(point_chi2: np.ndarray) -> np.ndarray:
-    """Robust factor by which the detections' covariances understate the residuals.
-
-    ``median(point chi2) / (ln 4 (N - 3) / N)``: the median of the squared Mahalanobis
-    residuals over its expectation for a six-parameter fit to ``N`` points with correct
-    covariances. The median is untouched by a few spurious points or wrong ids, so a
-    detector that understates every point's covariance alike (a clipped spot's centroid
-    is worse than its photon noise says) is told apart from an outlier. Factors up to
-    :data:`SCALE_TRIGGER` (chance with correct covariances) and fits to fewer than
-    :data:`MIN_POINTS_FOR_SCALE` points give 1.
-
-    Parameters
-    ----------
-    point_chi2 : ndarray, shape (..., N)
-        Each point's squared Mahalanobis reprojection residual (NaN for a missing point
-        is not allowed; pass the points used).
-
-    Returns
-    -------
-    ndarray, shape (...)
-        The factor (>= 1) to multiply the covariances and the outlier threshold by.
-    """
-    pc = np.asarray(point_chi2, dtype=float)
-    n = pc.shape[-1]
-    if n < MIN_POINTS_FOR_SCALE:
-        return np.ones(pc.shape[:-1])
-    # (no errstate: NaN and inf here only propagate or compare, which numpy does without a warning;
-    # the values are squares, so no inf - inf arises)
-    # the median through one sort (np.median's dispatch costs more than the sort of a few points)
-    srt = np.sort(pc, axis=-1)
-    h = n // 2
-    med = srt[..., h] if n % 2 else (srt[..., h - 1] + srt[..., h]) / 2.0
-    med = np.where(np.isnan(srt[..., -1]), np.nan, med)  # NaN sorts last; np.median gives NaN
-    s2 = med / (_MEDIAN_CHI2_2 * (n - 3) / n)
-    return np.where(s2 > SCALE_TRIGGER, s2, 1.0)
 
 
 #: Levenberg-Marquardt iterations of a leave-one-out trial (:func:`solve_robust`): a trial
 #: only ranks which point to drop, from the current fit's pose.
 TRIAL_ITERATIONS = 8
 
+
 #: ``(observations of one frame, params (6,)) -> chi2 of each leave-one-out subset`` (n,).
 RefitFn = Callable[[Observations, np.ndarray], np.ndarray]
+
 
 
 def solve_robust(
@@ -142,6 +100,7 @@ def solve_robust(
     return result, used, removed
 
 
+
 def _remove_outliers(
     obs: Observations, solve: SolveFn, result: Candidate | str, *, min_points: int, threshold: float,
     max_outliers: int, refit: RefitFn | None = None,
@@ -189,126 +148,10 @@ def _remove_outliers(
     return result, obs, removed, False
 
 
+
 def _too_few(obs: Observations, min_points: int) -> str:
     return f"too few identified beacons: {obs.n_points} usable, this method needs at least {min_points}"
 
-
-#: An estimate whose angle sigmas exceed this (or whose height sigma exceeds its height) is not ok.
-MAX_ANGLE_SIGMA_RAD = 0.5
-
-
-def pose_constrained(params: np.ndarray, sigmas: np.ndarray) -> np.ndarray:
-    """Whether each covariance pins its pose down at all.
-
-    Every sigma finite, sigma height below the height, and every angle sigma below
-    :data:`MAX_ANGLE_SIGMA_RAD` (near-coincident or collinear points give a finite but
-    meaningless covariance). The one home of this test, for the single-frame and the
-    batched estimates.
-
-    Parameters
-    ----------
-    params : (F, 6) array of float
-        Pose parameters (:data:`~deckpose.records.POSE_PARAMS`).
-    sigmas : (F, 6) array of float
-        Their standard deviations (rad, m).
-
-    Returns
-    -------
-    (F,) array of bool
-    """
-    # (comparisons with NaN give False without a warning: no errstate needed)
-    return (np.isfinite(sigmas).all(axis=1) & (sigmas[:, 5] < np.abs(params[:, 5]))
-            & (sigmas[:, :3] < MAX_ANGLE_SIGMA_RAD).all(axis=1))
-
-
-def make_estimate(
-    method: str,
-    result: Candidate | str,
-    obs: Observations,
-    n_ignored: int,
-    removed: list[int],
-    *,
-    max_reprojection_rms_px: float,
-    refined: bool,
-) -> PoseEstimate:
-    """Assemble one frame's estimate with covariance, sigmas, reprojection RMS and honest flags.
-
-    Parameters
-    ----------
-    method : str
-    result : Candidate or str
-        The robust search's result (a failure reason as a str).
-    obs : Observations
-        The points it used, of one frame (``F = 1``).
-    n_ignored : int
-        The frame's detections not used.
-    removed : list of int
-        Ids removed as outliers.
-    max_reprojection_rms_px : float, keyword-only
-    refined : bool, keyword-only
-
-    Returns
-    -------
-    PoseEstimate
-    """
-    base = {"n_points": float(obs.n_points), "n_ignored": float(n_ignored),
-            "n_outliers_removed": float(len(removed)), "refined": float(refined)}
-    for k, i in enumerate(removed[:MAX_OUTLIER_IDS]):
-        base[f"outlier_id_{k}"] = float(i)
-    if isinstance(result, str):
-        return PoseEstimate.failed(method, result, **base)
-    fit = result.fit
-    p = fit.params[0]
-    rms_px, chi2 = float(fit.rms_px[0]), float(fit.chi2[0])
-    extras = dict(base)
-    extras.update(result.extras)
-    extras["reprojection_rms_px"] = rms_px
-    extras["chi2"] = chi2
-    extras["dof"] = float(2 * obs.n_points - 6)
-    problems = []
-    if result.problem:
-        problems.append(result.problem)
-    covs, cov_ok = fit.covariance()
-    cov = covs[0] if cov_ok[0] and np.all(np.isfinite(p)) else None
-    pc = fit.point_chi2()[0]
-    scale = float(covariance_scale(pc)) if pc.size and np.all(np.isfinite(pc)) else 1.0
-    if cov is not None and scale > 1.0:
-        # the residuals say the detections' covariances are too small: widen the pose's alike
-        cov = cov * scale
-    if not np.all(np.isfinite(p)) or not math.isfinite(chi2):
-        problems.append("non-finite pose or reprojection error")
-    elif cov is None:
-        problems.append("covariance undefined: the beacons do not constrain all six parameters")
-    elif not pose_constrained(p[None], np.sqrt(np.diag(cov))[None])[0]:
-        problems.append(
-            f"the beacons hardly constrain the pose: sigma height {np.sqrt(cov[5, 5]):.3g} m for a height of "
-            f"{p[5]:.3g} m, sigma roll/pitch/yaw up to {np.degrees(np.sqrt(np.max(np.diag(cov)[:3]))):.3g} deg "
-            f"(limits: sigma height < height, angle sigmas < {np.degrees(MAX_ANGLE_SIGMA_RAD):.0f} deg)")
-    if math.isfinite(rms_px) and rms_px > max_reprojection_rms_px:
-        problems.append(
-            f"reprojection RMS {rms_px:.2f} px exceeds max_reprojection_rms_px={max_reprojection_rms_px}")
-    elif not math.isfinite(rms_px):
-        problems.append("reprojection error is not finite")
-    if cov is not None:
-        for name, v in zip(POSE_PARAMS, np.diag(cov)):
-            extras["sigma_" + name] = float(np.sqrt(v))
-    if np.all(np.isfinite(p)):
-        R_cd, t_cd = relative_from_params(p, obs.R_world_from_cam[0])
-        rvec = cv2.Rodrigues(R_cd)[0].ravel()
-        for k, ax in enumerate("xyz"):
-            extras[f"rvec_cam_from_deck_{ax}"] = float(rvec[k])
-            extras[f"t_cam_from_deck_{ax}_m"] = float(t_cd[k])
-    if cov is not None and scale > 1.0:
-        extras["covariance_scale"] = scale
-    if problems:
-        for name, v in zip(POSE_PARAMS, p):
-            extras["untrusted_" + name] = float(v)
-        return PoseEstimate.failed(method, "; ".join(problems), **extras)
-    return PoseEstimate(
-        method=method, ok=True, roll_rad=float(p[0]), pitch_rad=float(p[1]), yaw_rad=float(p[2]),
-        height_m=float(p[5]), surge_m=float(p[3]), sway_m=float(p[4]), covariance=cov,
-        inliers=tuple(obs.ids.tolist()), extras=extras,
-    )
 
 
 def _trial_chi2(obs: Observations, params: np.ndarray) -> np.ndarray:
@@ -324,6 +167,7 @@ def _trial_chi2(obs: Observations, params: np.ndarray) -> np.ndarray:
     fit = levenberg_marquardt(np.repeat(np.asarray(params, float)[None], n, axis=0), stacked,
                               max_iterations=TRIAL_ITERATIONS)
     return np.where(np.isfinite(fit.chi2), fit.chi2, np.inf)
+
 
 
 def estimate_robustly(
