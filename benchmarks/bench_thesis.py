@@ -19,7 +19,7 @@ os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 import numpy as np
 from deckpose.estimate.thesis import estimate_thesis
-from deckpose.estimate.thesis_batch import estimate_thesis_batch
+from deckpose.estimate.thesis_algorithm import thesis_algorithm
 from deckpose.evaluate.thesis_sim import CellSpec, clean_projection, load_thesis_motion
 
 from deckpose.camera import preset
@@ -41,11 +41,11 @@ def main() -> None:
     base = np.tile(pc, (reps, 1, 1))[: args.chunk]
     mask = np.tile(vis, (reps, 1))[: args.chunk]
     noisy = thesis_uniform(base, 8.0, cam.width_px, cam.height_px, rng)
-    estimate_thesis_batch(noisy, mask, cam.fx, cam.fy, 10.0)  # warm-up
+    thesis_algorithm(noisy, mask, cam.fx, cam.fy, 10.0)  # warm-up
     n_calls = max(1, args.frames // args.chunk)
     t0 = time.perf_counter()
     for _ in range(n_calls):
-        res = estimate_thesis_batch(noisy, mask, cam.fx, cam.fy, 10.0)
+        res = thesis_algorithm(noisy, mask, cam.fx, cam.fy, 10.0)
     batch_s = time.perf_counter() - t0
     batch_rate = n_calls * args.chunk / batch_s
 

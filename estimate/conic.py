@@ -258,13 +258,13 @@ def conic_candidates(obs: Observations, layout: DeckLayout,
     choice = pick_batch(cands, ambiguity_chi2=options.ambiguity_chi2)
     unsettled = np.flatnonzero(choice.unresolved)
     if not unsettled.size:  # the choice stands (finish_batch need not make it again)
-        return BatchCandidates(cands.fits, cands.valid, cands.fallback, cands.extras, choice, cands.reasons)
+        return BatchCandidates(cands.fits, cands.valid, cands.unsolved, cands.extras, choice, cands.reasons)
     for k, present in enumerate(slots):
         rows = unsettled[present[unsettled]]
         if rows.size:
             lm = levenberg_marquardt(fits[k].params[rows], obs.take(rows))
             fits[k] = _replace_rows(fits[k], rows, lm)
-    return BatchCandidates(tuple(fits), cands.valid, cands.fallback, cands.extras, reasons=cands.reasons)
+    return BatchCandidates(tuple(fits), cands.valid, cands.unsolved, cands.extras, reasons=cands.reasons)
 
 
 def estimate_conic_frames(

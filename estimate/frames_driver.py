@@ -117,7 +117,7 @@ def estimate_frames(
 
     def solve_one(obs: Observations) -> Candidate | str:
         cands = alone(obs)
-        if cands.fallback[0]:
+        if cands.unsolved[0]:
             return cands.reasons[0] if cands.reasons is not None else no_solution
         return pick_candidate(cands, ambiguity_chi2=options.ambiguity_chi2,
                               assume_level_deck=options.assume_level_deck)

@@ -193,7 +193,7 @@ def pnp_candidates(obs: Observations, *, raise_errors: bool = False) -> BatchCan
     obs : Observations
         ``F`` frames of one beacon set.
     raise_errors : bool, keyword-only
-        Let an OpenCV error propagate instead of marking the frame ``fallback``.
+        Let an OpenCV error propagate instead of marking the frame ``unsolved``.
 
     Returns
     -------
@@ -244,7 +244,7 @@ def pnp_candidates(obs: Observations, *, raise_errors: bool = False) -> BatchCan
     for pos in (1, 2):
         compete = competing[:, pos - 1]
         if not compete.any():
-            continue  # no frame has a competing start here: no slot (the single-frame method lists none)
+            continue  # no frame has a competing start here: no slot (none lists this slot)
         rows = np.flatnonzero(compete)
         f = _refine_rows(F, rows, alt_raw[rows, pos - 1], obs)
         new = compete.copy()

@@ -49,11 +49,11 @@ class BatchCandidates:
     Attributes
     ----------
     fits : tuple of Fit
-        Slot ``k`` of every frame, in the order the single-frame method lists its fits.
+        Slot ``k`` of every frame, in the order the method lists its fits.
     valid : (F, K) array of bool
-        Which slots the single-frame method would list.
-    fallback : (F,) array of bool
-        Frames the batched method could not settle (they go to the single-frame path).
+        Which slots hold a solution of that frame.
+    unsolved : (F,) array of bool
+        Frames without any solution (``reasons`` says why, where the method gives reasons).
     extras : tuple of Extra
         Method extras that precede ``n_solutions`` in the record, in order.
     choice : PickBatch or None
@@ -66,7 +66,7 @@ class BatchCandidates:
 
     fits: tuple[Fit, ...]
     valid: BoolArray
-    fallback: BoolArray
+    unsolved: BoolArray
     extras: tuple[Extra, ...] = ()
     choice: PickBatch | None = None
     reasons: tuple[str, ...] | None = None

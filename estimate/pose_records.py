@@ -91,8 +91,8 @@ def pose_constrained(params: np.ndarray, sigmas: np.ndarray) -> np.ndarray:
 
     Every sigma finite, sigma height below the height, and every angle sigma below
     :data:`MAX_ANGLE_SIGMA_RAD` (near-coincident or collinear points give a finite but
-    meaningless covariance). The one home of this test, for the single-frame and the
-    batched estimates.
+    meaningless covariance). The one home of this test, for the batched
+    estimates and the robust search's.
 
     Parameters
     ----------
@@ -105,8 +105,9 @@ def pose_constrained(params: np.ndarray, sigmas: np.ndarray) -> np.ndarray:
     -------
     (F,) array of bool
     """
-    # (comparisons with NaN give False without a warning: no errstate needed)
-    return (np.isfinite(sigmas).all(axis=1) & (sigmas[:, 5] < np.abs(params[:, 5]))
+    # (comparisons with NaN give False without a warning: no errstate needed; a NaN or inf
+    # sigma makes its row's sum non-finite)
+    return (np.isfinite(sigmas.sum(axis=1)) & (sigmas[:, 5] < np.abs(params[:, 5]))
             & (sigmas[:, :3] < MAX_ANGLE_SIGMA_RAD).all(axis=1))
 
 
@@ -120,9 +121,10 @@ def _fit_tests(params: FloatArray, chi2: FloatArray, covariance_ok: BoolArray, s
     covariance exists); :func:`pose_constrained`; the reprojection RMS is at most the limit
     (False where it is not finite). Arguments as :func:`fits_pass`.
     """
-    # (comparisons with NaN give False without a warning)
-    return (np.isfinite(params).all(axis=1) & np.isfinite(chi2), covariance_ok,
-            pose_constrained(params, sigmas), rms_px <= max_reprojection_rms_px)
+    # (comparisons with NaN give False without a warning; a NaN or inf in a row makes its sum
+    # non-finite, and poses and chi-squares are far below overflow)
+    return (np.isfinite(params.sum(axis=1) + chi2), covariance_ok, pose_constrained(params, sigmas),
+            rms_px <= max_reprojection_rms_px)
 
 
 def fits_pass(params: FloatArray, chi2: FloatArray, covariance_ok: BoolArray, sigmas: FloatArray,
@@ -299,7 +301,7 @@ def finish_batch(
     chi2 = slot_values(cands.fits, "chi2", kb)
     # the frames where pick_candidate, solve_robust's first test and make_estimate give an ok
     # estimate without removing a point
-    settled = (choice.n_good > 0) & (pc.max(axis=1) <= outlier_chi2) & ~(cands.fallback | choice.unresolved)
+    settled = (choice.n_good > 0) & (pc.max(axis=1) <= outlier_chi2) & ~(cands.unsolved | choice.unresolved)
     settled &= fits_pass(best_p, chi2, choice.covariance_ok, sig, rms, max_reprojection_rms_px)
     settled_list = settled.tolist()
     if not any(settled_list):

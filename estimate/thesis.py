@@ -1,7 +1,7 @@
 """The faithful ``thesis`` estimator, registered as ``"thesis"``: frames in, records out.
 
 :func:`estimate_thesis_frames` arranges many frames' detections
-(:func:`thesis_inputs`) for :func:`deckpose.estimate.thesis_batch.estimate_thesis_batch`
+(:func:`thesis_inputs`) for :func:`deckpose.estimate.thesis_algorithm.thesis_algorithm`
 and turns its results into records; a lone frame (:func:`estimate_thesis`, the
 registered per-frame form) is a batch of one. It uses the
 identified ring beacons only (the published method has no centre beacon and
@@ -21,7 +21,7 @@ from collections.abc import Sequence
 
 import numpy as np
 from deckpose.estimate.registry import EstimateOptions, register
-from deckpose.estimate.thesis_batch import estimate_thesis_batch
+from deckpose.estimate.thesis_algorithm import thesis_algorithm
 
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
@@ -110,7 +110,7 @@ def estimate_thesis_frames(
     layout: DeckLayout,
     R_world_from_cam: np.ndarray,
 ) -> list[PoseEstimate]:
-    """The thesis's Algorithm 2 for many frames in one :func:`estimate_thesis_batch` call.
+    """The thesis's Algorithm 2 for many frames in one :func:`thesis_algorithm` call.
 
     Parameters
     ----------
@@ -133,7 +133,7 @@ def estimate_thesis_frames(
         nadir = np.all(np.abs(R_world_from_cam - R_WORLD_FROM_NADIR_CAM)
                        <= 1e-12 + 1e-5 * np.abs(R_WORLD_FROM_NADIR_CAM), axis=(1, 2))
     points, mask = thesis_inputs(detections, camera, layout)
-    res = estimate_thesis_batch(points, mask, camera.fx, camera.fy, layout.radius_m)
+    res = thesis_algorithm(points, mask, camera.fx, camera.fy, layout.radius_m)
     roll, pitch, yaw = zyx_from_thesis(*np.radians([res.roll_deg, res.pitch_deg, res.yaw_deg]))
     cols = [a.tolist() for a in (res.roll_deg, res.pitch_deg, res.yaw_deg, roll, pitch, yaw,
                                  res.height, res.yz2)]

@@ -18,7 +18,7 @@ frame not ok (its faithful outputs stay in their columns), by three steps per fr
 
 Where the bias of roll, pitch or yaw exceeds that angle's noise sigma, the
 assumption makes the error larger than the noise does, and the frame is not ok.
-The thesis's own batch (:func:`~deckpose.estimate.thesis_batch.estimate_thesis_batch`)
+The thesis's own batch (:func:`~deckpose.estimate.thesis_algorithm.thesis_algorithm`)
 does all thesis evaluations of a frame in one call.
 """
 
@@ -32,7 +32,7 @@ import numpy as np
 from deckpose.estimate.observations import pixel_covariances
 from deckpose.estimate.registry import EstimateOptions
 from deckpose.estimate.thesis import thesis_inputs
-from deckpose.estimate.thesis_batch import estimate_thesis_batch
+from deckpose.estimate.thesis_algorithm import thesis_algorithm
 
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
@@ -109,7 +109,7 @@ def flag_off_centre(
         for k, r in enumerate(ring):
             stack[1 + 2 * k, r, 0] += STEP_PX
             stack[2 + 2 * k, r, 1] += STEP_PX  # Y' = cy - v: +dY is -dv
-        res = estimate_thesis_batch(stack, np.repeat(mask[None], len(stack), axis=0),
+        res = thesis_algorithm(stack, np.repeat(mask[None], len(stack), axis=0),
                                     camera.fx, camera.fy, layout.radius_m)
         if not np.all(res.ok):
             continue  # the thesis method fails near this pose: no bias to measure

@@ -17,7 +17,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
-from deckpose.estimate.thesis_batch import Failure, estimate_thesis_batch
+from deckpose.estimate.thesis_algorithm import Failure, thesis_algorithm
 from numpy.typing import NDArray
 
 from deckpose.camera import THESIS_RESOLUTIONS, CameraModel, PixelForm, from_focal_angle
@@ -155,7 +155,7 @@ BatchEstimator = Callable[[FloatArray, NDArray[np.bool_], CameraModel], BatchOut
 
 def thesis_batch_estimator(points_c: FloatArray, mask: NDArray[np.bool_], camera: CameraModel) -> BatchOutput:
     """The vectorised faithful thesis estimator as a :data:`BatchEstimator`."""
-    res = estimate_thesis_batch(points_c, mask, camera.fx, camera.fy, 10.0)
+    res = thesis_algorithm(points_c, mask, camera.fx, camera.fy, 10.0)
     names = np.array([""] + [f.name.lower() for f in list(Failure)[1:]], dtype=object)
     return BatchOutput(res.roll_deg, res.pitch_deg, res.yaw_deg, res.height, res.ok, names[res.failure], res.yz2)
 

@@ -221,7 +221,7 @@ def test_estimate_many_is_the_batch_and_checks_attitudes():
 @pytest.mark.parametrize("method", ["conic", "pnp"])
 @pytest.mark.parametrize("refine", [False, True])
 def test_clean_frames_stay_in_the_batch(method, refine):
-    """The single-frame path is only the fallback: clean frames, even at 2 px and 80 m, are batched."""
+    """The robust search is only for frames the batch cannot settle: clean frames, even at 2 px and 80 m, are settled in the batch."""
     from functools import partial
 
     from deckpose.estimate.conic import conic_candidates

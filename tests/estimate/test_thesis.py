@@ -8,7 +8,7 @@ import pytest
 from deckpose.estimate import registry
 from deckpose.estimate.conic_fit import fit_conic, fit_conic_coefficients
 from deckpose.estimate.thesis import estimate_thesis
-from deckpose.estimate.thesis_batch import Failure, estimate_thesis_batch
+from deckpose.estimate.thesis_algorithm import Failure, thesis_algorithm
 from hypothesis import given, settings
 from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
@@ -37,7 +37,7 @@ def test_batch_round_trip_noise_free(name):
     roll, pitch, yaw, D = _random_cases(rng, 400)
     R = R_from_thesis(*np.radians([roll, pitch, yaw]))
     pc = project_thesis_centred(thesis_layout().positions_deck_m(), R, D, cam.fx, cam.fy)
-    res = estimate_thesis_batch(pc, np.ones(pc.shape[:2], bool), cam.fx, cam.fy, 10.0)
+    res = thesis_algorithm(pc, np.ones(pc.shape[:2], bool), cam.fx, cam.fy, 10.0)
     assert res.ok.all(), np.unique(res.failure)
     dyaw = np.degrees(wrap_angle_rad(np.radians(res.yaw_deg - yaw)))
     assert np.max(np.abs(res.roll_deg - roll)) < THESIS_ROUNDTRIP_DEG
@@ -74,7 +74,7 @@ def test_per_frame_and_batch_agree_bit_for_bit_on_noisy_input():
     R = R_from_thesis(*np.radians([roll, pitch, yaw]))
     pc = project_thesis_centred(thesis_layout().positions_deck_m(), R, D, cam.fx, cam.fy)
     pc = pc + rng.normal(0, 1.0, pc.shape)
-    batch = estimate_thesis_batch(pc, np.ones(pc.shape[:2], bool), cam.fx, cam.fy, 10.0)
+    batch = thesis_algorithm(pc, np.ones(pc.shape[:2], bool), cam.fx, cam.fy, 10.0)
     layout = thesis_layout()
     for i in range(50):
         uv = np.column_stack([pc[i, :, 0] + cam.cx, cam.cy - pc[i, :, 1]])
@@ -122,10 +122,10 @@ def _frame(cam, roll=0.0, pitch=0.0, yaw=0.0, D=30.0):
 
 def test_level_deck_is_flagged_not_nan():
     cam = preset("8mp-square")  # square pixels: a level deck images to a circle
-    res = estimate_thesis_batch(_frame(cam), np.ones((1, 12), bool), cam.fx, cam.fy, 10.0)
+    res = thesis_algorithm(_frame(cam), np.ones((1, 12), bool), cam.fx, cam.fy, 10.0)
     assert not res.ok[0] and res.failure[0] == Failure.LEVEL_DECK
     cam = preset("8mp")  # non-square: the first conic is fine, the undistorted one is a circle
-    res = estimate_thesis_batch(_frame(cam, yaw=10.0), np.ones((1, 12), bool), cam.fx, cam.fy, 10.0)
+    res = thesis_algorithm(_frame(cam, yaw=10.0), np.ones((1, 12), bool), cam.fx, cam.fy, 10.0)
     assert not res.ok[0] and res.failure[0] == Failure.LEVEL_DECK
     assert "level deck" in res.reason(0)
 
@@ -135,11 +135,11 @@ def test_too_few_beacons_and_missing_bow():
     pc = _frame(cam, 5.0, 3.0, 20.0)
     m = np.ones((1, 12), bool)
     m[0, 1:9] = False
-    res = estimate_thesis_batch(pc, m, cam.fx, cam.fy, 10.0)
+    res = thesis_algorithm(pc, m, cam.fx, cam.fy, 10.0)
     assert res.failure[0] == Failure.TOO_FEW_BEACONS
     m = np.ones((1, 12), bool)
     m[0, 0] = False
-    res = estimate_thesis_batch(pc, m, cam.fx, cam.fy, 10.0)
+    res = thesis_algorithm(pc, m, cam.fx, cam.fy, 10.0)
     assert res.failure[0] == Failure.NO_BOW_BEACON and math.isnan(res.roll_deg[0])
     est = estimate_thesis(Detections(np.zeros((3, 2)), [0, 1, 2]), cam, thesis_layout())
     assert not est and "fewer than 5" in est.reason
@@ -150,7 +150,7 @@ def test_missing_ring_beacons_still_solve():
     pc = _frame(cam, 12.0, -6.0, 140.0, 40.0)
     m = np.ones((1, 12), bool)
     m[0, [3, 7, 10]] = False
-    res = estimate_thesis_batch(pc, m, cam.fx, cam.fy, 10.0)
+    res = thesis_algorithm(pc, m, cam.fx, cam.fy, 10.0)
     assert res.ok[0]
     assert res.roll_deg[0] == pytest.approx(12.0, abs=1e-6)
     assert res.yaw_deg[0] == pytest.approx(140.0, abs=1e-6)
@@ -167,7 +167,7 @@ def test_tilted_camera_is_refused_with_a_reason():
 @given(arrays(np.float64, (3, 12, 2), elements=st.floats(-5000, 5000, allow_nan=False)),
        arrays(np.bool_, (3, 12)))
 def test_random_input_never_raises_and_never_reports_nan_as_ok(points, mask):
-    res = estimate_thesis_batch(points, mask, 1500.0, 1400.0, 10.0)
+    res = thesis_algorithm(points, mask, 1500.0, 1400.0, 10.0)
     for arr in (res.roll_deg, res.pitch_deg, res.yaw_deg, res.height):
         assert np.all(np.isfinite(arr[res.ok]))
         assert np.all(np.isnan(arr[~res.ok]))

@@ -63,8 +63,8 @@ REASONS: dict[Failure, str] = {
 
 
 @dataclass(frozen=True)
-class ThesisBatchResult:
-    """Output of :func:`estimate_thesis_batch`; all arrays have shape (F,).
+class ThesisResult:
+    """Output of :func:`thesis_algorithm`; all arrays have shape (F,).
 
     Attributes
     ----------
@@ -101,9 +101,9 @@ def _set_failure(failure: NDArray[np.int64], cond: BoolArray, code: Failure) -> 
     failure[(failure == 0) & cond] = int(code)
 
 
-def estimate_thesis_batch(
+def thesis_algorithm(
     points_c: FloatArray, mask: BoolArray, fx: float, fy: float, radius: float
-) -> ThesisBatchResult:
+) -> ThesisResult:
     """Run the thesis's Algorithm 2 on many frames at once.
 
     Parameters
@@ -120,7 +120,7 @@ def estimate_thesis_batch(
 
     Returns
     -------
-    ThesisBatchResult
+    ThesisResult
     """
     P = np.asarray(points_c, dtype=float)
     m = np.asarray(mask, dtype=bool)
@@ -206,7 +206,7 @@ def estimate_thesis_batch(
     def _mask(a: FloatArray) -> FloatArray:
         return np.where(ok, a, nan)
 
-    return ThesisBatchResult(
+    return ThesisResult(
         ok=ok,
         failure=failure,
         roll_deg=_mask(np.degrees(roll)),
