@@ -99,18 +99,36 @@ class Observations:
                             self.R_world_from_cam)
 
 
-def pixel_covariances(detections: Detections, sigma_px: float, use_detection_covariance: bool) -> FloatArray:
-    """The pixel covariance of each detection, px^2, shape (N, 2, 2).
+#: The 2x2 identity: the covariance a detection without its own carries ("unknown").
+_EYE2 = np.eye(2)
+_EYE2.setflags(write=False)
+
+
+def pixel_covariances(covariance_px2: FloatArray, sigma_px: float, use_detection_covariance: bool
+                      ) -> tuple[FloatArray, bool]:
+    """One frame's pixel covariance of each detection, px^2: the one home of this rule.
 
     The detector's own covariances are used when ``use_detection_covariance`` and
     they are not all the identity (the :class:`~deckpose.records.Detections`
     default that means "unknown"); otherwise ``sigma_px**2 * I``.
+
+    Parameters
+    ----------
+    covariance_px2 : (N, 2, 2) array of float
+        The frame's detections' own covariances.
+    sigma_px : float
+    use_detection_covariance : bool
+
+    Returns
+    -------
+    cov : (N, 2, 2) array of float
+    own : bool
+        Whether ``cov`` is the detections' own.
     """
-    cov = np.asarray(detections.covariance_px2, dtype=float)
-    n = cov.shape[0]
-    if use_detection_covariance and n and not np.all(cov == np.eye(2)):
-        return cov
-    return np.broadcast_to(np.eye(2) * sigma_px**2, (n, 2, 2))
+    own = bool(use_detection_covariance and covariance_px2.shape[0] and not np.all(covariance_px2 == _EYE2))
+    if own:
+        return covariance_px2, True
+    return np.broadcast_to(_EYE2 * sigma_px**2, covariance_px2.shape), False
 
 
 @functools.lru_cache(maxsize=64)
@@ -199,11 +217,6 @@ def stack_detections(detections: Sequence[Detections]) -> StackedDetections:
     return StackedDetections(counts, starts, pts, ids, cov)
 
 
-#: The 2x2 identity: the covariance a detection without its own carries ("unknown").
-_EYE2 = np.eye(2)
-_EYE2.setflags(write=False)
-
-
 @functools.lru_cache(maxsize=16)
 def _normalising_map(K_bytes: bytes) -> tuple[FloatArray, FloatArray]:
     """``(A, b)`` with ``xy = px @ A + b`` the normalised coordinates of pixels, for ``K`` as bytes (cached)."""
@@ -258,8 +271,7 @@ def group_observations(
     distorted = camera.has_distortion
     if F == 1:  # a lone frame: its own covariances or not, isotropic or not, without per-frame reductions
         frame_of = np.zeros(ids_all.size, dtype=np.int64)
-        own1 = bool(use_detection_covariance and ids_all.size and not np.all(raw == _EYE2))
-        cov = raw if own1 else np.broadcast_to(_EYE2 * sigma_px**2, raw.shape)
+        cov, own1 = pixel_covariances(raw, sigma_px, use_detection_covariance)
         c0 = cov[0] if ids_all.size else _EYE2
         iso1 = bool(ids_all.size and c0[0, 1] == 0.0 and c0[1, 0] == 0.0 and c0[0, 0] == c0[1, 1]
                     and 0.0 < c0[0, 0] < np.inf and (not own1 or np.all(cov == c0)))

@@ -3,7 +3,7 @@
 A fit makes an ok estimate when its pose and chi-square are finite, its information
 matrix is positive definite, its covariance pins the pose down
 (:func:`pose_constrained`) and its reprojection RMS is within the limit
-(:func:`fits_pass`; :func:`fit_problem` says why not). A covariance that the residuals say is
+(:func:`fit_tests`; :func:`fit_problem` says why not). A covariance that the residuals say is
 too small is widened alike (:func:`covariance_scale`). :func:`make_estimate` builds one
 frame's record, ok or not (the robust search's); :func:`finish_batch` builds the ok
 records of many frames at once, where the batch settles them. Both write the extras in
@@ -107,29 +107,17 @@ def pose_constrained(params: np.ndarray, sigmas: np.ndarray) -> np.ndarray:
     """
     # (comparisons with NaN give False without a warning: no errstate needed; a NaN or inf
     # sigma makes its row's sum non-finite)
-    return (np.isfinite(sigmas.sum(axis=1)) & (sigmas[:, 5] < np.abs(params[:, 5]))
-            & (sigmas[:, :3] < MAX_ANGLE_SIGMA_RAD).all(axis=1))
+    return (np.isfinite(np.add.reduce(sigmas, axis=1)) & (sigmas[:, 5] < np.abs(params[:, 5]))
+            & np.logical_and.reduce(sigmas[:, :3] < MAX_ANGLE_SIGMA_RAD, axis=1))
 
 
 
-def _fit_tests(params: FloatArray, chi2: FloatArray, covariance_ok: BoolArray, sigmas: FloatArray,
-               rms_px: FloatArray, max_reprojection_rms_px: float
-               ) -> tuple[BoolArray, BoolArray, BoolArray, BoolArray]:
-    """The tests a fit must pass to make an ok estimate, each (F,): the one home of these tests.
+def fit_tests(params: FloatArray, chi2: FloatArray, covariance_ok: BoolArray, sigmas: FloatArray,
+              rms_px: FloatArray, max_reprojection_rms_px: float
+              ) -> tuple[BoolArray, BoolArray, BoolArray, BoolArray]:
+    """The tests a fit must pass to make an ok estimate: the one home of these tests.
 
-    The pose and chi-square are finite; the information matrix is positive definite (the
-    covariance exists); :func:`pose_constrained`; the reprojection RMS is at most the limit
-    (False where it is not finite). Arguments as :func:`fits_pass`.
-    """
-    # (comparisons with NaN give False without a warning; a NaN or inf in a row makes its sum
-    # non-finite, and poses and chi-squares are far below overflow)
-    return (np.isfinite(params.sum(axis=1) + chi2), covariance_ok, pose_constrained(params, sigmas),
-            rms_px <= max_reprojection_rms_px)
-
-
-def fits_pass(params: FloatArray, chi2: FloatArray, covariance_ok: BoolArray, sigmas: FloatArray,
-              rms_px: FloatArray, max_reprojection_rms_px: float) -> BoolArray:
-    """Whether each fit makes an ok estimate (:func:`fit_problem` says why not).
+    A fit makes an ok estimate where all four hold (:func:`fit_problem` says why not).
 
     Parameters
     ----------
@@ -145,11 +133,20 @@ def fits_pass(params: FloatArray, chi2: FloatArray, covariance_ok: BoolArray, si
 
     Returns
     -------
-    (F,) array of bool
+    finite : (F,) array of bool
+        The pose and chi-square are finite.
+    covariance_ok : (F,) array of bool
+        The information matrix is positive definite (the covariance exists).
+    constrained : (F,) array of bool
+        :func:`pose_constrained`.
+    rms_ok : (F,) array of bool
+        The reprojection RMS is at most the limit (False where it is not finite).
     """
-    finite, cov_ok, constrained, rms_ok = _fit_tests(params, chi2, covariance_ok, sigmas, rms_px,
-                                                     max_reprojection_rms_px)
-    return finite & cov_ok & constrained & rms_ok
+    # (comparisons with NaN give False without a warning; a NaN or inf in a row makes its sum
+    # non-finite, and poses and chi-squares are far below overflow; the ufunc's own reduce
+    # skips ndarray.sum's Python wrapper, which a lone frame pays for)
+    return (np.isfinite(np.add.reduce(params, axis=1) + chi2), covariance_ok, pose_constrained(params, sigmas),
+            rms_px <= max_reprojection_rms_px)
 
 
 def fit_problem(params: FloatArray, chi2: float, covariance_ok: bool, sigmas: FloatArray, rms_px: float,
@@ -165,7 +162,7 @@ def fit_problem(params: FloatArray, chi2: float, covariance_ok: bool, sigmas: Fl
     rms_px : float
     max_reprojection_rms_px : float
     """
-    finite, cov_ok, constrained, rms_ok = (bool(t[0]) for t in _fit_tests(
+    finite, cov_ok, constrained, rms_ok = (bool(t[0]) for t in fit_tests(
         params[None], np.array([chi2]), np.array([covariance_ok]), sigmas[None], np.array([rms_px]),
         max_reprojection_rms_px))
     problems = []
@@ -302,7 +299,9 @@ def finish_batch(
     # the frames where pick_candidate, solve_robust's first test and make_estimate give an ok
     # estimate without removing a point
     settled = (choice.n_good > 0) & (pc.max(axis=1) <= outlier_chi2) & ~(cands.unsolved | choice.unresolved)
-    settled &= fits_pass(best_p, chi2, choice.covariance_ok, sig, rms, max_reprojection_rms_px)
+    finite, cov_ok, constrained, rms_ok = fit_tests(best_p, chi2, choice.covariance_ok, sig, rms,
+                                                    max_reprojection_rms_px)
+    settled &= finite & cov_ok & constrained & rms_ok
     settled_list = settled.tolist()
     if not any(settled_list):
         return [None] * F

@@ -118,7 +118,8 @@ def flag_off_centre(
         bias = wrap_angle_deg(ang[0] - truth)
         J = wrap_angle_deg(ang[1:] - ang[0]).T / STEP_PX  # (3, 2n): d angle / d (X', Y') per point
         J[:, 1::2] *= -1.0  # back to d / d v
-        cov_px = pixel_covariances(det, options.sigma_px, options.use_detection_covariance)
+        cov_px, _ = pixel_covariances(np.asarray(det.covariance_px2, dtype=float), options.sigma_px,
+                                      options.use_detection_covariance)
         ids = det.beacon_ids
         blocks = np.zeros((2 * n, 2 * n))
         for k, r in enumerate(ring):
