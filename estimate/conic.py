@@ -30,8 +30,8 @@ before the choice.
 Batch-first (a lone frame is a batch of one): :func:`conic_candidates` runs every step
 above as stacked array operations over the frames that share a beacon set. Frames the
 batch cannot settle (an outlier to remove, an unresolved ambiguity, any failure) go
-through the robust search of :mod:`~estimate.robust_search`, which solves each subset as a
-batch of one.
+through the robust search of :mod:`~estimate.robust_search`, which solves their subsets
+stacked by beacon set.
 """
 
 from __future__ import annotations

@@ -4,17 +4,17 @@
 poses of each group at once and makes the ok records of the frames it settles
 (:func:`~estimate.pose_records.finish_batch`); :func:`estimate_frames` sends every other
 frame (an outlier to remove, an unresolved ambiguity, a failure) through the robust search
-(:func:`~estimate.robust_search.estimate_robustly`), which solves each subset of the
-frame's points as a batch of one.
+(:func:`~estimate.robust_search.estimate_robustly`), all of them together.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
+from typing import cast
 
 import numpy as np
 from deckpose.estimate.observations import Observations, group_observations, stack_detections
-from deckpose.estimate.pose_candidates import BatchCandidates, Candidate, pick_candidate
+from deckpose.estimate.pose_candidates import BatchCandidates, Candidate, pick_candidates
 from deckpose.estimate.pose_records import finish_batch
 from deckpose.estimate.registry import EstimateOptions
 from deckpose.estimate.robust_search import estimate_robustly
@@ -82,9 +82,9 @@ def estimate_frames(
 
     The batch settles what it can (:func:`settle_batch`); every other frame (an outlier to
     remove, an unresolved ambiguity, a failure) goes through the robust search
-    (:func:`~estimate.robust_search.estimate_robustly`), which solves each subset of the frame's
-    points as a batch of one and chooses between its solutions with
-    :func:`~estimate.pose_candidates.pick_candidate`.
+    (:func:`~estimate.robust_search.estimate_robustly`), which solves the subsets of all those
+    frames stacked by beacon set and chooses between each frame's solutions with
+    :func:`~estimate.pose_candidates.pick_candidates`.
 
     Parameters
     ----------
@@ -113,20 +113,19 @@ def estimate_frames(
     """
     got = settle_batch(method, candidates, detections, camera, layout, options, R_world_from_cam,
                        refined=refined)
-    alone = subset_candidates or candidates
+    left = [f for f, e in enumerate(got) if e is None]
+    if not left:
+        return cast("list[PoseEstimate]", got)
+    subsets = subset_candidates or candidates
 
-    def solve_one(obs: Observations) -> Candidate | str:
-        cands = alone(obs)
-        if cands.unsolved[0]:
-            return cands.reasons[0] if cands.reasons is not None else no_solution
-        return pick_candidate(cands, ambiguity_chi2=options.ambiguity_chi2,
-                              assume_level_deck=options.assume_level_deck)
+    def solve(obs: Observations, frames: Sequence[int]) -> list[Candidate | str]:
+        return pick_candidates(subsets(obs), ambiguity_chi2=options.ambiguity_chi2,
+                               assume_level_deck=options.assume_level_deck, no_solution=no_solution)
 
-    out: list[PoseEstimate] = []
-    for d, R, e in zip(detections, R_world_from_cam, got, strict=True):
-        if e is None:
-            e = estimate_robustly(method, solve_one, d, camera, layout, options, R_world_from_cam=R,
-                                  min_points=min_points, refined=refined)
-        out.append(e)
-    return out
-
+    every = len(left) == len(detections)
+    searched = estimate_robustly(method, solve, detections if every else [detections[f] for f in left], camera,
+                                 layout, options, R_world_from_cam if every else R_world_from_cam[left],
+                                 min_points=min_points, refined=refined)
+    for f, e in zip(left, searched, strict=True):
+        got[f] = e
+    return cast("list[PoseEstimate]", got)

@@ -79,6 +79,12 @@ class Fit:
         """``(J^T Sigma^-1 J)^-1`` of each frame and whether it exists (positive definite, finite)."""
         return covariance_from_information(self.information)
 
+    def frame(self, f: int) -> Fit:
+        """Frame ``f``'s fit as a batch of one (views of these arrays)."""
+        s = slice(f, f + 1)
+        return Fit(self.params[s], self.chi2[s], self.information[s], self.whitened[s], self.residuals_px[s],
+                   self.gradient[s], self.iterations[s], self.converged[s])
+
 
 def _rows_ok(a: FloatArray) -> BoolArray:
     return np.all(np.isfinite(a.reshape(a.shape[0], math.prod(a.shape[1:]))), axis=1)

@@ -99,6 +99,35 @@ class Observations:
                             self.R_world_from_cam)
 
 
+def stack_frames(parts: Sequence[Observations]) -> Observations:
+    """Observations of the same beacon set, frame after frame, as one batch.
+
+    Parameters
+    ----------
+    parts : sequence of Observations
+        Each of any number of frames; all with the same ``ids``.
+
+    Returns
+    -------
+    Observations
+        Their frames in order (``parts[0]`` itself when there is one). Where the parts
+        differ in whether one whitening matrix serves every point, each is repeated per point.
+    """
+    if len(parts) == 1:
+        return parts[0]
+    first = parts[0]
+    M = first.ids.shape[0]
+
+    def cat(name: str) -> FloatArray:
+        arrays = [getattr(p, name) for p in parts]
+        if len({a.shape[1] for a in arrays}) > 1:
+            arrays = [np.broadcast_to(a, (a.shape[0], M, 2, 2)) for a in arrays]
+        return np.concatenate(arrays)
+
+    return Observations(first.ids, first.points_deck_m, np.concatenate([p.xy for p in parts]), cat("sqrt_info"),
+                        cat("px_from_norm"), np.concatenate([p.R_world_from_cam for p in parts]))
+
+
 #: The 2x2 identity: the covariance a detection without its own carries ("unknown").
 _EYE2 = np.eye(2)
 _EYE2.setflags(write=False)

@@ -14,7 +14,7 @@ chi-square, the Levenberg–Marquardt refinements and the tests that decide whic
 starts compete — is stacked over the frames that share a beacon set
 (:func:`pnp_candidates`). Frames the batch cannot settle (an outlier to remove,
 an unresolved ambiguity, any failure) go through the robust search of
-:mod:`~estimate.robust_search`, which solves each subset as a batch of one.
+:mod:`~estimate.robust_search`, which solves their subsets stacked by beacon set.
 """
 
 from __future__ import annotations

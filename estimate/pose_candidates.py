@@ -4,9 +4,9 @@ A planar target seen by one camera can have two poses that fit almost equally
 well. Every estimator here lists up to ``K`` solutions per frame
 (:class:`BatchCandidates`); :func:`pick_batch` takes the lowest chi-square and says
 whether the runner-up is told apart from it (:func:`ambiguity_resolved`, the one
-home of that test). :func:`pick_candidate` is the choice for one frame (a batch of
-one) as the robust search (:mod:`~estimate.robust_search`) takes it, with the problem it
-reports when the ambiguity stays unresolved.
+home of that test). :func:`pick_candidates` turns that choice into each frame's
+:class:`Candidate` as the robust search (:mod:`~estimate.robust_search`) takes it, with
+the problem it reports when the ambiguity stays unresolved.
 """
 
 from __future__ import annotations
@@ -102,7 +102,7 @@ def slot_values(fits: tuple[Fit, ...], attr: str, k: NDArray[np.int64]) -> np.nd
 
 @dataclass(frozen=True)
 class PickBatch:
-    """Each frame's choice between its solutions (a frame alone: :func:`pick_candidate`).
+    """Each frame's choice between its solutions (as candidates: :func:`pick_candidates`).
 
     Attributes
     ----------
@@ -214,7 +214,7 @@ def pick_batch(cands: BatchCandidates, *, ambiguity_chi2: float) -> PickBatch:
     return PickBatch(kb, n_good, best_p, cov, cov_ok, alt_p, dchi2, maha, unresolved, ka)
 
 
-#: The ambiguity's extras, in the order of the record (:func:`pick_candidate`).
+#: The ambiguity's extras, in the order of the record (:func:`pick_candidates`).
 AMBIGUITY_EXTRAS = ("ambiguity_delta_chi2", "ambiguity_mahalanobis", "alt_roll_rad", "alt_pitch_rad",
                      "alt_yaw_rad", "alt_height_m")
 
@@ -238,10 +238,11 @@ class Candidate:
     problem: str = ""
 
 
-def pick_candidate(cands: BatchCandidates, *, ambiguity_chi2: float, assume_level_deck: bool) -> Candidate | str:
-    """One frame's choice between its solutions (the planar ambiguity), as the robust search takes it.
+def pick_candidates(cands: BatchCandidates, *, ambiguity_chi2: float, assume_level_deck: bool,
+                    no_solution: str) -> list[Candidate | str]:
+    """Each frame's choice between its solutions (the planar ambiguity), as the robust search takes it.
 
-    :func:`pick_batch` of a batch of one: the lower chi-square wins. When the runner-up is
+    :func:`pick_batch` of the frames: the lower chi-square wins. When the runner-up is
     within ``ambiguity_chi2`` of it while the two poses differ by more than
     :data:`AMBIGUITY_SIGMAS` (Mahalanobis, best fit's covariance), the ambiguity is
     unresolved: the candidate carries a problem, or, with ``assume_level_deck``, the more
@@ -250,29 +251,50 @@ def pick_candidate(cands: BatchCandidates, *, ambiguity_chi2: float, assume_leve
     Parameters
     ----------
     cands : BatchCandidates
-        Of one frame (``F = 1``).
+        Of ``F`` frames.
     ambiguity_chi2 : float, keyword-only
     assume_level_deck : bool, keyword-only
+    no_solution : str, keyword-only
+        The reason of an unsolved frame where the method gives none (:attr:`BatchCandidates.reasons`).
 
     Returns
     -------
-    Candidate or str
-        The chosen solution with the frame's extras, or why there is none.
+    list of F Candidate or str
+        Each frame's chosen solution (its fits a batch of one) with the frame's extras, or why
+        there is none.
     """
+    F = cands.valid.shape[0]
+    if not cands.fits:  # no frame has a solution
+        return [cands.reasons[f] if cands.reasons is not None else no_solution for f in range(F)]
     choice = pick_batch(cands, ambiguity_chi2=ambiguity_chi2)
-    n_good = int(choice.n_good[0])
-    if n_good == 0:
-        return "no valid pose solution (points behind the camera or non-finite fit)"
-    ex = {e.name: float(e.values[0]) for e in cands.extras if e.present is None or e.present[0]}
+    fits = cands.fits if F == 1 else None
+    out: list[Candidate | str] = []
+    for f, (unsolved, n_good) in enumerate(zip(cands.unsolved.tolist(), choice.n_good.tolist(), strict=True)):
+        if unsolved:
+            out.append(cands.reasons[f] if cands.reasons is not None else no_solution)
+            continue
+        if n_good == 0:
+            out.append("no valid pose solution (points behind the camera or non-finite fit)")
+            continue
+        frame_fits = fits if fits is not None else tuple(fit.frame(f) for fit in cands.fits)
+        out.append(_frame_choice(cands, choice, f, n_good, frame_fits, ambiguity_chi2=ambiguity_chi2,
+                                 assume_level_deck=assume_level_deck))
+    return out
+
+
+def _frame_choice(cands: BatchCandidates, choice: PickBatch, f: int, n_good: int, fits: tuple[Fit, ...], *,
+                  ambiguity_chi2: float, assume_level_deck: bool) -> Candidate:
+    """Frame ``f``'s candidate from ``choice`` (``fits``: its own solutions, each a batch of one)."""
+    ex = {e.name: float(e.values[f]) for e in cands.extras if e.present is None or e.present[f]}
     ex["n_solutions"] = float(n_good)
-    best = cands.fits[int(choice.best[0])]
+    best = fits[int(choice.best[f])]
     if n_good == 1:
         return Candidate(best, ex)
-    alt = cands.fits[int(choice.alt[0])]
-    dchi2, maha = float(choice.delta_chi2[0]), float(choice.mahalanobis[0])
-    ex.update(zip(AMBIGUITY_EXTRAS, (dchi2, maha, *choice.alt_params[0, :3].tolist(),
-                                      float(choice.alt_params[0, 5]))))
-    if not choice.unresolved[0]:
+    alt = fits[int(choice.alt[f])]
+    dchi2, maha = float(choice.delta_chi2[f]), float(choice.mahalanobis[f])
+    ex.update(zip(AMBIGUITY_EXTRAS, (dchi2, maha, *choice.alt_params[f, :3].tolist(),
+                                      float(choice.alt_params[f, 5]))))
+    if not choice.unresolved[f]:
         return Candidate(best, ex)
     if assume_level_deck:
         b, a = best.params[0], alt.params[0]

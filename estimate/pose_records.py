@@ -276,9 +276,9 @@ def finish_batch(
 ) -> list[PoseEstimate | None]:
     """Choose each frame's solution and build its record; None where the robust search must decide.
 
-    Frame by frame this is :func:`~estimate.pose_candidates.pick_candidate`, the first test of
-    :func:`~estimate.robust_search.solve_robust` and :func:`make_estimate` for the case where
-    they produce an ok estimate without removing a point.
+    Frame by frame this is :func:`~estimate.pose_candidates.pick_candidates`, the first test of
+    the robust search (:mod:`~estimate.robust_search`) and :func:`make_estimate` for the case
+    where they produce an ok estimate without removing a point.
     ``pick=False`` is for a single solution taken as it is (the refinement): no
     ``n_solutions`` extra. NaN fits are expected: call it under
     ``np.errstate(invalid="ignore")`` (:func:`settle_batch` does).
@@ -296,7 +296,7 @@ def finish_batch(
     cov = choice.covariance * scale[:, None, None]
     sig = np.sqrt(cov.reshape(F, 36)[:, ::7])  # the diagonals (``cov`` is a fresh product)
     chi2 = slot_values(cands.fits, "chi2", kb)
-    # the frames where pick_candidate, solve_robust's first test and make_estimate give an ok
+    # the frames where pick_candidates, the robust search's first test and make_estimate give an ok
     # estimate without removing a point
     settled = (choice.n_good > 0) & (pc.max(axis=1) <= outlier_chi2) & ~(cands.unsolved | choice.unresolved)
     finite, cov_ok, constrained, rms_ok = fit_tests(best_p, chi2, choice.covariance_ok, sig, rms,

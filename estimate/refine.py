@@ -7,14 +7,13 @@ same outlier removal, covariance and flags as the package's own estimators.
 :func:`refine_estimates` runs one stacked Levenberg–Marquardt per beacon set; a
 lone frame (:func:`refine_estimate`) is a batch of one. Frames the batch cannot
 settle (an outlier to remove, any failure) go through the robust search of
-:mod:`~estimate.robust_search`, which refines each subset of their points as a batch
-of one.
+:mod:`~estimate.robust_search`, which refines their subsets stacked by beacon set.
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 from deckpose.estimate.least_squares import levenberg_marquardt
@@ -67,18 +66,35 @@ def refine_estimate(
     return refine_estimates([estimate], [detections], camera, layout, options, R)[0]
 
 
-def _refine_robustly(estimate: PoseEstimate, p0: np.ndarray, detections: Detections, camera: CameraModel,
-                     layout: DeckLayout, options: EstimateOptions, R_world_from_cam: np.ndarray) -> PoseEstimate:
-    """One frame the batch left open, through the robust search (each subset a batch of one)."""
-    def solve(o: Observations) -> Candidate | str:
-        return Candidate(levenberg_marquardt(p0[None], o))
+def _refine_robustly(estimates: Sequence[PoseEstimate], p0: np.ndarray, detections: Sequence[Detections],
+                     camera: CameraModel, layout: DeckLayout, options: EstimateOptions,
+                     R_world_from_cam: np.ndarray) -> list[PoseEstimate]:
+    """The frames the batch left open, through the robust search (their subsets stacked; ``p0`` (F, 6))."""
+    def solve(o: Observations, frames: Sequence[int]) -> list[Candidate | str]:
+        fit = levenberg_marquardt(p0[list(frames)], o)
+        return [Candidate(fit if len(frames) == 1 else fit.frame(k)) for k in range(len(frames))]
 
-    refined = estimate_robustly(estimate.method, solve, detections, camera, layout, options,
-                                min_points=MIN_BEACONS, refined=True,
-                                failure_prefix="refinement failed numerically", R_world_from_cam=R_world_from_cam)
-    if not refined.ok and refined.reason.startswith("refinement failed numerically"):
-        return refined
-    return _merge(estimate, refined)
+    out: list[PoseEstimate] = list(estimates)
+    by_method: dict[str, list[int]] = {}
+    for i, e in enumerate(estimates):
+        by_method.setdefault(e.method, []).append(i)
+    for method, rows in by_method.items():  # (a failed record carries its estimate's method)
+        every = len(rows) == len(estimates)
+        refined = estimate_robustly(method, solve if every else _rows_solve(solve, rows),
+                                    detections if every else [detections[i] for i in rows], camera, layout,
+                                    options, R_world_from_cam if every else R_world_from_cam[rows],
+                                    min_points=MIN_BEACONS, refined=True,
+                                    failure_prefix="refinement failed numerically")
+        for i, r in zip(rows, refined, strict=True):
+            failed = not r.ok and r.reason.startswith("refinement failed numerically")
+            out[i] = r if failed else _merge(estimates[i], r)
+    return out
+
+
+def _rows_solve(solve: Callable[[Observations, Sequence[int]], list[Candidate | str]], rows: list[int]
+                ) -> Callable[[Observations, Sequence[int]], list[Candidate | str]]:
+    """``solve`` for a search over ``rows`` of its frames (frame ``k`` of the search is ``rows[k]``)."""
+    return lambda o, frames: solve(o, [rows[k] for k in frames])
 
 
 def _merge(estimate: PoseEstimate, refined: PoseEstimate) -> PoseEstimate:
@@ -149,10 +165,14 @@ def refine_estimates(
         for i, e in zip(frames, ests):
             if e is not None:
                 done[i] = _merge(estimates[i], e)
+    left = [i for i in todo if i not in done]  # an outlier to remove or a failure: the robust search
     for i in todo:
         if i in done:
             out[i] = done[i]
-        else:  # an outlier to remove or a failure: the robust search
-            out[i] = _refine_robustly(estimates[i], p0[i], detections[i], camera, layout, options,
-                                      R_world_from_cam[i])
+    if left:
+        searched = _refine_robustly([estimates[i] for i in left], np.array([p0[i] for i in left]),
+                                    [detections[i] for i in left], camera, layout, options,
+                                    np.asarray(R_world_from_cam)[left])
+        for i, e in zip(left, searched, strict=True):
+            out[i] = e
     return out

@@ -178,3 +178,67 @@ def test_near_coincident_points_are_not_reported_ok(method):
     for s, b in zip(single, batched):
         assert not s.ok and not b.ok
         assert s.reason == b.reason
+
+
+def _frames_with_one_outlier(n: int, seed: int) -> list[Detections]:
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n):
+        det = _noisy(rng)
+        pts = np.array(det.points_px)
+        pts[k % len(pts)] += [25.0, -18.0]
+        out.append(Detections(pts, det.beacon_ids, det.covariance_px2))
+    return out
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_robust_search_stacks_the_frames_of_a_beacon_set(method, monkeypatch):
+    """Frames the batch leaves to the robust search are solved together, round by round: the
+    method's candidates are asked once per round and beacon set, not once per frame, and each
+    record is the one the frame gets alone."""
+    from deckpose.estimate import robust_search
+    from deckpose.estimate.batch import estimate_batch
+
+    frames = _frames_with_one_outlier(12, 21)
+    options = EstimateOptions(sigma_px=0.5)
+    alone = [run_estimator(method, d, CAMERA, DeckLayout(), options) for d in frames]
+    calls: list[int] = []
+    real = robust_search._answer
+
+    def counted(kind, obs, params, frames_, solve):
+        calls.append(len(frames_))
+        return real(kind, obs, params, frames_, solve)
+
+    monkeypatch.setattr(robust_search, "_answer", counted)
+    together = estimate_batch(method, frames, CAMERA, DeckLayout(), options)
+    assert all(e.ok and e.extras["n_outliers_removed"] == 1 for e in together)
+    # a first solve, one round of trials and the solve without the outlier, each of all 12 frames
+    # (the outlier's beacon differs by frame, so the last solve has one call per beacon set)
+    assert calls[:2] == [12, 12]
+    assert len(calls) < 2 * len(frames)
+    for a, b in zip(alone, together, strict=True):
+        assert (a.ok, a.reason, a.extras["outlier_id_0"]) == (b.ok, b.reason, b.extras["outlier_id_0"])
+        np.testing.assert_allclose([b.roll_rad, b.pitch_rad, b.height_m], [a.roll_rad, a.pitch_rad, a.height_m],
+                                   rtol=1e-9, atol=1e-12)
+
+
+def test_a_numerical_error_in_one_frame_of_the_stack_fails_that_frame_only(monkeypatch):
+    """A step that raises in the stacked solve is run frame by frame: the frame whose own step
+    raises gets a failed record with the error, the others their own estimates."""
+    from deckpose.estimate import robust_search
+    from deckpose.estimate.batch import estimate_batch
+
+    frames = _frames_with_one_outlier(6, 22)
+    poisoned = frames[3].points_px[0, 0]
+    real = robust_search._answer
+
+    def flaky(kind, obs, params, frames_, solve):
+        if kind == "solve" and np.any(obs.xy.shape[0] and np.isclose(
+                (obs.xy[:, 0, 0] * CAMERA.K[0, 0] + CAMERA.K[0, 2]), poisoned)):
+            raise np.linalg.LinAlgError("poisoned frame")
+        return real(kind, obs, params, frames_, solve)
+
+    monkeypatch.setattr(robust_search, "_answer", flaky)
+    got = estimate_batch("pnp", frames, CAMERA, DeckLayout(), EstimateOptions(sigma_px=0.5))
+    assert not got[3].ok and got[3].reason == "numerical failure: poisoned frame"
+    assert all(e.ok for i, e in enumerate(got) if i != 3)
