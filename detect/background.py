@@ -195,6 +195,30 @@ def difference_noise(
     return max(s / math.sqrt(2.0), MIN_NOISE_DN)
 
 
+def channel_sum_noise(image: np.ndarray, *, samples: int = 30_000) -> float:
+    """The noise of the channel sum as it is, unfloored: for covariances, not thresholds, DN.
+
+    A 4-sigma-clipped standard deviation (:func:`clipped_std_rows`) of about ``samples``
+    differences of horizontally adjacent pixels' channel sums, over ``sqrt 2``. Unlike
+    :func:`difference_noise` (a MAD, quantised with the data) it keeps a quantised frame's
+    true variance, and unlike the thresholds' noise it is not floored at 1 DN a channel: an
+    8-bit frame whose noise is mostly its rounding reads about ``sqrt(C / 12)`` DN, and that is
+    its floor on an integer frame (no stored integer frame is without the rounding's variance).
+    """
+    H, W = image.shape[:2]
+    step = max(1, int(math.sqrt(H * W / samples)))
+    a = mono(image[::step, 0 : W - 1 : step])
+    b = mono(image[::step, 1::step])
+    n = min(a.shape[1], b.shape[1])
+    d = (b[:, :n] - a[:, :n]).ravel()
+    d = d[np.isfinite(d)]
+    n_ch = image.shape[2] if image.ndim == 3 else 1
+    floor = math.sqrt(n_ch / 12.0) if np.issubdtype(image.dtype, np.integer) else MIN_NOISE_DN
+    if d.size < 10:
+        return floor
+    return max(float(clipped_std_rows(d[None])[0]) / math.sqrt(2.0), floor)
+
+
 def frame_stats(
     image: np.ndarray, *, samples: int = 30_000, difference_noise_dn: float | None = None
 ) -> FrameStats:

@@ -30,6 +30,7 @@ import numpy as np
 from deckpose.detect.background import (
     FrameStats,
     border_noise,
+    channel_sum_noise,
     difference_noise,
     frame_problem,
     frame_stats,
@@ -293,6 +294,7 @@ def search_candidates(
     H, W = image.shape[:2]
     raw: list[RawWindow] = []
     seen: set[tuple[int, int]] = set()
+    sum_noise: float | None = None
     for box in boxes:
         if search is not None:
             # Bright-spot search: the blob is the spot's bright core (peak channel); its
@@ -354,12 +356,14 @@ def search_candidates(
                 # the photons (and the centroid's Cramer-Rao bound) are.
                 wsat = _saturated(image, wb, sat_dn)
                 core = wsat[gv0 - wb[1] : gv0 - wb[1] + h, gu0 - wb[0] : gu0 - wb[0] + w]
-                if bool(core[comp].any()) or image.ndim == 2:
+                on_peak = bool(core[comp].any()) or image.ndim == 2
+                if on_peak:
                     wpix = search.peak(*wb).astype(np.float64)
                 else:
                     wpix = mono(image[wb[1] : wb[3], wb[0] : wb[2]])
             else:
                 wpix, wsat = _window(image, wb, sat_dn)
+                on_peak = False
             mask = np.zeros(wpix.shape, bool)
             surround = (0.0, 0.0, 0.0)
             mask[gv0 - wb[1] : gv0 - wb[1] + h, gu0 - wb[0] : gu0 - wb[0] + w] = comp
@@ -374,7 +378,16 @@ def search_candidates(
                 # background lose at most 0.14x, benchmarks/bench_detectors.py).
                 ped = spot_pedestal(wpix, mask, plane[0],
                                     options.window_sigma * sigma_core - r_eq)
-                noise_box = spot_noise
+                # the noise of what the window holds: the peak channel's where the core is
+                # measured on it, else the channel sum's as it is (unfloored: it enters the
+                # covariance, the gain estimate and the recorded snr, not a threshold; computed
+                # once a frame)
+                if on_peak:
+                    noise_box = spot_noise
+                else:
+                    if sum_noise is None:
+                        sum_noise = channel_sum_noise(image)
+                    noise_box = sum_noise
                 # the border's tilt stays in the signal; it bounds the centre's bias instead
                 # (Candidate.surround_tilt_cov)
                 surround = (plane[1], plane[2], noise_box / math.sqrt(border_spread_px2(wpix.shape)))
