@@ -152,10 +152,15 @@ function launch(chromium, userDir, width, height) {
     "--disable-renderer-backgrounding", "--disable-backgrounding-occluded-windows",
   ];
   if (process.getuid?.() === 0) args.push("--no-sandbox");
-  const child = spawn(chromium, [...args, "about:blank"], { stdio: ["ignore", "ignore", "pipe"] });
+  // its own process group, so that closing it ends its zygote, GPU and renderer processes too
+  // (a SIGKILL of the browser process alone left them running)
+  const child = spawn(chromium, [...args, "about:blank"], { stdio: ["ignore", "ignore", "pipe"], detached: true });
   return new Promise((ok, fail) => {
     let err = "";
-    const timer = setTimeout(() => fail(new Error(`chromium did not start in 30 s:\n${err}`)), 30_000);
+    const timer = setTimeout(() => {
+      try { process.kill(-child.pid, "SIGKILL"); } catch { /* already gone */ }
+      fail(new Error(`chromium did not start in 30 s:\n${err}`));
+    }, 30_000);
     child.stderr.on("data", (d) => {
       err += String(d);
       const m = /DevTools listening on (ws:\/\/\S+)/.exec(err);
@@ -286,7 +291,11 @@ async function main() {
     await writeFile(join(opt.out, "report.json"), JSON.stringify(report, null, 1));
     ws.close();
   } finally {
-    child.kill("SIGKILL");
+    try {
+      process.kill(-child.pid, "SIGKILL");  // the whole group
+    } catch {
+      child.kill("SIGKILL");
+    }
     server.close();
     await rm(userDir, { recursive: true, force: true }).catch(() => {});
   }
