@@ -146,8 +146,8 @@ def frame_noise_model(cands: list[Candidate], starts: list[Row | None],
     :func:`~deckpose.detect.gain.estimate_gain`), and they set the fit weights. On
     frames from the independent generator they were far off (8-bit: noise 1.73 DN for
     0.74 and gain 1 DN/e for 0.0425; 12-bit in 16: noise 50 DN for 43, gain 0.14-3.6
-    DN/e for 3.28, a bright core measured on the channel sum with the peak channel's
-    noise, 17 DN), which cost ``gauss`` 9 % of its accuracy on 8-bit frames. The fits of
+    DN/e for 3.28; before session 21 a bright core measured on the channel sum also carried
+    the peak channel's noise, 17 DN), which cost ``gauss`` 9 % of its accuracy on 8-bit frames. The fits of
     the unclipped spots are made once with those guesses, and
     :func:`~deckpose.detect.gain.fitted_noise_model` fits the background variance and
     the gain to their residuals; every candidate then gets that gain, and every one
