@@ -238,6 +238,47 @@ class Candidate:
     problem: str = ""
 
 
+def candidate_extras(cands: BatchCandidates, choice: PickBatch, *, n_solutions: bool = True
+                     ) -> list[dict[str, float]]:
+    """Each frame's extras of its chosen solution, in the record's order: the one home of this part.
+
+    The method's own extras (where present), ``n_solutions`` (unless ``n_solutions`` is
+    False: a single solution taken as it is) and, where a runner-up exists, the
+    ambiguity's (:data:`AMBIGUITY_EXTRAS`: its delta chi-square, Mahalanobis distance and
+    attitude and height).
+
+    Parameters
+    ----------
+    cands : BatchCandidates
+        Of ``F`` frames.
+    choice : PickBatch
+        :func:`pick_batch` of ``cands``.
+    n_solutions : bool, keyword-only
+
+    Returns
+    -------
+    list of F dict of str to float
+    """
+    F = cands.valid.shape[0]
+    pre = [(e.name, e.values.tolist(), None if e.present is None else e.present.tolist()) for e in cands.extras]
+    n_sol = choice.n_good.tolist()
+    alt = (choice.n_good >= 2).tolist()
+    amb_rows = (np.column_stack([choice.delta_chi2, choice.mahalanobis, choice.alt_params[:, :3],
+                                 choice.alt_params[:, 5]]).tolist() if any(alt) else [])
+    out: list[dict[str, float]] = []
+    for i in range(F):
+        ex: dict[str, float] = {}
+        for name, vals, present in pre:
+            if present is None or present[i]:
+                ex[name] = vals[i]
+        if n_solutions:
+            ex["n_solutions"] = float(n_sol[i])
+        if alt[i]:
+            ex.update(zip(AMBIGUITY_EXTRAS, amb_rows[i]))
+        out.append(ex)
+    return out
+
+
 def pick_candidates(cands: BatchCandidates, *, ambiguity_chi2: float, assume_level_deck: bool,
                     no_solution: str) -> list[Candidate | str]:
     """Each frame's choice between its solutions (the planar ambiguity), as the robust search takes it.
@@ -267,6 +308,7 @@ def pick_candidates(cands: BatchCandidates, *, ambiguity_chi2: float, assume_lev
     if not cands.fits:  # no frame has a solution
         return [cands.reasons[f] if cands.reasons is not None else no_solution for f in range(F)]
     choice = pick_batch(cands, ambiguity_chi2=ambiguity_chi2)
+    extras = candidate_extras(cands, choice)
     fits = cands.fits if F == 1 else None
     out: list[Candidate | str] = []
     for f, (unsolved, n_good) in enumerate(zip(cands.unsolved.tolist(), choice.n_good.tolist(), strict=True)):
@@ -277,23 +319,20 @@ def pick_candidates(cands: BatchCandidates, *, ambiguity_chi2: float, assume_lev
             out.append("no valid pose solution (points behind the camera or non-finite fit)")
             continue
         frame_fits = fits if fits is not None else tuple(fit.frame(f) for fit in cands.fits)
-        out.append(_frame_choice(cands, choice, f, n_good, frame_fits, ambiguity_chi2=ambiguity_chi2,
+        out.append(_frame_choice(choice, f, n_good, frame_fits, extras[f], ambiguity_chi2=ambiguity_chi2,
                                  assume_level_deck=assume_level_deck))
     return out
 
 
-def _frame_choice(cands: BatchCandidates, choice: PickBatch, f: int, n_good: int, fits: tuple[Fit, ...], *,
+def _frame_choice(choice: PickBatch, f: int, n_good: int, fits: tuple[Fit, ...], ex: dict[str, float], *,
                   ambiguity_chi2: float, assume_level_deck: bool) -> Candidate:
-    """Frame ``f``'s candidate from ``choice`` (``fits``: its own solutions, each a batch of one)."""
-    ex = {e.name: float(e.values[f]) for e in cands.extras if e.present is None or e.present[f]}
-    ex["n_solutions"] = float(n_good)
+    """Frame ``f``'s candidate from ``choice`` (``fits``: its own solutions, each a batch of one;
+    ``ex``: its :func:`candidate_extras`)."""
     best = fits[int(choice.best[f])]
     if n_good == 1:
         return Candidate(best, ex)
     alt = fits[int(choice.alt[f])]
     dchi2, maha = float(choice.delta_chi2[f]), float(choice.mahalanobis[f])
-    ex.update(zip(AMBIGUITY_EXTRAS, (dchi2, maha, *choice.alt_params[f, :3].tolist(),
-                                      float(choice.alt_params[f, 5]))))
     if not choice.unresolved[f]:
         return Candidate(best, ex)
     if assume_level_deck:

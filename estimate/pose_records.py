@@ -17,9 +17,9 @@ import math
 import numpy as np
 from deckpose.estimate.observations import Observations
 from deckpose.estimate.pose_candidates import (
-    AMBIGUITY_EXTRAS,
     BatchCandidates,
     Candidate,
+    candidate_extras,
     pick_batch,
     slot_values,
 )
@@ -188,6 +188,19 @@ TAIL_EXTRAS = (("reprojection_rms_px", "chi2", "dof") + tuple("sigma_" + n for n
 
 
 
+def record_head(n_points: int, n_ignored: int, removed: list[int], refined: bool) -> dict[str, float]:
+    """The first extras of every record, in order: the one home of this part of a record.
+
+    ``n_points``, ``n_ignored``, ``n_outliers_removed``, ``refined``, then ``outlier_id_k``
+    for the first :data:`~deckpose.estimates_schema.MAX_OUTLIER_IDS` ids removed.
+    """
+    head = {"n_points": float(n_points), "n_ignored": float(n_ignored),
+            "n_outliers_removed": float(len(removed)), "refined": float(refined)}
+    for k, i in enumerate(removed[:MAX_OUTLIER_IDS]):
+        head[f"outlier_id_{k}"] = float(i)
+    return head
+
+
 def make_estimate(
     method: str,
     result: Candidate | str,
@@ -218,10 +231,7 @@ def make_estimate(
     -------
     PoseEstimate
     """
-    base = {"n_points": float(obs.n_points), "n_ignored": float(n_ignored),
-            "n_outliers_removed": float(len(removed)), "refined": float(refined)}
-    for k, i in enumerate(removed[:MAX_OUTLIER_IDS]):
-        base[f"outlier_id_{k}"] = float(i)
+    base = record_head(obs.n_points, n_ignored, removed, refined)
     if isinstance(result, str):
         return PoseEstimate.failed(method, result, **base)
     fit = result.fit
@@ -318,14 +328,9 @@ def finish_batch(
     tail[:, 10::2] = t_cd
     tail_rows = tail.tolist()
     ids = tuple(obs.ids.tolist())
-    head = {"n_points": float(M), "n_ignored": 0.0, "n_outliers_removed": 0.0, "refined": float(refined)}
-    pre = [(e.name, e.values.tolist(), None if e.present is None else e.present.tolist())
-           for e in cands.extras]
-    alt_list = (choice.n_good >= 2).tolist()
-    amb_rows = (np.column_stack([choice.delta_chi2, choice.mahalanobis, choice.alt_params[:, :3],
-                                 choice.alt_params[:, 5]]).tolist() if any(alt_list) else [])
+    head = record_head(M, 0, [], refined)
+    chosen = candidate_extras(cands, choice, n_solutions=pick)
     n_ign = n_ignored.tolist()
-    n_sol = choice.n_good.tolist()
     scale_list = scale.tolist()
     p_list = best_p.tolist()
     out: list[PoseEstimate | None] = []
@@ -335,13 +340,7 @@ def finish_batch(
             continue
         ex = dict(head)
         ex["n_ignored"] = float(n_ign[i])
-        for name, vals, present in pre:
-            if present is None or present[i]:
-                ex[name] = vals[i]
-        if pick:
-            ex["n_solutions"] = float(n_sol[i])
-        if alt_list[i]:
-            ex.update(zip(AMBIGUITY_EXTRAS, amb_rows[i]))
+        ex.update(chosen[i])
         ex.update(zip(TAIL_EXTRAS, tail_rows[i]))
         if scale_list[i] > 1.0:
             ex["covariance_scale"] = scale_list[i]
