@@ -184,33 +184,41 @@ def difference_noise(
     ``signal`` turns sampled pixels into the signal measured (default :func:`mono`,
     the channel sum); only the samples are converted, never the whole frame.
     """
+    _, s = robust_stats(neighbour_differences(image, samples=samples, signal=signal))
+    return max(s / math.sqrt(2.0), MIN_NOISE_DN)
+
+
+def neighbour_differences(
+    image: np.ndarray,
+    *,
+    samples: int = 30_000,
+    signal: Callable[[np.ndarray], np.ndarray] | None = None,
+) -> np.ndarray:
+    """Differences of about ``samples`` strided pairs of horizontally adjacent pixels, DN, (n,).
+
+    ``signal`` turns sampled pixels into the signal measured (default :func:`mono`, the
+    channel sum); only the samples are converted, never the whole frame.
+    """
     to_signal = mono if signal is None else signal
     H, W = image.shape[:2]
     step = max(1, int(math.sqrt(H * W / samples)))
     a = np.asarray(to_signal(image[::step, 0 : W - 1 : step]), np.float64)
     b = np.asarray(to_signal(image[::step, 1::step]), np.float64)
     n = min(a.shape[1], b.shape[1])
-    d = (b[:, :n] - a[:, :n]).ravel()
-    _, s = robust_stats(d)
-    return max(s / math.sqrt(2.0), MIN_NOISE_DN)
+    return (b[:, :n] - a[:, :n]).ravel()
 
 
 def channel_sum_noise(image: np.ndarray, *, samples: int = 30_000) -> float:
     """The noise of the channel sum as it is, unfloored: for covariances, not thresholds, DN.
 
-    A 4-sigma-clipped standard deviation (:func:`clipped_std_rows`) of about ``samples``
-    differences of horizontally adjacent pixels' channel sums, over ``sqrt 2``. Unlike
+    A 4-sigma-clipped standard deviation (:func:`clipped_std_rows`) of the channel sums'
+    :func:`neighbour_differences`, over ``sqrt 2``. Unlike
     :func:`difference_noise` (a MAD, quantised with the data) it keeps a quantised frame's
     true variance, and unlike the thresholds' noise it is not floored at 1 DN a channel: an
     8-bit frame whose noise is mostly its rounding reads about ``sqrt(C / 12)`` DN, and that is
     its floor on an integer frame (no stored integer frame is without the rounding's variance).
     """
-    H, W = image.shape[:2]
-    step = max(1, int(math.sqrt(H * W / samples)))
-    a = mono(image[::step, 0 : W - 1 : step])
-    b = mono(image[::step, 1::step])
-    n = min(a.shape[1], b.shape[1])
-    d = (b[:, :n] - a[:, :n]).ravel()
+    d = neighbour_differences(image, samples=samples)
     d = d[np.isfinite(d)]
     n_ch = image.shape[2] if image.ndim == 3 else 1
     floor = math.sqrt(n_ch / 12.0) if np.issubdtype(image.dtype, np.integer) else MIN_NOISE_DN

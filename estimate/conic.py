@@ -97,7 +97,7 @@ def polish(fit: Fit, obs: Observations, steps: int) -> Fit:
         better = f1.chi2 <= (cur.chi2 if whole else cur.chi2[rows])
         if not better.all():
             rows = rows[better]
-            f1 = Fit(*(getattr(f1, name)[better] for name in _FIELDS))
+            f1 = f1.take(better)
         if rows.size == F:  # every frame took its step
             cur = f1
         elif rows.size:
@@ -117,11 +117,6 @@ def _eigen_rows(normals: FloatArray, centres: FloatArray, plane_ok: NDArray[np.b
 
 #: The fields of :class:`Fit`, in order.
 _FIELDS = ("params", "chi2", "information", "whitened", "residuals_px", "gradient", "iterations", "converged")
-
-
-def _fit_rows(fit: Fit, rows: slice) -> Fit:
-    """The frames ``rows`` of ``fit`` (views)."""
-    return Fit(*(getattr(fit, name)[rows] for name in _FIELDS))
 
 
 def _replace_rows(fit: Fit, rows: np.ndarray, new: Fit) -> Fit:
@@ -237,7 +232,7 @@ def conic_candidates(obs: Observations, layout: DeckLayout,
             f = polish(evaluate_fit(starts, sub), sub, int(options.conic_polish_steps))
         lo = 0
         for rows, all_rows in zip(slot_rows, every):
-            part = f if len(slot_rows) == 1 else _fit_rows(f, slice(lo, lo + rows.size))
+            part = f if len(slot_rows) == 1 else f.take(slice(lo, lo + rows.size))
             fits.append(part if all_rows else scatter_fit(F, rows, part))
             lo += rows.size
     centre_used = float(layout.centre_id in obs.ids) if layout.centre_id is not None else 0.0

@@ -79,11 +79,14 @@ class Fit:
         """``(J^T Sigma^-1 J)^-1`` of each frame and whether it exists (positive definite, finite)."""
         return covariance_from_information(self.information)
 
+    def take(self, rows: slice | NDArray[np.bool_] | NDArray[np.int64]) -> Fit:
+        """The frames ``rows`` (a slice gives views of these arrays, a mask or index copies)."""
+        return Fit(self.params[rows], self.chi2[rows], self.information[rows], self.whitened[rows],
+                   self.residuals_px[rows], self.gradient[rows], self.iterations[rows], self.converged[rows])
+
     def frame(self, f: int) -> Fit:
-        """Frame ``f``'s fit as a batch of one (views of these arrays)."""
-        s = slice(f, f + 1)
-        return Fit(self.params[s], self.chi2[s], self.information[s], self.whitened[s], self.residuals_px[s],
-                   self.gradient[s], self.iterations[s], self.converged[s])
+        """Frame ``f``'s fit as a batch of one (views; this fit where it is one)."""
+        return self if self.params.shape[0] == 1 else self.take(slice(f, f + 1))
 
 
 def _rows_ok(a: FloatArray) -> BoolArray:

@@ -309,7 +309,6 @@ def pick_candidates(cands: BatchCandidates, *, ambiguity_chi2: float, assume_lev
         return [cands.reasons[f] if cands.reasons is not None else no_solution for f in range(F)]
     choice = pick_batch(cands, ambiguity_chi2=ambiguity_chi2)
     extras = candidate_extras(cands, choice)
-    fits = cands.fits if F == 1 else None
     out: list[Candidate | str] = []
     for f, (unsolved, n_good) in enumerate(zip(cands.unsolved.tolist(), choice.n_good.tolist(), strict=True)):
         if unsolved:
@@ -318,7 +317,7 @@ def pick_candidates(cands: BatchCandidates, *, ambiguity_chi2: float, assume_lev
         if n_good == 0:
             out.append("no valid pose solution (points behind the camera or non-finite fit)")
             continue
-        frame_fits = fits if fits is not None else tuple(fit.frame(f) for fit in cands.fits)
+        frame_fits = tuple(fit.frame(f) for fit in cands.fits)
         out.append(_frame_choice(choice, f, n_good, frame_fits, extras[f], ambiguity_chi2=ambiguity_chi2,
                                  assume_level_deck=assume_level_deck))
     return out

@@ -13,7 +13,7 @@ settle (an outlier to remove, any failure) go through the robust search of
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 
 import numpy as np
 from deckpose.estimate.least_squares import levenberg_marquardt
@@ -72,29 +72,14 @@ def _refine_robustly(estimates: Sequence[PoseEstimate], p0: np.ndarray, detectio
     """The frames the batch left open, through the robust search (their subsets stacked; ``p0`` (F, 6))."""
     def solve(o: Observations, frames: Sequence[int]) -> list[Candidate | str]:
         fit = levenberg_marquardt(p0[list(frames)], o)
-        return [Candidate(fit if len(frames) == 1 else fit.frame(k)) for k in range(len(frames))]
+        return [Candidate(fit.frame(k)) for k in range(len(frames))]
 
-    out: list[PoseEstimate] = list(estimates)
-    by_method: dict[str, list[int]] = {}
-    for i, e in enumerate(estimates):
-        by_method.setdefault(e.method, []).append(i)
-    for method, rows in by_method.items():  # (a failed record carries its estimate's method)
-        every = len(rows) == len(estimates)
-        refined = estimate_robustly(method, solve if every else _rows_solve(solve, rows),
-                                    detections if every else [detections[i] for i in rows], camera, layout,
-                                    options, R_world_from_cam if every else R_world_from_cam[rows],
-                                    min_points=MIN_BEACONS, refined=True,
-                                    failure_prefix="refinement failed numerically")
-        for i, r in zip(rows, refined, strict=True):
-            failed = not r.ok and r.reason.startswith("refinement failed numerically")
-            out[i] = r if failed else _merge(estimates[i], r)
-    return out
-
-
-def _rows_solve(solve: Callable[[Observations, Sequence[int]], list[Candidate | str]], rows: list[int]
-                ) -> Callable[[Observations, Sequence[int]], list[Candidate | str]]:
-    """``solve`` for a search over ``rows`` of its frames (frame ``k`` of the search is ``rows[k]``)."""
-    return lambda o, frames: solve(o, [rows[k] for k in frames])
+    prefix = "refinement failed numerically"
+    refined = estimate_robustly(estimates[0].method, solve, detections, camera, layout, options, R_world_from_cam,
+                                min_points=MIN_BEACONS, refined=True, failure_prefix=prefix)
+    # (a failed record carries its own estimate's method)
+    return [r.relabelled(e.method, r.extras) if not r.ok and r.reason.startswith(prefix) else _merge(e, r)
+            for e, r in zip(estimates, refined, strict=True)]
 
 
 def _merge(estimate: PoseEstimate, refined: PoseEstimate) -> PoseEstimate:
@@ -165,10 +150,12 @@ def refine_estimates(
         for i, e in zip(frames, ests):
             if e is not None:
                 done[i] = _merge(estimates[i], e)
-    left = [i for i in todo if i not in done]  # an outlier to remove or a failure: the robust search
+    left = []  # an outlier to remove or a failure: the robust search
     for i in todo:
         if i in done:
             out[i] = done[i]
+        else:
+            left.append(i)
     if left:
         searched = _refine_robustly([estimates[i] for i in left], np.array([p0[i] for i in left]),
                                     [detections[i] for i in left], camera, layout, options,

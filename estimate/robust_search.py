@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Callable, Generator, Sequence
-from typing import TYPE_CHECKING, Any, Literal
+from typing import TYPE_CHECKING, Any, Literal, cast
 
 import cv2
 import numpy as np
@@ -210,7 +210,7 @@ def _run_searches(searches: dict[int, Generator[Step, Any, SearchResult]], solve
             batches.setdefault((kind, obs.ids.tobytes()), []).append(f)
         for (kind, _), frames in batches.items():
             steps = [this_round[f] for f in frames]
-            params = None if kind == "solve" else np.stack([s[2] for s in steps])  # type: ignore[misc]
+            params = None if kind == "solve" else np.stack([cast(np.ndarray, s[2]) for s in steps])
             try:
                 answers = _answer(kind, stack_frames([s[1] for s in steps]), params, frames, solve)
             except NUMERICAL_ERRORS as exc:
@@ -293,8 +293,7 @@ def estimate_robustly(
                                        max_reprojection_rms_px=options.max_reprojection_rms_px, refined=refined)
             except NUMERICAL_ERRORS as exc:
                 out[f] = PoseEstimate.failed(method, f"{failure_prefix}: {exc}")
-    assert all(e is not None for e in out)
-    return [e for e in out if e is not None]
+    return cast("list[PoseEstimate]", out)  # (every frame has its record: failed, or from its search)
 
 
 
@@ -307,17 +306,13 @@ def _observe(detections: Sequence[Detections], camera: CameraModel, layout: Deck
         groups: list[ObservationGroup] = group_observations(stack_detections(detections), camera, layout,
                                                             R_world_from_cam, **kwargs)
     except NUMERICAL_ERRORS:
-        if len(detections) == 1:
-            return [_observe_one(detections[0], camera, layout, R_world_from_cam[0], kwargs)]
         return [_observe_one(d, camera, layout, R, kwargs) for d, R in zip(detections, R_world_from_cam)]
-    out: list[tuple[Observations, int] | Exception] = [ValueError("unreachable")] * len(detections)
+    by_frame: dict[int, tuple[Observations, int]] = {}  # (every frame is in exactly one group)
     for g in groups:
-        if g.frames.size == 1:
-            out[int(g.frames[0])] = (g.observations, int(g.n_ignored[0]))
-            continue
+        lone = g.frames.size == 1
         for k, f in enumerate(g.frames.tolist()):
-            out[f] = (g.observations.take(np.array([k])), int(g.n_ignored[k]))
-    return out
+            by_frame[f] = (g.observations if lone else g.observations.take(np.array([k])), int(g.n_ignored[k]))
+    return [by_frame[f] for f in range(len(detections))]
 
 
 def _observe_one(d: Detections, camera: CameraModel, layout: DeckLayout, R: np.ndarray,

@@ -143,6 +143,16 @@ class Cdp {
   on(handler) { this.handlers.push(handler); }
 }
 
+// Chromium runs in its own process group (launch); this ends the group: the browser and its
+// zygote, GPU and renderer processes (a SIGKILL of the browser process alone left them running).
+function killGroup(child) {
+  try {
+    process.kill(-child.pid, "SIGKILL");
+  } catch {
+    child.kill("SIGKILL");
+  }
+}
+
 function launch(chromium, userDir, width, height) {
   const args = [
     "--headless", "--remote-debugging-port=0", `--user-data-dir=${userDir}`, "--no-first-run",
@@ -152,13 +162,12 @@ function launch(chromium, userDir, width, height) {
     "--disable-renderer-backgrounding", "--disable-backgrounding-occluded-windows",
   ];
   if (process.getuid?.() === 0) args.push("--no-sandbox");
-  // its own process group, so that closing it ends its zygote, GPU and renderer processes too
-  // (a SIGKILL of the browser process alone left them running)
+  // its own process group (killGroup)
   const child = spawn(chromium, [...args, "about:blank"], { stdio: ["ignore", "ignore", "pipe"], detached: true });
   return new Promise((ok, fail) => {
     let err = "";
     const timer = setTimeout(() => {
-      try { process.kill(-child.pid, "SIGKILL"); } catch { /* already gone */ }
+      killGroup(child);
       fail(new Error(`chromium did not start in 30 s:\n${err}`));
     }, 30_000);
     child.stderr.on("data", (d) => {
@@ -291,11 +300,7 @@ async function main() {
     await writeFile(join(opt.out, "report.json"), JSON.stringify(report, null, 1));
     ws.close();
   } finally {
-    try {
-      process.kill(-child.pid, "SIGKILL");  // the whole group
-    } catch {
-      child.kill("SIGKILL");
-    }
+    killGroup(child);
     server.close();
     await rm(userDir, { recursive: true, force: true }).catch(() => {});
   }
