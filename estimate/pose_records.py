@@ -4,10 +4,11 @@ A fit makes an ok estimate when its pose and chi-square are finite, its informat
 matrix is positive definite, its covariance pins the pose down
 (:func:`pose_constrained`) and its reprojection RMS is within the limit
 (:func:`fit_tests`; :func:`fit_problem` says why not). A covariance that the residuals say is
-too small is widened alike (:func:`covariance_scale`). :func:`make_estimate` builds one
-frame's record, ok or not (the robust search's); :func:`finish_batch` builds the ok
-records of many frames at once, where the batch settles them. Both write the extras in
-one order (:data:`TAIL_EXTRAS` after the method's own).
+too small is widened alike (:func:`covariance_scale`). :func:`make_estimate` judges one
+frame's fit, ok or not (the robust search's); :func:`finish_batch` judges many frames at
+once, where the batch settles them. Both end each record the same way: its head
+(:func:`record_head`), the chosen solution's extras, the tail (:func:`record_tails`, in
+the order of :data:`TAIL_EXTRAS`) and the verdict (:func:`pose_record`).
 """
 
 from __future__ import annotations
@@ -201,6 +202,89 @@ def record_head(n_points: int, n_ignored: int, removed: list[int], refined: bool
     return head
 
 
+def record_tails(rms_px: FloatArray, chi2: FloatArray, dof: float, sigmas: FloatArray, params: FloatArray,
+                 R_world_from_cam: FloatArray) -> list[list[float]]:
+    """The :data:`TAIL_EXTRAS` values of F records, as rows of floats: the one home of a record's tail.
+
+    Parameters
+    ----------
+    rms_px, chi2 : (F,) array of float
+        Reprojection RMS (px) and chi-square of each frame's fit.
+    dof : float
+        Degrees of freedom (twice the points, less six).
+    sigmas : (F, 6) array of float
+        Standard deviations of ``params`` (rad, m; NaN without a covariance).
+    params : (F, 6) array of float
+        Pose parameters; a frame whose pose is not finite gets NaN for its ``rvec``/``t``.
+    R_world_from_cam : (F, 3, 3) array of float
+
+    Returns
+    -------
+    list of F lists of 15 floats
+    """
+    # (a pose that is not finite makes NaN matrices, whose rotation vectors are NaN)
+    R_cd, t_cd = relative_from_params(params, R_world_from_cam)
+    tail = np.empty((params.shape[0], len(TAIL_EXTRAS)))
+    tail[:, 0] = rms_px
+    tail[:, 1] = chi2
+    tail[:, 2] = dof
+    tail[:, 3:9] = sigmas
+    tail[:, 9::2] = rotation_vectors(R_cd)
+    tail[:, 10::2] = t_cd
+    # the whole relative pose NaN where any parameter is not finite (0 x NaN or inf is NaN)
+    tail[:, 9:] += 0.0 * np.add.reduce(params, axis=1)[:, None]
+    return tail.tolist()
+
+
+def pose_record(method: str, extras: dict[str, float], tail: list[float], params: list[float],
+                covariance: FloatArray | None, covariance_scale: float, inliers: tuple[int, ...],
+                problem: str = "") -> PoseEstimate:
+    """One frame's record from its extras so far, its tail and its trust verdict: the one home of a record's end.
+
+    The tail (:func:`record_tails`) follows ``extras`` (the :func:`record_head` and the
+    chosen solution's extras); the sigmas only where there is a covariance, the
+    relative pose only where it is finite. ``covariance_scale`` follows where the
+    covariance was widened. A ``problem`` makes a failed record that keeps the pose as
+    ``untrusted_*`` extras; none makes an ok one.
+
+    Parameters
+    ----------
+    method : str
+    extras : dict of str to float
+        The record's extras so far; extended in place.
+    tail : list of 15 float
+        The frame's row of :func:`record_tails`.
+    params : list of 6 float
+        The pose (:data:`~deckpose.records.POSE_PARAMS`).
+    covariance : (6, 6) array of float or None
+        The pose's covariance after widening; None where it is undefined.
+    covariance_scale : float
+        The widening factor (:func:`covariance_scale`; 1 where not widened).
+    inliers : tuple of int
+        The beacon ids used.
+    problem : str
+        Why the record is not ok (``""`` for an ok record).
+    """
+    if covariance is not None and not math.isnan(tail[9]):
+        extras.update(zip(TAIL_EXTRAS, tail))
+    else:
+        extras.update(zip(TAIL_EXTRAS[:3], tail[:3]))
+        if covariance is not None:
+            extras.update(zip(TAIL_EXTRAS[3:9], tail[3:9]))
+        if not math.isnan(tail[9]):
+            extras.update(zip(TAIL_EXTRAS[9:], tail[9:]))
+    if covariance is not None and covariance_scale > 1.0:
+        extras["covariance_scale"] = covariance_scale
+    if problem:
+        for name, v in zip(POSE_PARAMS, params):
+            extras["untrusted_" + name] = v
+        return PoseEstimate.failed(method, problem, **extras)
+    p = params
+    return PoseEstimate(
+        method=method, ok=True, roll_rad=p[0], pitch_rad=p[1], yaw_rad=p[2], height_m=p[5],
+        surge_m=p[3], sway_m=p[4], covariance=covariance, inliers=inliers, extras=extras)
+
+
 def make_estimate(
     method: str,
     result: Candidate | str,
@@ -231,14 +315,12 @@ def make_estimate(
     -------
     PoseEstimate
     """
-    base = record_head(obs.n_points, n_ignored, removed, refined)
+    extras = record_head(obs.n_points, n_ignored, removed, refined)
     if isinstance(result, str):
-        return PoseEstimate.failed(method, result, **base)
+        return PoseEstimate.failed(method, result, **extras)
     fit = result.fit
     p = fit.params[0]
-    extras = dict(base)
     extras.update(result.extras)
-    extras.update(zip(TAIL_EXTRAS[:3], (float(fit.rms_px[0]), float(fit.chi2[0]), float(2 * obs.n_points - 6))))
     covs, cov_ok = fit.covariance()
     finite = bool(np.isfinite(p).all())
     cov = covs[0] if cov_ok[0] and finite else None
@@ -252,24 +334,9 @@ def make_estimate(
     problem = fit_problem(p, float(fit.chi2[0]), bool(cov_ok[0]), sig, float(fit.rms_px[0]), max_reprojection_rms_px)
     if problem:
         problems.append(problem)
-    if cov is not None:
-        extras.update(zip(TAIL_EXTRAS[3:9], sig.tolist()))
-    if finite:
-        R_cd, t_cd = relative_from_params(fit.params, obs.R_world_from_cam)
-        rt = np.empty(6)
-        rt[0::2], rt[1::2] = rotation_vectors(R_cd)[0], t_cd[0]
-        extras.update(zip(TAIL_EXTRAS[9:], rt.tolist()))
-    if cov is not None and scale > 1.0:
-        extras["covariance_scale"] = scale
-    if problems:
-        for name, v in zip(POSE_PARAMS, p.tolist()):
-            extras["untrusted_" + name] = v
-        return PoseEstimate.failed(method, "; ".join(problems), **extras)
-    return PoseEstimate(
-        method=method, ok=True, roll_rad=float(p[0]), pitch_rad=float(p[1]), yaw_rad=float(p[2]),
-        height_m=float(p[5]), surge_m=float(p[3]), sway_m=float(p[4]), covariance=cov,
-        inliers=tuple(obs.ids.tolist()), extras=extras,
-    )
+    tail = record_tails(fit.rms_px, fit.chi2, float(2 * obs.n_points - 6), sig[None], fit.params,
+                        obs.R_world_from_cam)[0]
+    return pose_record(method, extras, tail, p.tolist(), cov, scale, tuple(obs.ids.tolist()), "; ".join(problems))
 
 
 def finish_batch(
@@ -288,7 +355,8 @@ def finish_batch(
 
     Frame by frame this is :func:`~estimate.pose_candidates.pick_candidates`, the first test of
     the robust search (:mod:`~estimate.robust_search`) and :func:`make_estimate` for the case
-    where they produce an ok estimate without removing a point.
+    where they produce an ok estimate without removing a point; the records end as
+    :func:`make_estimate`'s do (:func:`record_tails`, :func:`pose_record`).
     ``pick=False`` is for a single solution taken as it is (the refinement): no
     ``n_solutions`` extra. NaN fits are expected: call it under
     ``np.errstate(invalid="ignore")`` (:func:`settle_batch` does).
@@ -315,18 +383,7 @@ def finish_batch(
     settled_list = settled.tolist()
     if not any(settled_list):
         return [None] * F
-    # (the frames left to the robust search may have no finite pose: zeros keep them quiet)
-    p_finite = best_p if all(settled_list) else np.where(np.isfinite(best_p), best_p, 0.0)
-    R_cd, t_cd = relative_from_params(p_finite, obs.R_world_from_cam)
-    # the tail of every record (TAIL_EXTRAS) as one (F, 15) table, read back as rows of floats
-    tail = np.empty((F, len(TAIL_EXTRAS)))
-    tail[:, 0] = rms
-    tail[:, 1] = chi2
-    tail[:, 2] = 2 * M - 6
-    tail[:, 3:9] = sig
-    tail[:, 9::2] = rotation_vectors(R_cd)
-    tail[:, 10::2] = t_cd
-    tail_rows = tail.tolist()
+    tails = record_tails(rms, chi2, float(2 * M - 6), sig, best_p, obs.R_world_from_cam)
     ids = tuple(obs.ids.tolist())
     head = record_head(M, 0, [], refined)
     chosen = candidate_extras(cands, choice, n_solutions=pick)
@@ -341,12 +398,5 @@ def finish_batch(
         ex = dict(head)
         ex["n_ignored"] = float(n_ign[i])
         ex.update(chosen[i])
-        ex.update(zip(TAIL_EXTRAS, tail_rows[i]))
-        if scale_list[i] > 1.0:
-            ex["covariance_scale"] = scale_list[i]
-        p = p_list[i]
-        out.append(PoseEstimate(
-            method=method, ok=True, roll_rad=p[0], pitch_rad=p[1], yaw_rad=p[2], height_m=p[5],
-            surge_m=p[3], sway_m=p[4], covariance=cov[i], inliers=ids, extras=ex))
+        out.append(pose_record(method, ex, tails[i], p_list[i], cov[i], scale_list[i], ids))
     return out
-
