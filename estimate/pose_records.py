@@ -215,14 +215,15 @@ def record_tails(rms_px: FloatArray, chi2: FloatArray, dof: float, sigmas: Float
     sigmas : (F, 6) array of float
         Standard deviations of ``params`` (rad, m; NaN without a covariance).
     params : (F, 6) array of float
-        Pose parameters; a frame whose pose is not finite gets NaN for its ``rvec``/``t``.
+        Pose parameters; where they are not finite, so is the relative pose (``rvec``/``t``).
     R_world_from_cam : (F, 3, 3) array of float
 
     Returns
     -------
     list of F lists of 15 floats
     """
-    # (a pose that is not finite makes NaN matrices, whose rotation vectors are NaN)
+    # (a pose that is not finite makes matrices that are not: their rows are read only where
+    # the pose is finite, :func:`pose_record`)
     R_cd, t_cd = relative_from_params(params, R_world_from_cam)
     tail = np.empty((params.shape[0], len(TAIL_EXTRAS)))
     tail[:, 0] = rms_px
@@ -231,8 +232,6 @@ def record_tails(rms_px: FloatArray, chi2: FloatArray, dof: float, sigmas: Float
     tail[:, 3:9] = sigmas
     tail[:, 9::2] = rotation_vectors(R_cd)
     tail[:, 10::2] = t_cd
-    # the whole relative pose NaN where any parameter is not finite (0 x NaN or inf is NaN)
-    tail[:, 9:] += 0.0 * np.add.reduce(params, axis=1)[:, None]
     return tail.tolist()
 
 
@@ -242,10 +241,11 @@ def pose_record(method: str, extras: dict[str, float], tail: list[float], params
     """One frame's record from its extras so far, its tail and its trust verdict: the one home of a record's end.
 
     The tail (:func:`record_tails`) follows ``extras`` (the :func:`record_head` and the
-    chosen solution's extras); the sigmas only where there is a covariance, the
-    relative pose only where it is finite. ``covariance_scale`` follows where the
-    covariance was widened. A ``problem`` makes a failed record that keeps the pose as
-    ``untrusted_*`` extras; none makes an ok one.
+    chosen solution's extras): all of it for an ok record; for a failed one, the sigmas
+    only where there is a covariance and the relative pose only where the pose is finite.
+    ``covariance_scale`` follows where the covariance was widened. A ``problem`` makes a
+    failed record that keeps the pose as ``untrusted_*`` extras; none makes an ok one (whose
+    pose is finite and whose covariance exists: :func:`fit_tests`).
 
     Parameters
     ----------
@@ -265,13 +265,13 @@ def pose_record(method: str, extras: dict[str, float], tail: list[float], params
     problem : str
         Why the record is not ok (``""`` for an ok record).
     """
-    if covariance is not None and not math.isnan(tail[9]):
+    if not problem:
         extras.update(zip(TAIL_EXTRAS, tail))
     else:
         extras.update(zip(TAIL_EXTRAS[:3], tail[:3]))
         if covariance is not None:
             extras.update(zip(TAIL_EXTRAS[3:9], tail[3:9]))
-        if not math.isnan(tail[9]):
+        if all(map(math.isfinite, params)):
             extras.update(zip(TAIL_EXTRAS[9:], tail[9:]))
     if covariance is not None and covariance_scale > 1.0:
         extras["covariance_scale"] = covariance_scale

@@ -3,8 +3,8 @@
 Both record builders (``make_estimate`` for the robust search's frames, ``finish_batch`` for
 the frames a batch settles) end their records here, so these are the rules every record keeps:
 the relative pose in the tail means what OpenCV means by ``rvec``/``tvec`` (checked with
-``cv2.projectPoints`` against the pose model's own projection), a pose that is not finite
-leaves no relative pose, a fit without a covariance leaves no sigmas, and a problem makes a
+``cv2.projectPoints`` against the pose model's own projection), a failed record whose pose is
+not finite keeps no relative pose, a fit without a covariance leaves no sigmas, and a problem makes a
 failed record that keeps the pose as ``untrusted_*``.
 """
 
@@ -55,17 +55,6 @@ def test_the_tail_keeps_its_inputs_and_order():
         np.testing.assert_array_equal(one, tails[f])
 
 
-def test_a_pose_that_is_not_finite_leaves_no_relative_pose():
-    params, R_wc = _frames(3, 3)
-    params[1, 5] = np.nan  # the height only
-    params[2, 0] = np.inf  # the roll only
-    with np.errstate(invalid="ignore"):
-        tails = np.array(record_tails(np.ones(3), np.ones(3), 20.0, np.ones((3, 6)), params, R_wc))
-    assert np.isfinite(tails[0]).all()
-    assert np.isnan(tails[1:, 9:]).all()
-    assert np.isfinite(tails[1:, :9]).all()
-
-
 def test_pose_record_ok_failed_and_partial_tails():
     params, R_wc = _frames(1, 4)
     tail = record_tails(np.array([0.4]), np.array([9.0]), 20.0, np.full((1, 6), 0.02), params, R_wc)[0]
@@ -87,7 +76,11 @@ def test_pose_record_ok_failed_and_partial_tails():
     assert [failed.extras["untrusted_" + n] for n in POSE_PARAMS] == p
     assert "rvec_cam_from_deck_x" in names  # the pose is finite: its relative pose stays
 
-    nan_tail = list(tail)
-    nan_tail[9:] = [float("nan")] * 6
-    lost = pose_record("m", dict(head), nan_tail, p, cov, 1.0, (), problem="lost")
-    assert "sigma_roll_rad" in lost.extras and not any(n.startswith(("rvec_", "t_cam")) for n in lost.extras)
+    lost_p = list(p)
+    lost_p[5] = float("nan")  # the height only
+    with np.errstate(invalid="ignore"):
+        lost_tail = record_tails(np.array([0.4]), np.array([9.0]), 20.0, np.full((1, 6), 0.02),
+                                 np.array([lost_p]), R_wc)[0]
+    lost = pose_record("m", dict(head), lost_tail, lost_p, cov, 1.0, (), problem="lost")
+    assert not lost.ok and "sigma_roll_rad" in lost.extras
+    assert not any(n.startswith(("rvec_", "t_cam")) for n in lost.extras)
