@@ -119,16 +119,16 @@ class CameraModel:
             )
         K = _readonly(self.K)
         check_shape("K", K, (3, 3))
-        if not np.all(np.isfinite(K)) or K[0, 0] <= 0 or K[1, 1] <= 0:
+        if not np.isfinite(K).all() or K[0, 0] <= 0 or K[1, 1] <= 0:
             raise ConfigError(f"camera matrix needs finite, positive fx and fy, got\n{K}")
         if not np.allclose(K[2], [0.0, 0.0, 1.0]) or K[1, 0] != 0.0:
             raise ConfigError(f"camera matrix must be upper triangular with K[2] = [0,0,1], got\n{K}")
         d = _readonly(np.ravel(self.dist_coeffs))
-        if not np.all(np.isfinite(d)):
+        if not np.isfinite(d).all():
             raise ConfigError("distortion coefficients must be finite")
         model = str(self.distortion_model).strip().lower()
         if model == "none":
-            if np.any(d != 0.0):
+            if (d != 0.0).any():
                 raise ConfigError(f"distortion model none takes no (or only zero) coefficients, got {d.size} "
                                   "with non-zero ones")
             model, d = "plumb_bob", _readonly(np.zeros(0))
@@ -175,7 +175,7 @@ class CameraModel:
     @property
     def has_distortion(self) -> bool:
         """Pixels are not ``K @ (x/z, y/z, 1)``: non-zero coefficients, or a fisheye (always)."""
-        return self.is_fisheye or bool(np.any(self.dist_coeffs != 0.0))
+        return self.is_fisheye or bool((self.dist_coeffs != 0.0).any())
 
     def project(self, points_cam: ArrayLike) -> FloatArray:
         """Project camera-frame points to pixels, with distortion.

@@ -77,10 +77,10 @@ def _checks_centring(name: str, options: EstimateOptions) -> bool:
 def _check_rotations(R: np.ndarray) -> None:
     """The per-frame form of :class:`EstimateOptions`' check of ``R_world_from_cam``."""
     with np.errstate(invalid="ignore"):
-        bad = ~np.all(np.isfinite(R), axis=(1, 2))
-        bad |= ~np.all(np.isclose(np.swapaxes(R, 1, 2) @ R, np.eye(3), atol=1e-6), axis=(1, 2))
+        bad = ~np.isfinite(R).all(axis=(1, 2))
+        bad |= ~np.isclose(R.swapaxes(1, 2) @ R, np.eye(3), atol=1e-6).all(axis=(1, 2))
         bad |= np.linalg.det(np.where(np.isfinite(R), R, 0.0)) < 0
-    if np.any(bad):
+    if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise ConfigError(f"R_world_from_cam of frame {i} (position in the batch) is not a proper rotation "
                           "matrix (finite, orthonormal, det +1); fix the camera attitudes")

@@ -97,7 +97,7 @@ def fit_conic_coefficients(x: FloatArray, y: FloatArray, mask: BoolArray) -> Flo
     out = np.full((x.shape[0], 5), np.nan)
     det = np.linalg.det(G)
     good = np.isfinite(det) & (np.abs(det) > 1e-300) & (mask.sum(axis=1) >= 5)
-    if np.any(good):
+    if good.any():
         out[good] = np.linalg.solve(G[good], g[good][..., None])[..., 0]
     s1 = s[:, 0]
     out[:, 2] /= s1

@@ -177,13 +177,13 @@ def fit_ellipses(points: FloatArray) -> tuple[FloatArray, BoolArray]:
     D2 = np.empty(q.shape[:2] + (3,))
     D2[..., :2] = q
     D2[..., 2] = 1.0
-    D1t = np.swapaxes(D1, 1, 2)
+    D1t = D1.swapaxes(1, 2)
     S1 = D1t @ D1
     S2 = D1t @ D2
-    S3 = np.swapaxes(D2, 1, 2) @ D2
+    S3 = D2.swapaxes(1, 2) @ D2
     if not ok.all():
         S3[~ok] = np.eye(3)
-    T, solved = solve_batch(S3, np.swapaxes(S2, 1, 2))
+    T, solved = solve_batch(S3, S2.swapaxes(1, 2))
     T = -T
     ok &= solved
     M = C1_INV @ (S1 + S2 @ T)
@@ -207,7 +207,7 @@ def fit_ellipses(points: FloatArray) -> tuple[FloatArray, BoolArray]:
     N[:, _DIAGONAL_XY, _DIAGONAL_XY] = (1.0 / s)[:, None]
     N[:, :2, 2] = -mean / s[:, None]
     N[:, 2, 2] = 1.0
-    Cm = np.swapaxes(N, 1, 2) @ Cn @ N
+    Cm = N.swapaxes(1, 2) @ Cn @ N
     norm = np.sqrt((Cm * Cm).sum(axis=(1, 2)))
     ok &= np.isfinite(norm) & (norm != 0)
     C = Cm / norm[:, None, None]
@@ -232,7 +232,7 @@ def circle_planes(C: FloatArray, radius_m: float) -> tuple[FloatArray, FloatArra
         Plane ``j`` exists (none where ``C`` is not the image of a circle in front of the camera).
     """
     finite = np.isfinite(C).all(axis=(1, 2))
-    Cs = 0.5 * (C + np.swapaxes(C, 1, 2))
+    Cs = 0.5 * (C + C.swapaxes(1, 2))
     if not finite.all():
         Cs[~finite] = np.diag([1.0, 1.0, -1.0])
     w, V = np.linalg.eigh(Cs)
@@ -293,7 +293,7 @@ def in_plane_alignment(
     n_up = normal_up
     d = -(n_up * centre_m).sum(axis=1)
     den = -(xy @ n_up[:, :2, None])[..., 0] - n_up[:, 2, None]
-    ok = np.all(np.isfinite(n_up), axis=1) & ~np.any(den <= 1e-12, axis=1) & np.all(np.isfinite(den), axis=1)
+    ok = np.isfinite(n_up).all(axis=1) & ~(den <= 1e-12).any(axis=1) & np.isfinite(den).all(axis=1)
     s_ray = d[:, None] / den
     ex = _UNIT_X - n_up[:, 0, None] * n_up
     ex2 = (ex * ex).sum(axis=1)
@@ -305,7 +305,7 @@ def in_plane_alignment(
     e2 = _cross(n_up, e1)
     E = np.empty((e1.shape[0], 2, 3))
     E[:, 0], E[:, 1] = e1, e2
-    q = ((xy @ np.swapaxes(E[:, :, :2], 1, 2)) + E[:, None, :, 2]) * s_ray[:, :, None] - (
+    q = ((xy @ E[:, :, :2].swapaxes(1, 2)) + E[:, None, :, 2]) * s_ray[:, :, None] - (
         E @ centre_m[:, :, None])[:, None, :, 0]
     p = points_deck_m[:, :2]
     qm, pm = q.sum(axis=1) / q.shape[1], p.sum(axis=0) / p.shape[0]  # (np.mean's arithmetic)
@@ -413,7 +413,7 @@ def planes_from_centres(C: FloatArray, centre_xy: FloatArray, ring_xy: FloatArra
     c = np.empty((F, 3))
     c[:, :2] = centre_xy
     c[:, 2] = 1.0
-    line = ((0.5 * (C + np.swapaxes(C, 1, 2))) @ c[:, :, None])[:, :, 0]
+    line = ((0.5 * (C + C.swapaxes(1, 2))) @ c[:, :, None])[:, :, 0]
     norm = np.sqrt((line * line).sum(axis=1))
     ok = np.isfinite(norm) & (norm > 0)
     n_up = line / norm[:, None]

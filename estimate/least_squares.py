@@ -90,7 +90,7 @@ class Fit:
 
 
 def _rows_ok(a: FloatArray) -> BoolArray:
-    return np.all(np.isfinite(a.reshape(a.shape[0], math.prod(a.shape[1:]))), axis=1)
+    return np.isfinite(a.reshape(a.shape[0], math.prod(a.shape[1:]))).all(axis=1)
 
 
 def covariance_from_information(H: FloatArray) -> tuple[FloatArray, BoolArray]:
@@ -114,10 +114,10 @@ def covariance_from_information(H: FloatArray) -> tuple[FloatArray, BoolArray]:
         except np.linalg.LinAlgError:
             pass  # some matrix is not positive definite: row by row below
         else:
-            cov = np.swapaxes(Linv, 1, 2) @ Linv
+            cov = Linv.swapaxes(1, 2) @ Linv
             if np.isfinite(cov).all():  # (the usual case: no test per matrix)
                 return cov, np.ones(F, dtype=bool)
-            ok = np.all(np.isfinite(cov), axis=(1, 2))
+            ok = np.isfinite(cov).all(axis=(1, 2))
             cov[~ok] = np.nan
             return cov, ok
     cov = np.full(H.shape, np.nan)
@@ -139,7 +139,7 @@ def covariance_from_information(H: FloatArray) -> tuple[FloatArray, BoolArray]:
         sel = idx[good]
         if sel.size:
             Linv = np.linalg.inv(Lc[good])
-            cov[sel] = np.swapaxes(Linv, 1, 2) @ Linv
+            cov[sel] = Linv.swapaxes(1, 2) @ Linv
         ok = np.zeros(F, dtype=bool)
         ok[sel] = True
         ok &= _rows_ok(cov)

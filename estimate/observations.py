@@ -77,7 +77,7 @@ class Observations:
     @cached_property
     def R_cam_from_world(self) -> FloatArray:
         """``R_world_from_cam`` transposed, (F, 3, 3) (computed once: every iteration needs it)."""
-        return np.swapaxes(self.R_world_from_cam, 1, 2)
+        return self.R_world_from_cam.swapaxes(1, 2)
 
     @cached_property
     def translation_jacobian(self) -> FloatArray:
@@ -154,7 +154,7 @@ def pixel_covariances(covariance_px2: FloatArray, sigma_px: float, use_detection
     own : bool
         Whether ``cov`` is the detections' own.
     """
-    own = bool(use_detection_covariance and covariance_px2.shape[0] and not np.all(covariance_px2 == _EYE2))
+    own = bool(use_detection_covariance and covariance_px2.shape[0] and not (covariance_px2 == _EYE2).all())
     if own:
         return covariance_px2, True
     return np.broadcast_to(_EYE2 * sigma_px**2, covariance_px2.shape), False
@@ -303,12 +303,12 @@ def group_observations(
         cov, own1 = pixel_covariances(raw, sigma_px, use_detection_covariance)
         c0 = cov[0] if ids_all.size else _EYE2
         iso1 = bool(ids_all.size and c0[0, 1] == 0.0 and c0[1, 0] == 0.0 and c0[0, 0] == c0[1, 1]
-                    and 0.0 < c0[0, 0] < np.inf and (not own1 or np.all(cov == c0)))
+                    and 0.0 < c0[0, 0] < np.inf and (not own1 or (cov == c0).all()))
         iso = np.array([iso1])
         sigma_iso = np.array([np.sqrt(c0[0, 0]) if iso1 else np.nan])
     else:
         frame_of = stacked.frame_of
-        own = use_detection_covariance & ~_per_frame_all(np.all(raw == _EYE2, axis=(1, 2)), frame_of, F)
+        own = use_detection_covariance & ~_per_frame_all((raw == _EYE2).all(axis=(1, 2)), frame_of, F)
         has_any = stacked.counts > 0
         own &= has_any
         any_own = bool(own.any())
@@ -327,7 +327,7 @@ def group_observations(
                              & (c0[:, 0, 0] > 0) & np.isfinite(c0[:, 0, 0]))
             c0_full = np.zeros((F, 2, 2))
             c0_full[has] = c0
-            same = _per_frame_all(np.all(cov == c0_full[frame_of], axis=(1, 2)), frame_of, F)
+            same = _per_frame_all((cov == c0_full[frame_of]).all(axis=(1, 2)), frame_of, F)
             iso[has] = first_iso & same[has]
             sigma_iso[iso] = np.sqrt(c0_full[iso, 0, 0])
     keep = (ids_all >= 0) & (ids_all < layout.n_beacons) & np.isfinite(pts_all).all(axis=1)
@@ -357,7 +357,7 @@ def group_observations(
         L = np.empty((n, 2, 2))
         fast = ~general
         L[fast] = K22[None] / sigma_iso[fidx[fast], None, None]
-    if np.any(general):
+    if general.any():
         gi = np.flatnonzero(general)
         # 2x2 inverses where they exist: a point far outside the image (-8e170 px) makes a
         # distortion Jacobian singular, and one LinAlgError ended every frame of a batch
@@ -370,7 +370,7 @@ def group_observations(
             A[:, 0, 0], A[:, 1, 1] = Dg[:, 1, 1], Dg[:, 0, 0]
             A[:, 0, 1], A[:, 1, 0] = -Dg[:, 0, 1], -Dg[:, 1, 0]
             A /= np.where(invertible, det, 1.0)[:, None, None]
-            cov_n = A @ cov[index[gi]] @ np.swapaxes(A, 1, 2)
+            cov_n = A @ cov[index[gi]] @ A.swapaxes(1, 2)
             cn_det = cov_n[:, 0, 0] * cov_n[:, 1, 1] - cov_n[:, 0, 1] * cov_n[:, 1, 0]
         ok = (invertible & np.isfinite(cov_n).all(axis=(1, 2)) & np.isfinite(xy[gi]).all(axis=1)
               & (cov_n[:, 0, 0] > 0) & (cn_det > 0))
@@ -407,7 +407,7 @@ def group_observations(
         g_ids = np.frombuffer(key, dtype=np.int64).copy()
         M = g_ids.size
         rows = first[fr, None] + np.arange(M)[None, :]
-        if M and not np.any(general[rows]):
+        if M and not general[rows].any():
             # Linear camera, one isotropic sigma per frame: one whitening matrix per frame.
             Lg, Dg = L[rows[:, :1]], D[rows[:, :1]]
         else:

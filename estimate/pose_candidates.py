@@ -95,7 +95,7 @@ def slot_values(fits: tuple[Fit, ...], attr: str, k: NDArray[np.int64]) -> np.nd
     out = np.array(getattr(fits[0], attr))
     for j in range(1, len(fits)):
         rows = k == j
-        if np.any(rows):
+        if rows.any():
             out[rows] = getattr(fits[j], attr)[rows]
     return out
 

@@ -119,7 +119,7 @@ def _camera_points(params: FloatArray, points_deck_m: FloatArray, R_cw: FloatArr
     d = R_cw @ (params[:, 3:] * TRANSLATION_SIGN)[:, :, None]  # (F, 3, 1)
     if d_translation is None:
         Rs = R_cw @ deck_rotations(params[:, :3])
-        return np.swapaxes(Rs @ points_deck_m.T + d, 1, 2), None
+        return (Rs @ points_deck_m.T + d).swapaxes(1, 2), None
     Rs = R_cw[:, None] @ deck_rotations_and_derivatives(params[:, :3])  # (F, 4, 3, 3)
     F, M = params.shape[0], points_deck_m.shape[0]
     # Q[f, m, c, k] = sum_j P[m, j] Rs[f, k, c, j]: component c of the point (k = 0) and of its
@@ -150,7 +150,7 @@ def project_normalised(
     J : (F, M, 2, 6) array of float or None
     depth_m : (F, M) array of float
     """
-    R_cw = np.swapaxes(R_world_from_cam, 1, 2)
+    R_cw = R_world_from_cam.swapaxes(1, 2)
     return project_from_camera(params, points_deck_m, R_cw, (R_cw * TRANSLATION_SIGN)[:, None] if jacobian else None)
 
 
@@ -204,7 +204,7 @@ def relative_from_params(params: FloatArray, R_world_from_cam: FloatArray) -> tu
     R_cam_from_deck : (..., 3, 3) array of float
     t_cam_from_deck : (..., 3) array of float, metres
     """
-    R_cw = np.swapaxes(R_world_from_cam, -1, -2)
+    R_cw = R_world_from_cam.swapaxes(-1, -2)
     R_wd = deck_rotations(params[..., :3])
     tw = params[..., 3:, None] * TRANSLATION_SIGN[:, None]  # (surge, sway, -height)
     return R_cw @ R_wd, (R_cw @ tw)[..., 0]

@@ -325,7 +325,7 @@ def make_estimate(
     finite = bool(np.isfinite(p).all())
     cov = covs[0] if cov_ok[0] and finite else None
     pc = fit.point_chi2()[0]
-    scale = float(covariance_scale(pc)) if pc.size and np.all(np.isfinite(pc)) else 1.0
+    scale = float(covariance_scale(pc)) if pc.size and np.isfinite(pc).all() else 1.0
     if cov is not None and scale > 1.0:
         # the residuals say the detections' covariances are too small: widen the pose's alike
         cov = cov * scale
