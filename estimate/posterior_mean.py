@@ -114,7 +114,7 @@ def chi2_at_nodes(params: FloatArray, obs: Observations) -> FloatArray:
     wx = Li[..., 0, 0] * rx + Li[..., 0, 1] * ry
     wy = Li[..., 1, 0] * rx + Li[..., 1, 1] * ry
     c = np.sum(wx * wx + wy * wy, axis=2)
-    return np.where(np.all(Z > 0, axis=2) & np.isfinite(c), c, np.inf)
+    return np.where((Z > 0).all(axis=2) & np.isfinite(c), c, np.inf)
 
 
 def posterior_moments_batch(
@@ -148,8 +148,8 @@ def posterior_moments_batch(
     x, log_q = unit_nodes()
     C = np.array(covariance_ml, dtype=float)
     with np.errstate(invalid="ignore"):
-        is_pd = np.all(np.isfinite(C), axis=(1, 2))
-        is_pd[is_pd] = np.all(np.linalg.eigvalsh(C[is_pd]) > 0, axis=1)
+        is_pd = np.isfinite(C).all(axis=(1, 2))
+        is_pd[is_pd] = (np.linalg.eigvalsh(C[is_pd]) > 0).all(axis=1)
     C[~is_pd] = np.eye(6)
     L = np.linalg.cholesky(C)  # (F, 6, 6)
     mean = np.empty((F, 6))
@@ -169,7 +169,7 @@ def posterior_moments_batch(
         mean[sl] = params_ml[sl] + d_mean
         cov[sl] = np.einsum("fs,fsi,fsj->fij", w, centred, centred)
         ess[sl] = 1.0 / np.sum(w * w, axis=1)
-    bad = ~is_pd | ~(ess >= MIN_EFFECTIVE_NODES) | ~np.all(np.isfinite(mean), axis=1)
+    bad = ~is_pd | ~(ess >= MIN_EFFECTIVE_NODES) | ~np.isfinite(mean).all(axis=1)
     mean[bad] = np.nan
     cov[bad] = np.nan
     mean[:, :3] = (mean[:, :3] + np.pi) % (2.0 * np.pi) - np.pi
@@ -287,7 +287,7 @@ def _with_mean(est: PoseEstimate, mean: FloatArray, cov: FloatArray, ess: float,
     extras["posterior_effective_nodes"] = ess
     for name in POSE_PARAMS:
         extras["ml_" + name] = float(getattr(est, name))
-    if not np.all(np.isfinite(mean)):
+    if not np.isfinite(mean).all():
         extras["posterior_mean"] = 0.0
         return dataclasses.replace(est, extras=extras)
     extras["posterior_mean"] = 1.0

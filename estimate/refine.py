@@ -37,7 +37,7 @@ def initial_params(estimate: PoseEstimate) -> np.ndarray | None:
          0.0 if math.isnan(estimate.surge_m) else estimate.surge_m,
          0.0 if math.isnan(estimate.sway_m) else estimate.sway_m, estimate.height_m]
     arr = np.array(p, dtype=float)
-    return arr if np.all(np.isfinite(arr)) and arr[5] > 0 else None
+    return arr if np.isfinite(arr).all() and arr[5] > 0 else None
 
 
 def refine_estimate(

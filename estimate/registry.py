@@ -94,7 +94,7 @@ class EstimateOptions:
         if not self.max_reprojection_rms_px > 0:
             raise ConfigError("max_reprojection_rms_px must be positive")
         R = np.array(self.R_world_from_cam, dtype=float)
-        if R.shape != (3, 3) or not np.all(np.isfinite(R)):
+        if R.shape != (3, 3) or not np.isfinite(R).all():
             raise ConfigError(f"R_world_from_cam must be a finite 3x3 matrix, got shape {R.shape}")
         if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
             raise ConfigError("R_world_from_cam must be a proper rotation matrix (orthonormal, det +1)")

@@ -99,7 +99,7 @@ def _search_steps(obs: Observations, *, min_points: int, outlier_chi2: float, ma
         return result, used, removed
     # The scale from the fit without the worst points, where a wrong point no longer smears.
     pc = result.fit.point_chi2()[0]
-    scale = float(covariance_scale(pc)) if np.all(np.isfinite(pc)) else 1.0
+    scale = float(covariance_scale(pc)) if np.isfinite(pc).all() else 1.0
     if scale <= 1.0:
         return result, used, removed
     # The search at the scaled threshold removes the same points in the same order (which

@@ -111,7 +111,7 @@ def flag_off_centre(
             stack[2 + 2 * k, r, 1] += STEP_PX  # Y' = cy - v: +dY is -dv
         res = thesis_algorithm(stack, np.repeat(mask[None], len(stack), axis=0),
                                     camera.fx, camera.fy, layout.radius_m)
-        if not np.all(res.ok):
+        if not res.ok.all():
             continue  # the thesis method fails near this pose: no bias to measure
         ang = _zyx_deg(res, np.arange(len(stack)))
         truth = np.degrees([ref.roll_rad, ref.pitch_rad, ref.yaw_rad])
