@@ -100,16 +100,19 @@ def clipped_mean(values: np.ndarray, k_sigma: float = 3.0, passes: int = 3) -> n
     spot's aperture, a bias of many DN).
     """
     x = np.asarray(values, dtype=np.float64)
-    x2 = x.reshape(x.shape[0], -1)
-    keep = np.ones(x2.shape, bool)
-    m = x2.mean(axis=0)
+    # column-major work, (m, n): numpy's inner loops run along a row, and a row of three
+    # channels made every operation here 10-40x slower than on a contiguous column
+    xt = np.ascontiguousarray(x.reshape(x.shape[0], -1).T)
+    keep = np.ones(xt.shape, bool)
+    m = xt.mean(axis=1)
     for _ in range(passes):
-        n = keep.sum(axis=0)
-        if np.any(n < 3):
+        n = keep.sum(axis=1)
+        if (n < 3).any():
             break
-        m = np.where(keep, x2, 0.0).sum(axis=0) / n
-        sd = np.sqrt(np.where(keep, (x2 - m) ** 2, 0.0).sum(axis=0) / n)
-        keep = np.abs(x2 - m) <= k_sigma * sd + 1e-12
+        m = np.where(keep, xt, 0.0).sum(axis=1) / n
+        dev = xt - m[:, None]
+        sd = np.sqrt(np.where(keep, dev * dev, 0.0).sum(axis=1) / n)
+        keep = np.abs(dev) <= k_sigma * sd[:, None] + 1e-12
     return m if x.ndim > 1 else m.reshape(())
 
 

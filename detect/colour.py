@@ -49,12 +49,14 @@ def blob_rgb_flux(image: np.ndarray, points_px: FloatArray, radii_px: FloatArray
         if u1 <= u0 or v1 <= v0:  # a centre outside the image: no colour to measure
             out[i] = np.nan
             continue
-        block = img[v0:v1, u0:u1].astype(float)
+        # channel-major, (3, h, w): each channel's pixels contiguous (numpy's inner loops
+        # over a pixel's three channels cost 10-40x more than over a channel's pixels)
+        block = np.moveaxis(img[v0:v1, u0:u1], 2, 0).astype(np.float64, order="C")
         vv, uu = np.ogrid[v0:v1, u0:u1]  # broadcast: the same distances as a full grid's
         d = np.hypot(uu - u, vv - v)
         ap, ann = d <= r, (d >= 1.5 * r) & (d <= R)
-        bg = clipped_mean(block[ann]) if ann.sum() >= 3 else np.zeros(3)
-        out[i] = (block[ap] - bg).sum(axis=0)
+        bg = clipped_mean(block[:, ann].T) if ann.sum() >= 3 else np.zeros(3)
+        out[i] = (block[:, ap] - bg[:, None]).sum(axis=1)
     return out
 
 
