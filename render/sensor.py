@@ -119,12 +119,6 @@ def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: li
     the output type (``cv2.add(..., dtype=)``); 12 bits add the clamp at 4095, mono the
     grey conversion of the raster strip.
 
-    Without Bayer, fixed pattern or row gain (and with noise), five passes instead: the
-    mean (one multiply), sigma from a per-channel 256-entry table of the raster value
-    (``cv2.LUT``; recomputed inside the splat windows, whose light changes the mean),
-    ``cv2.randn`` deviates, ``cv2.accumulateProduct`` (mean += deviate x sigma), and the
-    rounded, saturated conversion (``cv2.addWeighted(..., dtype=)``).
-
     Parameters
     ----------
     raster : (H, W, 3) array of uint8
@@ -180,14 +174,6 @@ def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: li
     read_var_dn2 = (dn_per_e * sensor.read_noise_e) ** 2
     if sensor.noise:  # OpenCV's uniform stream (thread-local), seeded from the frame's rng
         cv2.setRNGSeed(int(rng.integers(2**31 - 1)))
-    # five passes: sigma from a per-channel table of the raster value, cv2.randn deviates
-    fast = sensor.noise and not bayer and pattern is None and background_gain is None
-    if fast:
-        mean_table = np.arange(256, dtype=np.float32)[:, None] * dn_per_unit[:C][None, :]
-        sigma_table = np.sqrt(mean_table * np.float32(dn_per_e) + np.float32(read_var_dn2))
-        sigma_lut = sigma_table.astype(np.float32).reshape(1, 256, C) if C == 3 else \
-            sigma_table.astype(np.float32).reshape(1, 256)
-        fast_noise = np.empty((rows, W * C), np.float32)
     for k, r0 in enumerate(range(0, H, rows)):
         r1 = min(H, r0 + rows)
         h = r1 - r0
@@ -198,21 +184,6 @@ def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: li
         if background_gain is not None:
             m3 = mean.reshape(h, W, C)
             m3 *= background_gain(r0, r1)[:, :, None]
-        if fast:
-            sigma = sigma_buf[:h]
-            cv2.LUT(block, sigma_lut, dst=sigma.reshape(h, W, C) if C == 3 else sigma)
-            if k in by_strip:
-                windows = add_splats(mean.reshape(h, W, C), by_strip[k], r0, gain=e_per_rad * dn_per_e)
-                m3, s3 = mean.reshape(h, W, C), sigma.reshape(h, W, C)
-                for rs, cs in windows:  # sigma follows the beacon light
-                    np.sqrt(m3[rs, cs] * np.float32(dn_per_e) + np.float32(read_var_dn2), out=s3[rs, cs])
-            noise = fast_noise[:h]
-            cv2.randn(noise, 0.0, 1.0)
-            cv2.accumulateProduct(noise, sigma, mean)
-            cv2.addWeighted(mean, 1.0, mean, 0.0, 0.0, dst=dst, dtype=depth)  # round, saturate
-            if sensor.bit_depth == 12:
-                np.minimum(dst, np.uint16(dn_max), out=dst)
-            continue
         if k in by_strip:
             add_splats(mean.reshape(h, W, C), by_strip[k], r0, gain=e_per_rad * dn_per_e)
         if bayer:
