@@ -24,9 +24,9 @@ read of the raster, one write of the image. A value's mean is its raster value t
 its channel's DN per raster unit (one vectorised multiply: 0.32 ns a value of RGB
 here against 0.85 ns for the per-channel 256-entry ``cv2.LUT`` it replaced, a gather).
 Normal deviates are Box-Muller pairs from OpenCV's uniform generator (``cv2.randu``;
-1.2-1.6 ns a value here against 2.1-2.9 ns for ``cv2.randn`` and 9 ns for numpy's
-float32 ``standard_normal`` with SFC64 or PCG64DXSM; SFC64's raw bits made into the same
-two uniforms cost 1.35x ``cv2.randu``), seeded once per frame from the frame's
+2.4-2.7 ns a value here, 1.5-1.7 of them the uniforms, against 2.7-2.9 ns for
+``cv2.randn`` and 10-12 ns for numpy's float32 ``standard_normal`` with SFC64 or PCG64;
+SFC64's raw bits made into the same two uniforms save nothing measurable in the strip), seeded once per frame from the frame's
 :class:`numpy.random.Generator` and drawn strip after strip, so a frame is a function
 of that generator's state and the frame's shape only (not of the number of workers).
 OpenCV's generator state is per thread. Since issue 20 the realisation differs from
@@ -116,8 +116,23 @@ def expose(raster: NDArray[np.uint8], scale_rgb: NDArray[np.float32], splats: li
     deviate (:func:`_fill_standard_normal`, seven OpenCV calls on half a strip each plus
     the cos/sin that writes both halves), its variance (``cv2.addWeighted``) and sigma
     (``cv2.sqrt``), deviate times sigma, and mean plus that, rounded and saturated into
-    the output type (``cv2.add(..., dtype=)``); 12 bits add the clamp at 4095, mono the
-    grey conversion of the raster strip.
+    the output type (``cv2.add(..., dtype=)``).
+
+    Passes over a strip's values (a call over half of them counts 1/2), per path:
+
+    - default (noise on, no optional effect), 8- or 16-bit RGB: 9.5 (13 calls);
+    - mono: the same over one value a pixel, plus the grey conversion of the raster strip;
+    - 12 bits: + 1 (the clamp at 4095);
+    - beacons: the splat windows only (:func:`deckpose.render.beacons.add_splats`);
+    - ``background_gain``: + 1; Bayer: + 1 (the mosaic's selection), the noise passes over
+      one value a pixel, and the demosaicing of the image; fixed pattern: + 1 (gain),
+      + 2 (dark signal and the clamp at 0), RGB + 1 each (the map merged over channels);
+    - noise off: 2 (mean, rounded conversion).
+
+    Issue 20 asked for five; the five-pass model (sigma from a per-channel ``cv2.LUT`` of
+    the raster value, ``cv2.randn``, ``cv2.accumulateProduct``, conversion) measured 20 %
+    slower (reports/throughput/sensor.txt, 2026-12-07): a 3-channel table gather costs
+    twice ``addWeighted`` + ``sqrt``, and ``cv2.randn`` more than the Box-Muller deviate.
 
     Parameters
     ----------

@@ -300,3 +300,111 @@ def test_beacons_are_not_shifted_and_carry_their_shot_noise() -> None:
         se = np.sqrt((var_mean * (coord - c_want) ** 2).sum()) / want.sum()
         assert abs(c_got - c_want) < N_SE * se, (
             f"centroid {c_got:.4f} px, want {c_want:.4f} +- {se:.1e}")
+
+
+#: Pixels per raster level in :func:`test_every_level_follows_the_law` (256 levels: 2 MP).
+PER_LEVEL = 2048
+#: A group's sample moments are checked one by one only where the sample is large against
+#: the law's kurtosis (``n >= KURTOSIS_FACTOR * m4 / var**2``), i.e. where their normal
+#: approximation holds: an 8-bit level of sigma ~0.1 DN is a rare-event (Poisson-like) count
+#: whose 5-SE tail is far heavier than the normal's. Every group enters the pooled checks.
+KURTOSIS_FACTOR = 100.0
+
+
+def law_moments_near(mu_dn: float, sigma_dn: float, dn_max: int) -> tuple[float, float, float]:
+    """:func:`law_moments` summed over the values within 10 sigma of ``mu_dn`` only (the rest
+    of the law's mass is below 2e-23): a 16-bit level costs a few thousand terms, not 65 536."""
+    lo = int(np.clip(np.floor(mu_dn - 10 * sigma_dn), 0, dn_max))
+    hi = int(np.clip(np.ceil(mu_dn + 10 * sigma_dn), 0, dn_max))
+    k = np.arange(lo, hi + 1, dtype=float)
+    cdf = ndtr((np.arange(lo, hi + 2) - 0.5 - mu_dn) / sigma_dn)  # P(x < k - 0.5), k = lo .. hi + 1
+    cdf[0] = 0.0 if lo == 0 else cdf[0]
+    cdf[-1] = 1.0 if hi == dn_max else cdf[-1]
+    p = np.diff(cdf)
+    mean = float(p @ k)
+    d2 = (k - mean) ** 2
+    return mean, float(p @ d2), float(p @ (d2 * d2))
+
+
+def _group_moments(values: NDArray[np.floating], labels: NDArray[np.intp],
+                   n_groups: int) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Count, sample mean and sample variance (ddof 1) of ``values`` per label."""
+    n = np.bincount(labels, minlength=n_groups).astype(float)
+    s1 = np.bincount(labels, values, minlength=n_groups)
+    mean = s1 / n
+    dev = values - mean[labels]
+    var = np.bincount(labels, dev * dev, minlength=n_groups) / (n - 1)
+    return n, mean, var
+
+
+@pytest.mark.parametrize("bit_depth", [8, 16])
+@pytest.mark.parametrize("color", ["rgb", "mono"])
+def test_every_level_follows_the_law(bit_depth: int, color: str) -> None:
+    """Mean and variance of each raster level (0..255) and channel, and of a splat window,
+    against the law: mean ``mu``, ``sigma**2 = g mu + (g r)**2`` before rounding, and the exact
+    moments of ``clip(round(N(mu, sigma**2)))`` after (for sigma of a few DN and more, that is
+    ``sigma**2 + 1/12`` DN^2, rounding's variance; 8-bit sigma is 0.06-1.4 DN here, where only
+    the exact sum is right). Channels' DN per raster unit differ and one channel's top levels
+    reach the clip. Each group (``PER_LEVEL`` values, the window ~10 000) is checked within
+    N_SE standard errors computed from its size and the law's second and fourth moments: over
+    ~1 500 such checks a false alarm has probability ~1e-3. Pooled over all groups, the
+    standardised deviations' mean lies within N_SE / sqrt(groups) of 0: a 1 % error of sigma
+    moves it by ~10 of those standard errors."""
+    sensor = SensorSpec(bit_depth=bit_depth, color=color, read_noise_e=5.0)
+    dn_max = 2 ** bit_depth - 1
+    g = dn_max / sensor.full_well_e
+    rows_levels = 256 * PER_LEVEL // 512
+    levels = (np.arange(rows_levels * 512) // PER_LEVEL).reshape(rows_levels, 512)
+    H, W = rows_levels + 40, 512
+    grey = np.full((H, W), 90, np.uint8)  # a band of level 90 under the splat
+    grey[:rows_levels] = levels
+    raster = np.repeat(grey[..., None], 3, axis=2)
+    scale = np.array([0.4, 0.8, 1.1], np.float32) / 255  # channel 2's top levels clip
+    # one splat: a constant patch over 30 x 350 pixels of the band
+    patch = np.full((30, 350), 0.2, np.float32)
+    rgb = np.array([1.0, 0.7, 0.3], np.float32)
+    splat = Splat(rows_levels + 5, 80, patch, rgb, 0, 10.0, float(patch.sum()))
+    img = expose(raster, scale, [splat], sensor, np.random.default_rng(31)).astype(float)
+    # the model's mean, DN: level x its channel's DN per raster unit (float32, as the model
+    # rounds it), plus the splat's light (radiance x exposure x full well x g)
+    e_per_unit = scale.astype(np.float64) * sensor.exposure * sensor.full_well_e
+    light_e = 0.2 * rgb.astype(np.float64) * sensor.exposure * sensor.full_well_e
+    if color == "mono":
+        e_per_unit = np.array([e_per_unit @ LUMA.astype(np.float32)])
+        light_e = np.array([light_e.mean()])
+        img = img[..., None]
+    dn_per_unit = (e_per_unit * g).astype(np.float32).astype(np.float64)
+    in_window = np.zeros((H, W), bool)
+    in_window[splat.row0:splat.row0 + 30, splat.col0:splat.col0 + 350] = True
+    labels = np.where(in_window, 256, grey.astype(np.intp))  # 256: the splat window
+    groups, mu_groups, sigma_groups, n_all, d_mean, d_var = [], [], [], [], [], []
+    for c in range(img.shape[2]):
+        n, mean, var = _group_moments(img[..., c].ravel(), labels.ravel(), 257)
+        mu = np.concatenate([np.arange(256) * dn_per_unit[c], [90 * dn_per_unit[c] + light_e[c] * g]])
+        sigma = np.sqrt(g * mu + (g * sensor.read_noise_e) ** 2)
+        for k in range(257):
+            if k != 90 or n[k] > 1:  # level 90 keeps the band's pixels outside the window
+                groups.append((c, k, n[k], mean[k], var[k]))
+                mu_groups.append(mu[k])
+                sigma_groups.append(sigma[k])
+    assert len(groups) == 257 * img.shape[2]
+    for (c, k, n, mean, var), mu, sigma in zip(groups, mu_groups, sigma_groups, strict=True):
+        what = f"{bit_depth}-bit {color} channel {c} " + ("splat window" if k == 256 else f"level {k}")
+        law_mean, law_var, m4 = law_moments_near(mu, sigma, dn_max)
+        se_mean = np.sqrt(law_var / n)
+        se_var = np.sqrt(max(m4 - law_var ** 2, 0.0) / n + 2 * law_var ** 2 / (n * (n - 1)))
+        if law_var > 0:
+            d_mean.append((mean - law_mean) / se_mean)
+            d_var.append((var - law_var) / se_var)
+        n_all.append(n)
+        if law_var == 0 or n >= KURTOSIS_FACTOR * m4 / law_var ** 2:
+            assert abs(mean - law_mean) <= N_SE * se_mean + 1e-9 * max(law_mean, 1.0), (
+                f"{what}: mean {mean:.6g} DN, law {law_mean:.6g} +- {se_mean:.3g} (1 SE)")
+            assert abs(var - law_var) <= N_SE * se_var + 1e-9 * max(law_var, 1.0), (
+                f"{what}: variance {var:.6g} DN^2, law {law_var:.6g} +- {se_var:.3g} (1 SE)")
+    assert min(n_all) >= 1000
+    for name, d in (("mean", d_mean), ("variance", d_var)):
+        pooled = float(np.mean(d))
+        assert abs(pooled) <= N_SE / np.sqrt(len(d)), (
+            f"{bit_depth}-bit {color}: pooled standardised {name} deviation {pooled:.3g} over "
+            f"{len(d)} groups, allowed {N_SE / np.sqrt(len(d)):.3g}")
