@@ -95,6 +95,22 @@ def core_fit(cand: Candidate, start: Row, window_sigma: float = 3.0) -> Row | No
     Row or None
         ``None`` when too few unsaturated core pixels remain or the fit fails.
     """
+    fit = core_fit_residuals(cand, start, window_sigma)
+    return None if fit is None else fit[0]
+
+
+def core_fit_residuals(cand: Candidate, start: Row, window_sigma: float = 3.0
+                       ) -> tuple[Row, np.ndarray, np.ndarray] | None:
+    """:func:`core_fit`, with what its unsaturated pixels say of the noise.
+
+    Returns
+    -------
+    (Row, (M,) array of float, (M,) array of float) or None
+        The row; per unsaturated fitted pixel its squared residual over ``1 - h``
+        (``h``: its leverage in the weighted fit), DN^2, and the fitted spot signal
+        there, DN: the inputs of :func:`~deckpose.detect.gain.fitted_noise_model`.
+        ``None`` where :func:`core_fit` gives None.
+    """
     u0, v0, _, F0, s0, _ = start
     # Above the level the core rises from: the darker part of the window (a beacon's
     # housing, the deck), not the candidate's pedestal, which may be a bright marking nearby.
@@ -182,4 +198,8 @@ def core_fit(cand: Candidate, start: Row, window_sigma: float = 3.0) -> Row | No
         cov = cov + cand.surround_bias_cov(float(np.linalg.norm(response, axis=0).max()))
     if not np.all(np.isfinite(cov)):
         return None
-    return cand.blob(u, v, flux_dn=F, size_px=size, cov_px2=cov)
+    # leverage of each free pixel in the weighted fit: diag(W^1/2 J N^-1 J^T W^1/2)
+    lev = np.einsum("ij,jk,ik->i", Jf, n_inv, Jf) / var
+    sq_res = (data[free] - m[free]) ** 2 / np.maximum(1.0 - lev, 0.05)
+    row = cand.blob(u, v, flux_dn=F, size_px=size, cov_px2=cov)
+    return row, sq_res, np.maximum(m[free] - b, 0.0)
