@@ -293,7 +293,8 @@ def in_plane_alignment(
     n_up = normal_up
     d = -(n_up * centre_m).sum(axis=1)
     den = -(xy @ n_up[:, :2, None])[..., 0] - n_up[:, 2, None]
-    ok = np.isfinite(n_up).all(axis=1) & ~(den <= 1e-12).any(axis=1) & np.isfinite(den).all(axis=1)
+    ok = (np.logical_and.reduce(np.isfinite(n_up), axis=1) & ~np.logical_or.reduce(den <= 1e-12, axis=1)
+          & np.logical_and.reduce(np.isfinite(den), axis=1))
     s_ray = d[:, None] / den
     ex = _UNIT_X - n_up[:, 0, None] * n_up
     ex2 = (ex * ex).sum(axis=1)

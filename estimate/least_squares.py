@@ -90,7 +90,7 @@ class Fit:
 
 
 def _rows_ok(a: FloatArray) -> BoolArray:
-    return np.isfinite(a.reshape(a.shape[0], math.prod(a.shape[1:]))).all(axis=1)
+    return np.logical_and.reduce(np.isfinite(a.reshape(a.shape[0], math.prod(a.shape[1:]))), axis=1)
 
 
 def covariance_from_information(H: FloatArray) -> tuple[FloatArray, BoolArray]:
@@ -117,7 +117,7 @@ def covariance_from_information(H: FloatArray) -> tuple[FloatArray, BoolArray]:
             cov = Linv.swapaxes(1, 2) @ Linv
             if np.isfinite(cov).all():  # (the usual case: no test per matrix)
                 return cov, np.ones(F, dtype=bool)
-            ok = np.isfinite(cov).all(axis=(1, 2))
+            ok = np.logical_and.reduce(np.isfinite(cov), axis=(1, 2))
             cov[~ok] = np.nan
             return cov, ok
     cov = np.full(H.shape, np.nan)

@@ -148,7 +148,7 @@ def posterior_moments_batch(
     x, log_q = unit_nodes()
     C = np.array(covariance_ml, dtype=float)
     with np.errstate(invalid="ignore"):
-        is_pd = np.isfinite(C).all(axis=(1, 2))
+        is_pd = np.logical_and.reduce(np.isfinite(C), axis=(1, 2))
         is_pd[is_pd] = (np.linalg.eigvalsh(C[is_pd]) > 0).all(axis=1)
     C[~is_pd] = np.eye(6)
     L = np.linalg.cholesky(C)  # (F, 6, 6)

@@ -130,8 +130,8 @@ def estimate_thesis_frames(
         return []
     # np.isclose(R, nadir, rtol=1e-5, atol=1e-12), written out (a lone frame pays for isclose's checks)
     with np.errstate(invalid="ignore"):
-        nadir = (np.abs(R_world_from_cam - R_WORLD_FROM_NADIR_CAM)
-                 <= 1e-12 + 1e-5 * np.abs(R_WORLD_FROM_NADIR_CAM)).all(axis=(1, 2))
+        nadir = np.logical_and.reduce(np.abs(R_world_from_cam - R_WORLD_FROM_NADIR_CAM)
+                                      <= 1e-12 + 1e-5 * np.abs(R_WORLD_FROM_NADIR_CAM), axis=(1, 2))
     points, mask = thesis_inputs(detections, camera, layout)
     res = thesis_algorithm(points, mask, camera.fx, camera.fy, layout.radius_m)
     roll, pitch, yaw = zyx_from_thesis(*np.radians([res.roll_deg, res.pitch_deg, res.yaw_deg]))

@@ -128,7 +128,7 @@ def thesis_algorithm(
         raise ShapeError(f"points_c must be (F, N, 2) and mask (F, N); got {P.shape} and {m.shape}")
     F = P.shape[0]
     r = float(radius)
-    m = m & np.isfinite(P).all(axis=2)
+    m = m & np.logical_and.reduce(np.isfinite(P), axis=2)
     X = np.where(m, P[..., 0], 0.0)
     Y = np.where(m, P[..., 1], 0.0)
     failure = np.zeros(F, dtype=np.int64)
@@ -199,7 +199,7 @@ def thesis_algorithm(
         yaw = np.arctan2(2.0 * (q0 * q3 + q1 * q2), 1.0 - 2.0 * (q2 * q2 + q3 * q3))
 
     out = np.stack([roll, pitch, yaw, height], axis=1)
-    _set_failure(failure, ~np.isfinite(out).all(axis=1), Failure.NON_FINITE)
+    _set_failure(failure, ~np.logical_and.reduce(np.isfinite(out), axis=1), Failure.NON_FINITE)
     ok = failure == 0
     nan = np.nan
 
