@@ -255,21 +255,14 @@ def sensor_block(cfg: RenderConfig) -> dict[str, Any]:
     elif ae is not None:
         block["exposure"] = "per frame: frames.parquet exposure (auto-exposure)"
     if s.video is not None:
-        from deckpose.render.video_codec import CONTAINER, FOURCC
+        from deckpose.render.video_codec import encoder_description
 
         block["video"] = {
             "codec": s.video.codec.value, "bitrate_kbps": s.video.bitrate_kbps, "gop_frames": s.video.gop_frames,
-            "encoder": f"OpenCV {_opencv_version()} VideoWriter (FFmpeg), FOURCC {FOURCC[s.video.codec]!r}, "
-                       f"{CONTAINER} container, YUV 4:2:0",
+            "encoder": encoder_description(s.video.codec),
             "order": "one stream per time sequence (camera, height, lighting) in time order, at its frame rate; "
                      "the decoded frames are stored (render/video_codec.py)"}
     return block
-
-
-def _opencv_version() -> str:
-    import cv2
-
-    return str(cv2.__version__)
 
 
 def _write_json(path: Path, doc: dict[str, Any]) -> None:

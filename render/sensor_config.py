@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import enum
+import importlib.util
 from dataclasses import dataclass
 
 from deckpose.errors import ConfigError
@@ -54,15 +55,19 @@ class AutoExposureSpec:
 
 
 class VideoCodec(enum.Enum):
-    """A video codec of OpenCV's FFmpeg writer (:mod:`deckpose.render.video_codec`).
+    """A video codec (:mod:`deckpose.render.video_codec`).
 
-    ``mp4v``: MPEG-4 Part 2 (motion-compensated P-frames, 8x8 DCT: the family of H.264,
-    whose encoders OpenCV's wheels lack); ``vp9``: libvpx's VP9 (a codec of H.264's and
-    HEVC's generation: larger transforms, more prediction modes; several times slower).
+    ``mp4v``: MPEG-4 Part 2 through OpenCV's FFmpeg writer (motion-compensated P-frames,
+    8x8 DCT); ``vp9``: libvpx's VP9 through the same writer (a codec of H.264's and HEVC's
+    generation: larger transforms, more prediction modes; several times slower); ``h264``:
+    H.264 by libx264 through PyAV (the optional ``video`` extra, ``pip install
+    'deckpose[video]'``: OpenCV's wheels carry no software H.264 encoder), the codec of
+    most drone downlinks and IP cameras.
     """
 
     MP4V = "mp4v"
     VP9 = "vp9"
+    H264 = "h264"
 
 
 @dataclass(frozen=True)
@@ -170,3 +175,6 @@ def _check_sensor_effects(spec: SensorSpec, where: str) -> None:
         # 10 kbit/s to 1 Gbit/s spans a thumbnail stream to a near-lossless 8K one
         check_range(video.bitrate_kbps, f"{w}.bitrate_kbps", low=10, high=1e6)
         check_range(video.gop_frames, f"{w}.gop_frames", low=1, high=1000)
+        if video.codec is VideoCodec.H264 and importlib.util.find_spec("av") is None:
+            raise ConfigError(f"{w}.codec h264 needs PyAV (libx264): pip install 'deckpose[video]' "
+                              "(scripts/bootstrap.sh installs it), or choose codec mp4v or vp9")

@@ -39,7 +39,7 @@ if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ] || ! .venv/bin/python -
   .venv/bin/python -m pip install -q --upgrade pip >/dev/null 2>&1 || true
   # one line per package as pip collects it, so a long install shows progress
   set +e
-  .venv/bin/python -m pip install --progress-bar off -e ".[test,cluster,peers]" 2>&1 \
+  .venv/bin/python -m pip install --progress-bar off -e ".[test,cluster,peers,video]" 2>&1 \
     | tee .venv/install.log \
     | { grep --line-buffered -E '^(Collecting|Successfully installed)' \
         | sed -u -e 's/^Collecting /[deckpose]   collecting /' \
