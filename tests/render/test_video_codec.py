@@ -198,13 +198,18 @@ def test_beacons_are_still_detected_through_the_codec(runs: tuple[Path, Path]) -
     """On the easy night frames every visible beacon is found within 0.5 px through the codec,
     as without it (a detection further than 0.5 px from every beacon would be a false one)."""
     for out in runs:
-        detect_run(out, "cog")
-        det = pd.read_parquet(out / "detections" / "cog.parquet")
-        truth = pd.read_parquet(out / "beacons.parquet")
-        for fid, t in truth[truth["visible"]].groupby("frame_id"):
-            d = det[det["frame_id"] == fid]
-            dist, _ = cKDTree(d[["u_px", "v_px"]].to_numpy()).query(t[["u_px", "v_px"]].to_numpy())
-            assert len(t) >= 10 and np.all(dist < 0.5), (out.name, fid, dist.max())
+        _assert_every_beacon_found(out)
+
+
+def _assert_every_beacon_found(out: Path) -> None:
+    """``cog`` on run ``out`` finds every visible beacon of every frame within 0.5 px."""
+    detect_run(out, "cog")
+    det = pd.read_parquet(out / "detections" / "cog.parquet")
+    truth = pd.read_parquet(out / "beacons.parquet")
+    for fid, t in truth[truth["visible"]].groupby("frame_id"):
+        d = det[det["frame_id"] == fid]
+        dist, _ = cKDTree(d[["u_px", "v_px"]].to_numpy()).query(t[["u_px", "v_px"]].to_numpy())
+        assert len(t) >= 10 and np.all(dist < 0.5), (out.name, fid, dist.max())
 
 
 def test_an_h264_run_stores_the_sequence_through_h264(runs: tuple[Path, Path], tmp_path: Path) -> None:
@@ -222,13 +227,7 @@ def test_an_h264_run_stores_the_sequence_through_h264(runs: tuple[Path, Path], t
     for rel, w in zip(frames["image"], want):
         np.testing.assert_array_equal(decode_image((out / rel).read_bytes())[..., ::-1], w)
     assert "libx264" in json.loads((out / "manifest.json").read_text())["sensor"]["video"]["encoder"]
-    detect_run(out, "cog")
-    det = pd.read_parquet(out / "detections" / "cog.parquet")
-    truth = pd.read_parquet(out / "beacons.parquet")
-    for fid, t in truth[truth["visible"]].groupby("frame_id"):
-        d = det[det["frame_id"] == fid]
-        dist, _ = cKDTree(d[["u_px", "v_px"]].to_numpy()).query(t[["u_px", "v_px"]].to_numpy())
-        assert len(t) >= 10 and np.all(dist < 0.5), (fid, dist.max())
+    _assert_every_beacon_found(out)
 
 
 def test_resume_does_not_compress_twice(runs: tuple[Path, Path]) -> None:
