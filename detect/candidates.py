@@ -28,7 +28,6 @@ from collections.abc import Callable
 import cv2
 import numpy as np
 from deckpose.detect.background import (
-    FrameStats,
     border_noise,
     channel_sum_noise,
     difference_noise,
@@ -396,13 +395,16 @@ def search_candidates(
                 thr_box = plane[0] + 0.5 * (float(wpix[mask].max()) - plane[0])
             raw.append((wpix, mask, wsat, wb[0], wb[1], plane, thr_box, noise_box, search is not None,
                         surround))
-    # A frame whose median pixel is 0 DN (a dark, heavily quantised or noise-free frame)
-    # has no Gaussian noise to judge significance by: its rare 1-DN pixels cluster into
-    # "spots" by chance (a 64 MP 8-bit frame with a 0.02 DN background gave 105). The
-    # bright-spot search alone runs there.
+    # Every frame gets the significance search, a dark one too (median pixel 0 DN): until
+    # session 22 it was skipped there, because its rare 1-DN pixels had once clustered into
+    # "spots" by chance (105 on a 64 MP 8-bit frame with a 0.02 DN background, before the
+    # search's ring screen and tile textures); on the independent generator's dark 8-bit
+    # frames that left two beacons in three unfound and no frame identified.
     note = ""
-    if search is not None and options.significance_sigma > 0 and st.background_dn >= 0.5:
-        raw, reason, note = _significant_windows(image, options, st, sat_dn, raw)
+    if search is not None and options.significance_sigma > 0:
+        if sum_noise is None:
+            sum_noise = channel_sum_noise(image)
+        raw, reason, note = _significant_windows(image, options, sat_dn, raw, sum_noise)
         if reason:
             return [], reason, ""
     if not raw:
@@ -421,9 +423,9 @@ def search_candidates(
 def _significant_windows(
     image: np.ndarray,
     options: DetectorOptions,
-    st: FrameStats,
     sat_dn: float,
     bright: list[RawWindow],
+    sum_noise_dn: float,
 ) -> tuple[list[RawWindow], str, str]:
     """The bright-spot windows that are spots, and windows of the other significant spots.
 
@@ -433,7 +435,11 @@ def _significant_windows(
     clipped core (a saturated beacon, whose plateau no ring test sees) is kept. Each
     significant spot outside the kept windows gets a window of its own, measured
     on the channel sum above a plane fitted to its border; its blob is the spot's
-    half-maximum region (of the window smoothed by a 1 px Gaussian) around its peak.
+    half-maximum region (of the window smoothed by a 1 px Gaussian) around its peak, and
+    its noise the channel sum's as it is (``sum_noise_dn``, :func:`channel_sum_noise`:
+    unfloored, as a bright spot's measured on the channel sum; the thresholds' noise,
+    floored at 1 DN a channel, overstated a dark 8-bit frame's spots' covariances 3x), or
+    the window border's where larger.
 
     Returns the windows, the reason when the frame fails, and the search's note.
     """
@@ -458,7 +464,7 @@ def _significant_windows(
         if any(a - near_px <= uc <= c + near_px and b - near_px <= vc <= d + near_px
                for a, b, c, d in taken):
             continue
-        found = spot_window(image, float(uc), float(vc), float(r), st.noise_dn, sat_dn)
+        found = spot_window(image, float(uc), float(vc), float(r), sum_noise_dn, sat_dn)
         if found is None:
             continue
         win, (pu_px, pv_px) = found

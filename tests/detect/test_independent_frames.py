@@ -111,6 +111,58 @@ def test_cog_covariance_is_honest_on_unclipped_rgb_spots(uneven_frames):
     assert 0.8 < rms < 1.25, rms
 
 
+#: 8-bit RGB at the generator's default full well (0.01275 DN/e): the 30 e background is 0.38 DN a
+#: channel and rounds to 0 DN almost everywhere (the frame's median pixel is 0 DN).
+DARK_8BIT = replace(SMALL, bits=8)
+
+
+@pytest.fixture(scope="module")
+def dark_frames():
+    return _frames(DARK_8BIT, 8, seed=11)
+
+
+def test_dark_8bit_frames_find_and_identify_every_beacon(dark_frames):
+    """A frame whose background rounds to 0 DN gets the significance search too.
+
+    Without it (until session 22) only the brightest 3-5 of 13 beacons were found on such
+    frames and none was identified. A beacon may still be missed on an odd frame (a dim red
+    bow carries its light in one channel), so the test asks for 95 % of the beacons, every
+    beacon found given its right id, 7 of 8 frames identified and no false detection.
+    """
+    found = total = frames_ok = 0
+    for t in dark_frames:
+        res, idx = _run("cog", t)
+        found += int((idx >= 0).sum())
+        total += idx.size
+        frames_ok += bool(res.ok)
+        assert len(res.detections.points_px) == int((idx >= 0).sum()), "a false detection"
+        if res.ok:
+            np.testing.assert_array_equal(res.detections.beacon_ids[idx[idx >= 0]], t.beacon_id[idx >= 0])
+    assert found >= 0.95 * total, (found, total)
+    assert frames_ok >= 7, frames_ok
+
+
+def test_cog_covariance_is_not_understated_on_dark_8bit_frames(dark_frames):
+    """cog's sigmas on a dark 8-bit frame's spots: the channel sum's own noise, not the thresholds'.
+
+    A spot the significance search finds took the thresholds' noise, floored at 1 DN a channel:
+    about 3x these frames' noise, RMS error / own sigma 0.34. With the channel sum's noise as it
+    is it reads 0.86-0.92 (`benchmarks/independent_covariance.py`): not understated (below
+    1 + 3 / sqrt(2 m)), and overstated by no more than the rounding, which noise of 0.1 DN does not
+    dither, explains (the disc's wings are a fixed rounding there, counted as noise: 0.7).
+    """
+    z = []
+    for t in dark_frames:
+        res, idx = _run("cog", t)
+        for i in np.flatnonzero((idx >= 0) & ~t.saturated):
+            err = res.detections.points_px[idx[i]] - t.centre_px[i]
+            z.append(err / np.sqrt(np.diag(res.detections.covariance_px2[idx[i]])))
+    m = 2 * len(z)
+    rms = float(np.sqrt(np.mean(np.square(z))))
+    assert m > 150, m
+    assert 0.7 < rms < 1.0 + 3.0 / math.sqrt(2.0 * m), rms
+
+
 def test_mono_frames_keep_the_dim_red_bow():
     # On a mono sensor the red bow gives 0.43x the grey of a white beacon: the bright-spot
     # search alone (0.8 of the brightest) dropped it in every frame (recall 0.926).
