@@ -72,6 +72,11 @@ DATASETS: dict[str, tuple[gen.SpotFrameSpec, str]] = {
         replace(BASE, saturate=True, full_well_e=1000.0, uneven=(0.4, 1.0)),
         "RGB, uneven, cores of the brighter beacons clip (1,000 e full scale)",
     ),
+    # (last: a dataset's frames are drawn from its position in this table, so the others keep theirs)
+    "rgb8_dark": (
+        replace(BASE, bits=8, uneven=(0.4, 1.0)),
+        "RGB 8-bit (20,000 e full scale): the 30 e background is 0.38 DN a channel and rounds to 0 DN, uneven",
+    ),
 }
 
 SIGMA_BINS = (0.7, 1.2, 1.8, 3.01)
