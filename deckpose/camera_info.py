@@ -54,8 +54,12 @@ def _matrix(doc: dict[str, Any], key: str, rows: int, cols: int | None, source: 
         data = np.asarray(node["data"], dtype=float).ravel()
     except (TypeError, ValueError) as exc:
         raise CameraFileError(f"{source}: field {key!r} has non-numeric data") from exc
-    n_rows = int(node.get("rows", rows))
-    n_cols = int(node.get("cols", cols if cols is not None else data.size // max(n_rows, 1)))
+    try:
+        n_rows = int(node.get("rows", rows))
+        n_cols = int(node.get("cols", cols if cols is not None else data.size // max(n_rows, 1)))
+    except (TypeError, ValueError, OverflowError) as exc:  # (a list, a word, inf: 1e400 in YAML)
+        raise CameraFileError(f"{source}: field {key!r} has rows or cols that are not whole numbers "
+                              f"(rows={node.get('rows')!r}, cols={node.get('cols')!r})") from exc
     if data.size != n_rows * n_cols or (cols is not None and (n_rows, n_cols) != (rows, cols)):
         raise CameraFileError(
             f"{source}: field {key!r} should be {rows}x{cols if cols else 'N'} "

@@ -159,3 +159,13 @@ def test_an_image_size_that_is_not_an_integer_is_refused(tmp_path, width):
         read_camera_info(path)
     path.write_text(path.read_text().replace(f"image_width: {width}", "image_width: 640"))
     assert read_camera_info(path).width_px == 640
+
+
+@pytest.mark.parametrize("cols", ["1e400", "three", "[3]"])
+def test_a_matrix_size_that_is_not_a_whole_number_is_refused(tmp_path, cols):
+    # 1e400 (YAML reads it as inf) raised OverflowError, a traceback, found by the reader fuzz test
+    path = tmp_path / "cam.yaml"
+    path.write_text(f"image_width: 640\nimage_height: 480\n"
+                    f"camera_matrix: {{rows: 3, cols: {cols}, data: [500, 0, 320, 0, 500, 240, 0, 0, 1]}}\n")
+    with pytest.raises(CameraFileError, match="'camera_matrix' has rows or cols that are not whole numbers"):
+        read_camera_info(path)
