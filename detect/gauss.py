@@ -162,8 +162,9 @@ def frame_noise_model(cands: list[Candidate], starts: list[Row | None],
     fitted that way, the core fits of the cores framed by their pedestal that do not
     saturate (``clip_signal``, :func:`~deckpose.detect.core_fit.core_fit_residuals`)
     are pooled with them. On 8-bit RGB frames of the independent generator at 0.01275
-    DN/e the background is 0.38 DN a channel, the median pixel 0 DN, and every candidate
-    is such a core: the first-guess gain stayed (0.040-0.075 DN/e, its ``cog`` model's
+    DN/e the background is 0.38 DN a channel, the median pixel 0 DN, and before the
+    significance search ran on such frames every candidate was such a core: the first-guess
+    gain stayed (0.040-0.075 DN/e, its ``cog`` model's
     misfit counted as shot noise) and the covariance was overstated (RMS error / own
     sigma 0.93 / 0.84 over 36 frames; 0.96 / 0.86 with these fits pooled, accuracy
     unchanged). The pooled gain is still 2-3x the true one: the rounding of a
