@@ -12,8 +12,8 @@ the candidates' first guesses, and the two are fitted to those fits' residuals
 (:func:`frame_noise_model`); on 8-bit frames from the independent generator this
 took ``gauss`` from 1.06x to 0.97x the Cramér–Rao bound (48 frames of rgb8_uneven,
 ``benchmarks/bench_independent.py``). A frame without enough of those fits (every spot a
-core on its pedestal, as on 8-bit frames whose background rounds to 0 DN) pools the core
-fits of its unsaturated cores with them.
+core on its pedestal: only bright cores found) pools the core fits of its unsaturated
+cores with them.
 
 A core that saturates, or that sits on a pedestal (a marking, a housing or glow
 around it: :attr:`~deckpose.detect.candidates.Candidate.clip_signal`), is fitted
