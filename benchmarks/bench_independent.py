@@ -148,10 +148,15 @@ def summarise(df: pd.DataFrame, seed: int) -> pd.DataFrame:
         good = b[b.found & ~b.saturated]
         e = good[["eu", "ev"]].to_numpy(float)
         # like-for-like: beacons every detector found, unclipped
+        # (among the detectors that found any beacon of the dataset: one that found none, as
+        # photutils on the dark 8-bit frames, would leave no common beacon to compare on)
         allb = df[(df.dataset == ds) & (df.kind == "beacon")]
+        allb = allb[allb.groupby("detector").found.transform("any").astype(bool)]
         common = allb.groupby(["frame", "beacon_id"]).found.all()
         key = set(common[common].index)
-        sel = [(f, i) in key for f, i in zip(good.frame, good.beacon_id)]
+        # (a boolean array, not a list: an empty list would select columns, and a detector that
+        # found no unclipped beacon of a dataset has an empty one)
+        sel = np.array([(f, i) in key for f, i in zip(good.frame, good.beacon_id)], dtype=bool)
         ec = good[sel][["eu", "ev"]].to_numpy(float)
         lo, hi = bootstrap(e, rng)
         frames = g.groupby("frame").agg(ok=("frame_ok", "first"), cpu=("cpu_s", "first"))
@@ -248,7 +253,7 @@ def write_report(out: Path, summary: pd.DataFrame, bins: pd.DataFrame, meta: dic
         "on the frame's other lights (not beacons, they should get no id); *false*: "
         "detections on nothing. *RMS/CRB*: pooled over both axes of every found, unclipped "
         "beacon, with its 95 % bootstrap interval; *common*: over the beacons every "
-        "detector found. *CPU*: median per frame, detection + identification, one thread."),
+        "detector found (every detector that found any beacon of the dataset). *CPU*: median per frame, detection + identification, one thread."),
         "",
         ("| dataset | detector | recall | id | frames ok | lights | false | RMS/CRB | 95 % | "
         "common | CPU ms |"),
@@ -274,8 +279,10 @@ def write_report(out: Path, summary: pd.DataFrame, bins: pd.DataFrame, meta: dic
               "RMS/CRB (common) | CPU ms |"), "|---|---|---|---|---|---|---|"]
     for ds, g in summary.groupby("dataset", sort=False):
         g = g.set_index("detector")
+        if g.loc[ours].rms_over_crb_common.isna().all():
+            continue  # (none of ours found a beacon of this dataset: nothing to rank)
         o = g.loc[ours].rms_over_crb_common.idxmin()
-        if peers:
+        if peers and not g.loc[peers].rms_over_crb_common.isna().all():
             p = g.loc[peers].rms_over_crb_common.idxmin()
             lines.append(f"| {ds} | {o} | {_fmt(g.rms_over_crb_common[o])} | "
                          f"{g.cpu_ms_per_frame[o]:.0f} | {p} | "
@@ -307,10 +314,14 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.time()
     load = os.getloadavg()[0]
     df = pd.concat([run_dataset(n, args.frames, args.seed, dets) for n in names])
+    args.out.mkdir(parents=True, exist_ok=True)
+    # the matches first: the run's costly part survives a failure in what is made from it
+    tmp = args.out / ".matches.csv.tmp"
+    df.to_csv(tmp, index=False)
+    os.replace(tmp, args.out / "matches.csv")
     summary = summarise(df, args.seed)
     bins = binned(df, args.seed)
-    args.out.mkdir(parents=True, exist_ok=True)
-    for name, table in (("results.csv", summary), ("by_bin.csv", bins), ("matches.csv", df)):
+    for name, table in (("results.csv", summary), ("by_bin.csv", bins)):
         tmp = args.out / f".{name}.tmp"
         table.to_csv(tmp, index=False)
         os.replace(tmp, args.out / name)
