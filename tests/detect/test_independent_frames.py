@@ -56,6 +56,17 @@ def _errors(detector: str, frames) -> np.ndarray:
     return np.array(out)
 
 
+def _own_sigma_errors(detector: str, frames) -> np.ndarray:
+    """Errors over the detector's own sigma per axis of every found, unclipped beacon, (m, 2)."""
+    out = []
+    for t in frames:
+        res, idx = _run(detector, t)
+        for i in np.flatnonzero((idx >= 0) & ~t.saturated):
+            err = res.detections.points_px[idx[i]] - t.centre_px[i]
+            out.append(err / np.sqrt(np.diag(res.detections.covariance_px2[idx[i]])))
+    return np.array(out)
+
+
 def _allowance(target: float, n_axes: int) -> float:
     return target * (1.0 + 3.0 / math.sqrt(2.0 * n_axes))
 
@@ -100,12 +111,7 @@ def test_cog_covariance_is_honest_on_unclipped_rgb_spots(uneven_frames):
     (about 1.1 on mono frames too, `benchmarks/independent_covariance.py`), so the test
     allows 1.25: a covariance off by a quarter at most.
     """
-    z = []
-    for t in uneven_frames:
-        res, idx = _run("cog", t)
-        for i in np.flatnonzero((idx >= 0) & ~t.saturated):
-            err = res.detections.points_px[idx[i]] - t.centre_px[i]
-            z.append(err / np.sqrt(np.diag(res.detections.covariance_px2[idx[i]])))
+    z = _own_sigma_errors("cog", uneven_frames)
     rms = float(np.sqrt(np.mean(np.square(z))))
     assert len(z) > 100
     assert 0.8 < rms < 1.25, rms
@@ -151,12 +157,7 @@ def test_cog_covariance_is_not_understated_on_dark_8bit_frames(dark_frames):
     1 + 3 / sqrt(2 m)), and overstated by no more than the rounding, which noise of 0.1 DN does not
     dither, explains (the disc's wings are a fixed rounding there, counted as noise: 0.7).
     """
-    z = []
-    for t in dark_frames:
-        res, idx = _run("cog", t)
-        for i in np.flatnonzero((idx >= 0) & ~t.saturated):
-            err = res.detections.points_px[idx[i]] - t.centre_px[i]
-            z.append(err / np.sqrt(np.diag(res.detections.covariance_px2[idx[i]])))
+    z = _own_sigma_errors("cog", dark_frames)
     m = 2 * len(z)
     rms = float(np.sqrt(np.mean(np.square(z))))
     assert m > 150, m
