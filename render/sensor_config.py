@@ -9,7 +9,12 @@ from dataclasses import dataclass
 from deckpose.errors import ConfigError
 from deckpose.typed_config import check_range, from_mapping
 
-__all__ = ["AutoExposureSpec", "BayerPattern", "SensorSpec", "VideoCodec", "VideoSpec", "sensor_spec"]
+__all__ = ["H264_NEEDS_PYAV", "AutoExposureSpec", "BayerPattern", "SensorSpec", "VideoCodec", "VideoSpec",
+           "sensor_spec"]
+
+#: What a run asking for ``h264`` without PyAV is told (the config's check and the encoder's).
+H264_NEEDS_PYAV = ("codec h264 needs PyAV (libx264): pip install 'deckpose[video]' "
+                   "(scripts/bootstrap.sh installs it), or choose codec mp4v or vp9")
 
 
 class BayerPattern(enum.Enum):
@@ -176,5 +181,4 @@ def _check_sensor_effects(spec: SensorSpec, where: str) -> None:
         check_range(video.bitrate_kbps, f"{w}.bitrate_kbps", low=10, high=1e6)
         check_range(video.gop_frames, f"{w}.gop_frames", low=1, high=1000)
         if video.codec is VideoCodec.H264 and importlib.util.find_spec("av") is None:
-            raise ConfigError(f"{w}.codec h264 needs PyAV (libx264): pip install 'deckpose[video]' "
-                              "(scripts/bootstrap.sh installs it), or choose codec mp4v or vp9")
+            raise ConfigError(f"{w}.{H264_NEEDS_PYAV}")

@@ -27,11 +27,12 @@ from __future__ import annotations
 
 import tempfile
 from collections.abc import Sequence
+from fractions import Fraction
 from pathlib import Path
 
 import cv2
 import numpy as np
-from deckpose.render.sensor_config import VideoCodec, VideoSpec
+from deckpose.render.sensor_config import H264_NEEDS_PYAV, VideoCodec, VideoSpec
 from numpy.typing import NDArray
 
 __all__ = ["CONTAINER", "FOURCC", "H264_OPTIONS", "encoder_description", "video_round_trip", "write_h264"]
@@ -74,53 +75,59 @@ def video_round_trip(frames: Sequence[NDArray[np.uint8]], fps: float, spec: Vide
         raise ValueError(f"video_round_trip: frames must all be uint8 of shape {shape}")
     if not fps > 0:
         raise ValueError(f"video_round_trip: fps must be positive, got {fps}")
-    h, w = shape[:2]
     mono = len(shape) == 2
-    if spec.codec is VideoCodec.H264:
-        with tempfile.TemporaryDirectory(prefix="deckpose-video-") as tmp:
-            path = Path(tmp) / f"stream{CONTAINER}"
+    with tempfile.TemporaryDirectory(prefix="deckpose-video-") as tmp:
+        path = Path(tmp) / f"stream{CONTAINER}"
+        if spec.codec is VideoCodec.H264:
             write_h264(frames, fps, spec, path)
             out = _read_pyav(path, mono)
-        if len(out) != len(frames):
-            raise RuntimeError(f"video_round_trip: {len(frames)} frames encoded, {len(out)} decoded")
-        return out
-    params = [cv2.VIDEOWRITER_PROP_BITRATE, round(spec.bitrate_kbps * 1000),
-              cv2.VIDEOWRITER_PROP_GOP_SIZE, spec.gop_frames]
-    with tempfile.TemporaryDirectory(prefix="deckpose-video-") as tmp:
-        path = str(Path(tmp) / f"stream{CONTAINER}")
-        writer = cv2.VideoWriter(path, cv2.CAP_FFMPEG, cv2.VideoWriter.fourcc(*FOURCC[spec.codec]), float(fps),
-                                 (w, h), params)
-        if not writer.isOpened():
-            raise RuntimeError(f"video_round_trip: OpenCV's FFmpeg cannot encode {spec.codec.value} at {w}x{h} "
-                               f"(odd sizes and some codecs are refused); choose another sensor.video.codec")
-        try:
-            for f in frames:
-                writer.write(cv2.cvtColor(f, cv2.COLOR_GRAY2BGR if mono else cv2.COLOR_RGB2BGR))
-        finally:
-            writer.release()
-        cap = cv2.VideoCapture(path, cv2.CAP_FFMPEG)
-        out: list[NDArray[np.uint8]] = []
-        try:
-            while True:
-                ok, bgr = cap.read()
-                if not ok:
-                    break
-                conv = cv2.COLOR_BGR2GRAY if mono else cv2.COLOR_BGR2RGB
-                out.append(np.ascontiguousarray(cv2.cvtColor(bgr, conv), np.uint8))
-        finally:
-            cap.release()
+        else:
+            _write_opencv(frames, fps, spec, path)
+            out = _read_opencv(path, mono)
     if len(out) != len(frames):
         raise RuntimeError(f"video_round_trip: {len(frames)} frames encoded, {len(out)} decoded")
     return out
 
+
+def _write_opencv(frames: Sequence[NDArray[np.uint8]], fps: float, spec: VideoSpec, path: Path) -> None:
+    """Encode one time sequence with OpenCV's FFmpeg writer (``mp4v``, ``vp9``) into ``path``."""
+    h, w = frames[0].shape[:2]
+    mono = frames[0].ndim == 2
+    params = [cv2.VIDEOWRITER_PROP_BITRATE, round(spec.bitrate_kbps * 1000),
+              cv2.VIDEOWRITER_PROP_GOP_SIZE, spec.gop_frames]
+    writer = cv2.VideoWriter(str(path), cv2.CAP_FFMPEG, cv2.VideoWriter.fourcc(*FOURCC[spec.codec]), float(fps),
+                             (w, h), params)
+    if not writer.isOpened():
+        raise RuntimeError(f"video_round_trip: OpenCV's FFmpeg cannot encode {spec.codec.value} at {w}x{h} "
+                           f"(odd sizes and some codecs are refused); choose another sensor.video.codec")
+    try:
+        for f in frames:
+            writer.write(cv2.cvtColor(f, cv2.COLOR_GRAY2BGR if mono else cv2.COLOR_RGB2BGR))
+    finally:
+        writer.release()
+
+
+def _read_opencv(path: Path, mono: bool) -> list[NDArray[np.uint8]]:
+    """The frames of a video file, decoded by OpenCV's FFmpeg, as RGB or grey arrays of uint8."""
+    cap = cv2.VideoCapture(str(path), cv2.CAP_FFMPEG)
+    conv = cv2.COLOR_BGR2GRAY if mono else cv2.COLOR_BGR2RGB
+    out: list[NDArray[np.uint8]] = []
+    try:
+        while True:
+            ok, bgr = cap.read()
+            if not ok:
+                break
+            out.append(np.ascontiguousarray(cv2.cvtColor(bgr, conv), np.uint8))
+    finally:
+        cap.release()
+    return out
 
 def _pyav():
     """PyAV, or a one-line error that says how to install it."""
     try:
         import av
     except ImportError:
-        raise RuntimeError("sensor.video.codec h264 needs PyAV (libx264): pip install 'deckpose[video]' "
-                           "(scripts/bootstrap.sh installs it), or choose codec mp4v or vp9") from None
+        raise RuntimeError(f"sensor.video.{H264_NEEDS_PYAV}") from None
     return av
 
 
@@ -131,9 +138,7 @@ def encoder_description(codec: VideoCodec) -> str:
         opts = ", ".join(f"{k}={v}" for k, v in H264_OPTIONS.items())
         return (f"PyAV {av.__version__} libx264 ({opts}, keyint=min-keyint=gop_frames, scenecut=0, "
                 f"average bitrate), {CONTAINER} container, YUV 4:2:0")
-    import cv2 as _cv2
-
-    return f"OpenCV {_cv2.__version__} VideoWriter (FFmpeg), FOURCC {FOURCC[codec]!r}, {CONTAINER} container, YUV 4:2:0"
+    return f"OpenCV {cv2.__version__} VideoWriter (FFmpeg), FOURCC {FOURCC[codec]!r}, {CONTAINER} container, YUV 4:2:0"
 
 
 def write_h264(frames: Sequence[NDArray[np.uint8]], fps: float, spec: VideoSpec, path: Path) -> None:
@@ -151,8 +156,6 @@ def write_h264(frames: Sequence[NDArray[np.uint8]], fps: float, spec: VideoSpec,
         The ``.mp4`` file to write.
     """
     av = _pyav()
-    from fractions import Fraction
-
     h, w = frames[0].shape[:2]
     if h % 2 or w % 2:
         raise RuntimeError(f"video_round_trip: H.264 in 4:2:0 needs an even width and height, got {w}x{h}; "
