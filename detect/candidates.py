@@ -293,7 +293,10 @@ def search_candidates(
     H, W = image.shape[:2]
     raw: list[RawWindow] = []
     seen: set[tuple[int, int]] = set()
-    sum_noise: float | None = None
+    # the channel sum's noise as it is (unfloored: it enters covariances, the gain estimate and
+    # the recorded snr, never a threshold), for the windows measured on the channel sum: the
+    # bright spots' unclipped cores and every significance window
+    sum_noise = channel_sum_noise(image) if search is not None else math.nan
     for box in boxes:
         if search is not None:
             # Bright-spot search: the blob is the spot's bright core (peak channel); its
@@ -378,15 +381,8 @@ def search_candidates(
                 ped = spot_pedestal(wpix, mask, plane[0],
                                     options.window_sigma * sigma_core - r_eq)
                 # the noise of what the window holds: the peak channel's where the core is
-                # measured on it, else the channel sum's as it is (unfloored: it enters the
-                # covariance, the gain estimate and the recorded snr, not a threshold; computed
-                # once a frame)
-                if on_peak:
-                    noise_box = spot_noise
-                else:
-                    if sum_noise is None:
-                        sum_noise = channel_sum_noise(image)
-                    noise_box = sum_noise
+                # measured on it, else the channel sum's
+                noise_box = spot_noise if on_peak else sum_noise
                 # the border's tilt stays in the signal; it bounds the centre's bias instead
                 # (Candidate.surround_tilt_cov)
                 surround = (plane[1], plane[2], noise_box / math.sqrt(border_spread_px2(wpix.shape)))
@@ -402,8 +398,6 @@ def search_candidates(
     # frames that left two beacons in three unfound and no frame identified.
     note = ""
     if search is not None and options.significance_sigma > 0:
-        if sum_noise is None:
-            sum_noise = channel_sum_noise(image)
         raw, reason, note = _significant_windows(image, options, sat_dn, raw, sum_noise)
         if reason:
             return [], reason, ""
