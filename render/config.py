@@ -229,12 +229,28 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
                           f"{cfg.layout.radius_m} so the beacons sit on the deck")
     if cfg.painted_ring is not None:
         _check_painted_ring(cfg, cfg.painted_ring, source)
+    if cfg.sensor.video is not None:
+        _check_video_sizes(cfg, source)
     if cfg.optics.focus_distance_m is not None:
         f_m = max(c.model().fx for c in cfg.cameras) * cfg.optics.pixel_pitch_um * 1e-6
         if cfg.optics.focus_distance_m <= f_m:
             raise ConfigError(f"optics.focus_distance_m: must exceed the focal length ({f_m * 1e3:.2f} mm "
                               f"= fx x pixel_pitch_um), got {cfg.optics.focus_distance_m:g}")
     return cfg
+
+
+def _check_video_sizes(cfg: RenderConfig, source: str) -> None:
+    """Every camera of a video config has an even width and height (4:2:0 chroma).
+
+    H.264 refuses an odd size, and OpenCV's ``mp4v`` and ``vp9`` writers silently drop
+    the odd row and column, so the frames would come back smaller than the camera.
+    """
+    odd = [c.model() for c in cfg.cameras]
+    odd = [m for m in odd if m.width_px % 2 or m.height_px % 2]
+    if odd:
+        sizes = ", ".join(f"{m.name} {m.width_px}x{m.height_px}" for m in odd)
+        raise ConfigError(f"{source}: sensor.video needs an even image width and height (4:2:0 chroma), "
+                          f"got {sizes}; give those cameras an even size (cameras[].size) or set video: null")
 
 
 def _approach_heights(doc: dict[str, Any], source: str) -> dict[str, Any]:

@@ -66,7 +66,7 @@ def video_round_trip(frames: Sequence[NDArray[np.uint8]], fps: float, spec: Vide
     ------
     RuntimeError
         OpenCV's FFmpeg cannot open the encoder, or the stream decodes to another
-        number of frames.
+        number of frames or another size (an odd width or height).
     """
     if not frames:
         return []
@@ -86,6 +86,9 @@ def video_round_trip(frames: Sequence[NDArray[np.uint8]], fps: float, spec: Vide
             out = _read_opencv(path, mono)
     if len(out) != len(frames):
         raise RuntimeError(f"video_round_trip: {len(frames)} frames encoded, {len(out)} decoded")
+    if out[0].shape != shape:  # OpenCV's writers drop an odd row and column without a word
+        raise RuntimeError(f"video_round_trip: {spec.codec.value} gave back frames of {out[0].shape[1]}x"
+                           f"{out[0].shape[0]}, not {shape[1]}x{shape[0]}; use an even image size")
     return out
 
 

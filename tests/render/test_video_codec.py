@@ -152,6 +152,22 @@ def test_h264_needs_an_even_size() -> None:
         video_round_trip([np.zeros((241, 320, 3), np.uint8)] * 2, 10.0, VideoSpec(codec=VideoCodec.H264))
 
 
+@pytest.mark.parametrize("codec", [c.value for c in VideoCodec])
+def test_a_video_config_with_an_odd_camera_size_is_refused_at_the_edge(codec: str) -> None:
+    """Every codec is 4:2:0: an odd size is refused by the config, in one line naming the camera."""
+    doc = {**_doc({"codec": codec}), "cameras": [{"preset": "4mp", "size": [641, 480], "name": "odd"}]}
+    with pytest.raises(ConfigError, match=r"even image width and height.*odd 641x480"):
+        config_from_dict(doc)
+    config_from_dict({**doc, "cameras": [{"preset": "4mp", "size": [642, 480]}]})
+
+
+@pytest.mark.parametrize("codec", [VideoCodec.MP4V, VideoCodec.VP9])
+def test_opencv_codecs_do_not_hand_back_cropped_frames(codec: VideoCodec) -> None:
+    """OpenCV's writers drop an odd row and column; the round trip says so rather than return them."""
+    with pytest.raises(RuntimeError, match="not 321x241"):
+        video_round_trip([np.zeros((241, 321, 3), np.uint8)] * 2, 10.0, VideoSpec(codec=codec))
+
+
 def test_mono_frames_come_back_mono() -> None:
     frames = [f[..., 1] for f in _frames()]
     out = video_round_trip(frames, 10.0, VideoSpec())
