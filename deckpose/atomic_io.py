@@ -71,3 +71,18 @@ def atomic_open(path: str | os.PathLike[str], mode: str = "w", **kwargs: Any) ->
         yield fh
         fh.flush()
         os.fsync(fh.fileno())
+
+
+def write_bytes(path: str | os.PathLike[str], data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically; an ``OSError`` of the write names the file.
+
+    A failed write or fsync (a full disk, say) raises an ``OSError`` without a file name;
+    it is raised again with ``path`` in it, so the one-line error says where.
+    """
+    try:
+        with atomic_open(path, "wb") as fh:
+            fh.write(data)
+    except OSError as exc:
+        if exc.filename is None and exc.errno is not None:  # a write or fsync names no file: name it
+            raise OSError(exc.errno, exc.strerror, str(path)) from exc
+        raise

@@ -45,7 +45,6 @@ from importlib import metadata
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, cast
 
-import numpy as np
 import pandas as pd
 from deckpose.render.config import RenderConfig, config_to_dict, load_config
 from deckpose.render.fixed_pattern import hot_pixel_table
@@ -57,9 +56,10 @@ from deckpose.render.render_detection import (
     resolve_detection,
     write_rendered_detections,
 )
-from deckpose.render.sensor_config import BayerPattern, VideoSpec
+from deckpose.render.sensor_config import BayerPattern
+from deckpose.render.video_pass import video_pass
 
-from deckpose.atomic_io import atomic_open, remove_stale_temps
+from deckpose.atomic_io import atomic_open, remove_stale_temps, write_bytes
 from deckpose.camera_info import write_camera_info
 from deckpose.errors import ConfigError
 from deckpose.image_store import ImageFormat, encode_image
@@ -170,16 +170,6 @@ def _renderer(cfg: RenderConfig) -> DeckRenderer:
     return cast("DeckRenderer", _RENDERERS[key])
 
 
-def _write_bytes(path: Path, data: bytes) -> None:
-    try:
-        with atomic_open(path, "wb") as fh:
-            fh.write(data)
-    except OSError as exc:
-        if exc.filename is None and exc.errno is not None:  # a write or fsync names no file: name it
-            raise OSError(exc.errno, exc.strerror, str(path)) from exc
-        raise
-
-
 def write_frame(out_dir: Path, frame: EncodedFrame) -> int:
     """Write a frame's image, then its preview, then its part (the commit marker); atomically.
 
@@ -187,8 +177,8 @@ def write_frame(out_dir: Path, frame: EncodedFrame) -> int:
     any moment leaves whole files and, at worst, a frame that ``resume`` renders again.
     """
     if frame.part["frame"]["image"]:  # "" when the frames are not kept
-        _write_bytes(out_dir / frame.part["frame"]["image"], frame.image)
-    _write_bytes(out_dir / preview_relpath(frame.frame_id), frame.preview_png)
+        write_bytes(out_dir / frame.part["frame"]["image"], frame.image)
+    write_bytes(out_dir / preview_relpath(frame.frame_id), frame.preview_png)
     with atomic_open(_part_path(out_dir, frame.frame_id), "w") as fh:
         json.dump(frame.part, fh)
     return frame.frame_id
@@ -473,67 +463,6 @@ def _controlled_exposures(cfg: RenderConfig, plan: list[FrameSpec], progress: bo
     return with_exposures(plan, metered, ae)
 
 
-def _video_pass(cfg: RenderConfig, video: VideoSpec, plan: list[FrameSpec], out: Path, progress: bool) -> None:
-    """Compress each time sequence's stored frames as a video stream and store the decoded frames.
-
-    Two-phase, so an interrupted pass resumes without compressing a frame twice: a
-    sequence's decoded frames and previews are written under ``.video/`` and then
-    ``.video/<k>.staged``; only then are they moved over ``images/`` and ``previews/``
-    (each move atomic), and ``.video/<k>.applied`` marks the sequence done. A sequence
-    with no marker still has every frame as rendered.
-    """
-    from deckpose.render.exposure_control import time_sequences
-    from tqdm import tqdm
-
-    stage = out / ".video"
-    stage.mkdir(exist_ok=True)
-    sequences = time_sequences(plan)
-    bar = tqdm(total=len(plan), unit="frame", disable=None if progress else True, desc=f"video {cfg.name}")
-    try:
-        for k, idx in enumerate(sequences):
-            applied, staged = stage / f"{k:04d}.applied", stage / f"{k:04d}.staged"
-            if not applied.exists():
-                specs = [plan[i] for i in idx]
-                if not staged.exists():
-                    _stage_sequence(cfg, video, specs, out, stage)
-                    with atomic_open(staged, "w") as fh:
-                        json.dump([s.frame_id for s in specs], fh)
-                for spec in specs:
-                    for rel in (image_relpath(spec.frame_id, cfg.image_format.suffix), preview_relpath(spec.frame_id)):
-                        if (stage / rel).exists():  # (moved already when a pass was cut here)
-                            os.replace(stage / rel, out / rel)
-                with atomic_open(applied, "w") as fh:
-                    json.dump([s.frame_id for s in specs], fh)
-                staged.unlink()
-            bar.update(len(idx))
-    finally:
-        bar.close()
-
-
-def _stage_sequence(cfg: RenderConfig, video: VideoSpec, specs: list[FrameSpec], out: Path, stage: Path) -> None:
-    """Write one sequence's frames after the video round trip, and their previews, under ``stage``."""
-    from deckpose.render.video_codec import video_round_trip
-
-    from deckpose.image_store import decode_image
-
-    rels = [image_relpath(s.frame_id, cfg.image_format.suffix) for s in specs]
-    frames = []
-    for rel in rels:
-        img = decode_image((out / rel).read_bytes(), rel)
-        frames.append(img if img.ndim == 2 else img[..., ::-1])  # BGR on disk
-    t = np.array([s.t_s for s in specs], float)
-    steps = np.diff(t)
-    dt = float(np.median(steps)) if steps.size and np.median(steps) > 0 else cfg.motion.dt_s
-    decoded = video_round_trip(frames, 1.0 / dt, video)
-    for spec, rel, img in zip(specs, rels, decoded):
-        bgr = img if img.ndim == 2 else np.ascontiguousarray(img[..., ::-1])
-        for path in (stage / rel, stage / preview_relpath(spec.frame_id)):
-            path.parent.mkdir(parents=True, exist_ok=True)
-        _write_bytes(stage / rel, encode_image(bgr, cfg.image_format))
-        _write_bytes(stage / preview_relpath(spec.frame_id), encode_image(make_preview(bgr, PREVIEW_PX),
-                                                                          ImageFormat.PNG))
-
-
 def _remove_unfinished(out: Path) -> None:
     """Remove what :func:`_prepare` wrote into ``out`` (all but another job's lock file)."""
     for p in out.iterdir():
@@ -601,7 +530,7 @@ def render_dataset(config: RenderConfig | str | os.PathLike[str], out_dir: str |
                 raise ConfigError(f"{exc} (nothing was kept in {out})") from None
             raise
     if cfg.sensor.video is not None:
-        _video_pass(cfg, cfg.sensor.video, plan, out, progress)
+        video_pass(cfg, cfg.sensor.video, plan, out, progress)
     parts = read_parts(out, plan)
 
     fdf, bdf, ldf = collect_tables(out, plan, parts)
