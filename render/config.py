@@ -231,6 +231,14 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
         _check_painted_ring(cfg, cfg.painted_ring, source)
     if cfg.sensor.video is not None:
         _check_video_sizes(cfg, source)
+    ae = cfg.sensor.auto_exposure
+    if ae is not None and ae.controlled and cfg.motion.every > 1:
+        gap_s = cfg.motion.every * cfg.motion.dt_s
+        raise ConfigError(f"{source}: sensor.auto_exposure's controller (time_constant_s, max_step_stops) runs "
+                          f"over consecutive camera frames, but motion.every {cfg.motion.every} renders one "
+                          f"sample in {cfg.motion.every} ({gap_s:g} s apart), so it would expose each frame for "
+                          f"a scene {gap_s:g} s old; set motion.every: 1, or drop time_constant_s and "
+                          "max_step_stops (each frame then meters itself)")
     if cfg.optics.focus_distance_m is not None:
         f_m = max(c.model().fx for c in cfg.cameras) * cfg.optics.pixel_pitch_um * 1e-6
         if cfg.optics.focus_distance_m <= f_m:

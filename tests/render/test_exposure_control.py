@@ -163,3 +163,15 @@ def test_controller_config_errors_name_the_key(ae: dict[str, object], key: str) 
     with pytest.raises(ConfigError) as info:
         config_from_dict(_step_doc(**ae))
     assert "\n" not in str(info.value) and key in str(info.value)
+
+
+def test_a_controller_over_sparse_samples_is_refused() -> None:
+    """motion.every > 1 skips the camera frames between samples: a controller there would expose each
+    frame for the scene of the sample before it (seconds old), so the config refuses it in one line."""
+    doc = _step_doc(time_constant_s=0.3)
+    sparse = {**doc, "motion": {**_STEP_MOTION, "every": 2}}
+    with pytest.raises(ConfigError, match=r"motion.every 2.*0.2 s apart") as info:
+        config_from_dict(sparse)
+    assert "\n" not in str(info.value)
+    config_from_dict({**sparse, "sensor": _step_doc()["sensor"]})  # each frame metering itself is fine
+    config_from_dict(doc)  # and so is the controller over consecutive frames
