@@ -91,6 +91,9 @@ def encode_image(image_bgr: Pixels, fmt: ImageFormat) -> bytes:
 def decode_image(data: bytes, name: str = "image") -> Pixels:
     """Pixels of a PNG (or any image OpenCV reads) or a ``.zst`` frame, colour in BGR order.
 
+    Grey stays grey (H, W), colour is (H, W, 3) (an alpha channel is dropped), 8 or 16
+    bits as stored; a JPEG's EXIF orientation is applied, as OpenCV's ``imread`` does.
+
     Raises
     ------
     InputDataError
@@ -113,7 +116,10 @@ def decode_image(data: bytes, name: str = "image") -> Pixels:
     import cv2
 
     buf = np.frombuffer(data, np.uint8)
-    img = cv2.imdecode(buf, cv2.IMREAD_UNCHANGED) if buf.size else None
+    # any depth and colour as stored (16 bits stay 16, grey stays grey, an alpha channel is
+    # dropped), turned as an EXIF orientation tag says, as OpenCV's default imread and every
+    # viewer show it (IMREAD_UNCHANGED would keep a rotated JPEG's pixels as the sensor wrote them)
+    img = cv2.imdecode(buf, cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR) if buf.size else None
     if img is None:
         raise InputDataError(f"cannot decode image {name}: empty, truncated or not an image")
     if img.dtype.kind != "u":

@@ -138,8 +138,15 @@ def identify_one_ring(
             "mono frame: the bow beacon is told by its colour, so ring ids stay unassigned"
         )
     else:
-        red = redness(np.asarray(rgb_flux, dtype=float).reshape(-1, 3)[ring])
-        if ring.size < 2 or np.count_nonzero(np.isfinite(red)) < 2:
+        ring_rgb = np.asarray(rgb_flux, dtype=float).reshape(-1, 3)[ring]
+        red = redness(ring_rgb)
+        grey = ring.size >= 2 and bool(np.all(ring_rgb == ring_rgb[:, :1]))
+        if grey:  # R = G = B on every ring blob: a grey image stored as colour (RGB, or grey + alpha)
+            reasons.append(
+                "grey image: every ring blob has equal red, green and blue, so the bow beacon, told "
+                "by its colour, cannot be found; use the camera's colour image"
+            )
+        elif ring.size < 2 or np.count_nonzero(np.isfinite(red)) < 2:
             # one blob's colour has nothing to be distinctly red against (its margin over
             # the others' median was NaN, which passed the margin test)
             reasons.append("no colour measured on the ring blobs" if not np.any(np.isfinite(red))

@@ -29,7 +29,7 @@ from deckpose.records import Frame
 from deckpose.run_folder import DATASET_FORMAT, RunPaths
 from deckpose.shell_command import deckpose_command
 
-IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg", ".bmp", ".pgm", ".ppm", ".zst")
+IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg", ".bmp", ".pgm", ".ppm", ".webp", ".zst")
 
 
 @dataclass(frozen=True)
