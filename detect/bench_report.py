@@ -9,6 +9,7 @@ and ``error_vs_size.png`` (RMS error vs apparent beacon radius).
 from __future__ import annotations
 
 import dataclasses
+import logging
 import math
 import os
 from pathlib import Path
@@ -25,12 +26,15 @@ from deckpose.detect.benchmark import (
 from deckpose.detect.identify import IdentifyOptions
 from deckpose.detect.registry import DetectorOptions
 from deckpose.detect.run import detect_frames_with
-from deckpose.detect.sources import FrameSet, open_dataset
+from deckpose.detect.sources import UNREADABLE_FRAME, FrameSet, open_dataset, require_images
 from deckpose.detect.synthetic import SensorModel
 from deckpose.detect.synthetic_dataset import summed_channels_sensor
 
 from deckpose.atomic_io import atomic_open, atomic_path
-from deckpose.run_folder import RunPaths, read_lights
+from deckpose.errors import InputDataError
+from deckpose.run_folder import RunPaths, read_lights, require_dataset
+
+log = logging.getLogger(__name__)
 
 
 def dataset_sensor(frameset: FrameSet) -> SensorModel | None:
@@ -90,9 +94,19 @@ def run_benchmark(
     options: DetectorOptions = DetectorOptions(),
     progress: bool = False,
 ) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Summary table (one row per detector x camera x height) and per-beacon matches."""
-    fs = open_dataset(dataset)
+    """Summary table (one row per detector x camera x height) and per-beacon matches.
+
+    Raises
+    ------
+    InputDataError
+        The dataset lacks a table, keeps no frames (``--no-images``), or none of its
+        frames can be read. Frames that cannot be read (a missing or damaged image) are
+        left out of every table, with a warning naming each: they are no detector's miss.
+    """
     run = RunPaths(Path(dataset))
+    require_dataset(run)  # beacons.parquet too: the truth the detectors are scored against
+    fs = open_dataset(dataset)
+    require_images(fs, "render it again without --no-images to benchmark the detectors on its frames")
     beacons = pd.read_parquet(run.beacons)
     frames = pd.read_parquet(run.frames)
     lights = read_lights(run) if run.manifest.exists() else None
@@ -102,6 +116,17 @@ def run_benchmark(
     runs = detect_frames_with(
         fs, detectors, options=options, identify_options=IdentifyOptions(), progress=progress
     )
+    unread = unreadable_frames([runs[d][1] for d in detectors])
+    if len(unread) == len(fs.sources):
+        first = next(iter(unread.values()), "no frames")
+        raise InputDataError(f"{dataset}: none of its {len(fs.sources)} frames can be read ({first})")
+    for fid, why in unread.items():
+        log.warning("frame %d left out of the benchmark: %s", fid, why)
+    if unread:  # not the detectors' misses: out of every table
+        gone = list(unread)
+        beacons = beacons[~beacons["frame_id"].isin(gone)]
+        frames = frames[~frames["frame_id"].isin(gone)]
+        runs = {d: (t[~t["frame_id"].isin(gone)], f[~f["frame_id"].isin(gone)]) for d, (t, f) in runs.items()}
     for name in detectors:
         dets, fout = runs[name]
         m = match_run(dets, fout, beacons, frames)
@@ -119,6 +144,31 @@ def run_benchmark(
         summaries.append(summarise(name, m, dets, fout, frames, false))
         matches.append(m)
     return pd.concat(summaries, ignore_index=True), pd.concat(matches, ignore_index=True)
+
+
+def unreadable_frames(frame_tables: list[pd.DataFrame]) -> dict[int, str]:
+    """Frames every detector failed on with one reason and no detection: the frame's own fault.
+
+    Parameters
+    ----------
+    frame_tables : list of DataFrame
+        Each detector's frames table (``frame_id``, ``ok``, ``reason``, ``n_detections``),
+        one row per frame, in the same frame order.
+
+    Returns
+    -------
+    dict
+        Frame id to the reason (a missing or undecodable image, a size that is not the
+        camera's), in frame order.
+    """
+    first = frame_tables[0]
+    bad = ~first["ok"].to_numpy(bool) & (first["n_detections"].to_numpy() == 0)
+    for t in frame_tables[1:]:
+        bad &= (~t["ok"].to_numpy(bool) & (t["n_detections"].to_numpy() == 0)
+                & (t["reason"].to_numpy() == first["reason"].to_numpy()))
+    if len(frame_tables) == 1:  # one detector: only what the frame loader says is the frame's fault
+        bad &= np.array([bool(UNREADABLE_FRAME.match(str(r))) for r in first["reason"]], bool)
+    return {int(f): str(r) for f, r in zip(first["frame_id"][bad], first["reason"][bad])}
 
 
 def _fmt(x: float, nd: int = 3) -> str:
@@ -196,7 +246,9 @@ def plot_error_vs_size(matches: pd.DataFrame, path: Path) -> None:
 
     m = matches[matches["matched"]]
     fig, ax = plt.subplots(figsize=(6, 4))
-    edges = np.unique(np.quantile(m["apparent_radius_px"], np.linspace(0, 1, 9)))
+    if m.empty:  # no detector found a beacon: say so on the figure rather than fail
+        ax.text(0.5, 0.5, "no beacon found by any detector", ha="center", va="center", transform=ax.transAxes)
+    edges = np.unique(np.quantile(m["apparent_radius_px"], np.linspace(0, 1, 9))) if len(m) else np.zeros(0)
     for det, g in m.groupby("detector"):
         idx = np.clip(np.digitize(g["apparent_radius_px"], edges) - 1, 0, len(edges) - 2)
         x, y = [], []

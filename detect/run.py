@@ -118,7 +118,13 @@ def detect_run(
         An unknown detector, or an image folder without a camera file or output folder.
     """
     from deckpose.detect import registry
-    from deckpose.detect.sources import declared_gain, is_dataset, open_dataset, open_image_folder
+    from deckpose.detect.sources import (
+        declared_gain,
+        is_dataset,
+        open_dataset,
+        open_image_folder,
+        require_images,
+    )
 
     from deckpose.output_folder import claim_output
 
@@ -128,16 +134,14 @@ def detect_run(
                              "images with --camera CAMERA.yaml")
     if is_dataset(source):
         frameset = open_dataset(source)
-        if frameset.manifest.get("images_kept") is False:
-            at_render = frameset.manifest.get("detect_at_render", {}).get("detectors", [])
-            where = RunPaths(frameset.root).detections(detector)
-            fix = (f"its {detector} detections were made at render time ({where}): estimate from them "
-                   f"({deckpose_command('estimate', '--run', source, '--detector', detector)})"
-                   if detector in at_render else
-                   f"its detections were made at render time ({', '.join(at_render) or 'none'}); for "
-                   f"{detector}, render it again with --detect {detector} (or without --no-images)")
-            raise InputDataError(f"{source} keeps no frames (rendered with --no-images), so there is "
-                                 f"nothing to detect in; {fix}")
+        at_render = frameset.manifest.get("detect_at_render", {}).get("detectors", [])
+        where = RunPaths(frameset.root).detections(detector)
+        require_images(frameset, (
+            f"its {detector} detections were made at render time ({where}): estimate from them "
+            f"({deckpose_command('estimate', '--run', source, '--detector', detector)})"
+            if detector in at_render else
+            f"its detections were made at render time ({', '.join(at_render) or 'none'}); for "
+            f"{detector}, render it again with --detect {detector} (or without --no-images)"))
     else:
         record = detections_folder_record(source)
         if record is not None:

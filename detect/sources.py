@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -127,6 +128,9 @@ def open_dataset(path: str | os.PathLike[str]) -> FrameSet:
             f"rendered); finish it with: {deckpose_command('render', 'CONFIG.yaml', root, '--resume')}"
         )
     layout = layout_from_dict(manifest.get("layout"), f"{root}/manifest.json: layout")
+    if not run.frames.exists():  # the frames' parts are kept: a resumed render rebuilds the tables
+        raise InputDataError(f"{run.frames} is missing; make it again with: "
+                             f"{deckpose_command('render', 'CONFIG.yaml', root, '--resume')}")
     try:
         frames = pd.read_parquet(
             run.frames, columns=["frame_id", "image", "camera", "stamp_ns"]
@@ -166,6 +170,21 @@ def open_image_folder(
     layout = DeckLayout() if layout_file is None else read_layout(layout_file)
     sources = tuple(FrameSource(i, p, name, 0) for i, p in enumerate(images))
     return FrameSet(sources, {name: camera}, {name: Path(camera_info)}, layout, "images", root)
+
+
+def require_images(frameset: FrameSet, fix: str) -> None:
+    """Raise unless the dataset keeps its frames (a ``--no-images`` render keeps none).
+
+    ``fix`` ends the one-line message: what to do instead, for the command that asked.
+    """
+    if frameset.manifest.get("images_kept") is False:
+        raise InputDataError(f"{frameset.root} keeps no frames (rendered with --no-images), so there is "
+                             f"nothing to detect in; {fix}")
+
+
+#: What every reason :func:`read_image` and :func:`load_frame` give starts with: the frame's
+#: own fault (a missing, damaged or mis-sized image), not a detector's.
+UNREADABLE_FRAME = re.compile(r"^(image |cannot decode )")
 
 
 def read_image(path: Path) -> np.ndarray | str:

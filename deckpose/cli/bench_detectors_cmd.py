@@ -67,5 +67,5 @@ def run(args: argparse.Namespace) -> int:
         options=options,
         note=args.note,
     )
-    wrote(args, md, md.read_text())
+    wrote(args, md, md.read_text() + f"\nreport -> {md}")
     return 0

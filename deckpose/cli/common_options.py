@@ -16,6 +16,7 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import sys
 from collections.abc import Callable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -114,9 +115,13 @@ def configure_logging(args: Any) -> None:
         logging.WARNING, logging.INFO, logging.DEBUG)[min(2, int(getattr(args, "verbose", 0) or 0))]
     log = logging.getLogger("deckpose")
     log.setLevel(level)
-    if not any(getattr(h, "_deckpose", False) for h in log.handlers):
+    ours = [h for h in log.handlers if getattr(h, "_deckpose", False)]
+    if not ours:
         handler = logging.StreamHandler()
         handler.setFormatter(logging.Formatter("deckpose %(levelname)s %(name)s: %(message)s"))
         handler._deckpose = True  # type: ignore[attr-defined]
         log.addHandler(handler)
+    for h in ours:  # a later call (another command in this process) writes to today's stderr
+        if isinstance(h, logging.StreamHandler):
+            h.stream = sys.stderr  # (not setStream: it flushes the old stream, which may be closed)
     log.propagate = False

@@ -255,3 +255,49 @@ def test_detect_exit_status_when_no_frame_succeeds(tmp_path, tiny_dataset, capsy
     ok = ["detect", str(tiny_dataset), "--out", str(tmp_path / "ok"), "--no-progress"]
     assert main(ok) == 0
     assert main([*ok, "--strict"]) == 0  # every tiny frame identifies
+
+
+def _damaged_copy(tiny_dataset, tmp_path, name):
+    run = tmp_path / name
+    shutil.copytree(tiny_dataset, run)
+    return run
+
+
+def test_bench_detectors_leaves_out_an_unreadable_frame_with_a_warning(tiny_dataset, tmp_path, capsys):
+    """A damaged image is no detector's miss: the frame is named on stderr and left out of every table."""
+    run = _damaged_copy(tiny_dataset, tmp_path, "damaged")
+    first = min((run / "images").iterdir())
+    first.write_bytes(b"not an image")
+    assert main(["bench-detectors", str(run), "--detectors", "cog", "-o", str(tmp_path / "b"), "--no-progress"]) == 0
+    out = capsys.readouterr()
+    assert "frame 0 left out of the benchmark: cannot decode image" in out.err
+    assert f"report -> {tmp_path / 'b' / 'bench_detectors.md'}" in out.out
+    table = pd.read_csv(tmp_path / "b" / "bench_detectors.csv")
+    assert (table.recall == 1.0).all()  # the other frames' beacons are all found
+
+
+@pytest.mark.parametrize("damage", ["no_beacons", "all_unreadable", "no_images"])
+def test_bench_detectors_refuses_a_dataset_it_cannot_score_in_one_line(tiny_dataset, tmp_path, capsys, damage):
+    run = _damaged_copy(tiny_dataset, tmp_path, damage)
+    if damage == "no_beacons":
+        (run / "beacons.parquet").unlink()
+        want = "beacons.parquet is missing; make it with: deckpose render"
+    elif damage == "all_unreadable":
+        for p in (run / "images").iterdir():
+            p.write_bytes(b"")
+        want = "none of its"
+    else:  # as a --no-images render records it
+        manifest = json.loads((run / "manifest.json").read_text())
+        (run / "manifest.json").write_text(json.dumps({**manifest, "images_kept": False}))
+        want = "keeps no frames (rendered with --no-images)"
+    assert main(["bench-detectors", str(run), "--detectors", "cog", "-o", str(tmp_path / "b"), "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip()
+    assert want in err and "\n" not in err and "Traceback" not in err
+
+
+def test_detect_names_a_missing_frames_table_and_how_to_remake_it(tiny_dataset, tmp_path, capsys):
+    run = _damaged_copy(tiny_dataset, tmp_path, "noframes")
+    (run / "frames.parquet").unlink()
+    assert main(["detect", str(run), "--no-progress"]) == 2
+    err = capsys.readouterr().err
+    assert "frames.parquet is missing; make it again with: deckpose render CONFIG.yaml" in err and "--resume" in err
