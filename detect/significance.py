@@ -71,13 +71,15 @@ def search_factor(shape: tuple[int, int]) -> int:
     return f
 
 
-def block_sum(image: np.ndarray, factor: int) -> np.ndarray:
+def block_sum(image: np.ndarray, factor: int, *, exact: bool = True) -> np.ndarray:
     """Channel sum of ``image`` in ``factor x factor`` blocks (as block means x f^2), float32.
 
-    Rows and columns beyond a multiple of ``factor`` are dropped.
+    Rows and columns beyond a multiple of ``factor`` are dropped. ``exact=False`` lets an
+    8-bit image's block means be rounded to whole DN (OpenCV's fast path, a third of the
+    time of the exact sums at 8 MP).
     """
     a = np.asarray(image)
-    if a.dtype.type is np.uint8 and factor > 1:
+    if a.dtype.type is np.uint8 and factor > 1 and exact:
         # OpenCV's area resampling rounds each block mean to a whole DN: on a dark 8-bit frame
         # (a background of 0.4 DN, its noise mostly the pixels' rounding) that loses a faint
         # spot's light and makes the block sums' noise coarse and non-Gaussian (steps of f^2 a
@@ -252,7 +254,7 @@ def significant_spots(
         That spots were left out (more than ``max_spots``); "" otherwise.
     """
     f = search_factor(image.shape[:2])
-    S = block_sum(image, f)
+    S = block_sum(image, f, exact=False)
     # On an integer image the noise is never below the rounding's (1/12 DN^2 a channel and
     # pixel). It was floored at 1 DN a channel (3.5x a dark 8-bit frame's 0.3 DN), because
     # the few pixels at 1 DN of a background of a fraction of a DN are counts, not Gaussian
@@ -267,9 +269,15 @@ def significant_spots(
         # Noise at least the rounding's dithers it, and the rounding's variance is the floor;
         # below that the rounding is not noise but the scene's own steps (a night sea's flat
         # patches one DN apart, tests/detect/test_significance_steps.py), and the smallest
-        # step that counts is a whole DN a channel.
+        # step that counts is a whole DN a channel. Where the noise dithers the rounding, an
+        # 8-bit frame's block means rounded to whole DN lose a faint spot's light: its block
+        # sums are taken again, exactly (judged on the rounded sums, whose noise is larger).
         rounding = f * math.sqrt(n_ch / 12.0)
-        noise_S = max(noise_S, rounding if noise_S >= rounding else f * math.sqrt(n_ch))
+        dithered = noise_S >= rounding
+        if dithered and image.dtype.type is np.uint8 and f > 1:
+            S = block_sum(image, f)
+            noise_S = clipped_difference_noise(S)
+        noise_S = max(noise_S, rounding if dithered else f * math.sqrt(n_ch))
     else:
         noise_S = max(noise_S, MIN_NOISE_DN)
     skew_S = noise_skewness(S, noise_S)
