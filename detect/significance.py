@@ -71,14 +71,30 @@ def search_factor(shape: tuple[int, int]) -> int:
     return f
 
 
-def block_sum(image: np.ndarray, factor: int) -> np.ndarray:
+def block_sum(image: np.ndarray, factor: int, *, exact: bool = True) -> np.ndarray:
     """Channel sum of ``image`` in ``factor x factor`` blocks (as block means x f^2), float32.
 
-    Rows and columns beyond a multiple of ``factor`` are dropped.
+    Rows and columns beyond a multiple of ``factor`` are dropped. ``exact=False`` lets an
+    8-bit image's block means be rounded to whole DN (OpenCV's fast path, a third of the
+    time of the exact sums at 8 MP).
     """
     a = np.asarray(image)
+    if a.dtype.type is np.uint8 and factor > 1 and exact:
+        # OpenCV's area resampling rounds each block mean to a whole DN: on a dark 8-bit frame
+        # (a background of 0.4 DN, its noise mostly the pixels' rounding) that loses a faint
+        # spot's light and makes the block sums' noise coarse and non-Gaussian (steps of f^2 a
+        # channel). Scaled by f^2 in 16 bits first (255 f^2 fits up to f = 16), every halving's
+        # mean is a whole number: the block sums are exact.
+        b = a.astype(np.uint16)
+        b *= np.uint16(factor * factor)
+        return _halve_to_sum(b, factor, np.float32(1.0))
     if a.dtype.type not in (np.uint8, np.uint16, np.float32):
         a = a.astype(np.float32)
+    return _halve_to_sum(a, factor, np.float32(factor * factor))
+
+
+def _halve_to_sum(a: np.ndarray, factor: int, scale: np.float32) -> np.ndarray:
+    """``a`` halved ``log2 factor`` times (area means), channels summed, times ``scale``, float32."""
     f = 1
     while f < factor:  # halve at a time: OpenCV's 2x area path is the fast one
         h, w = a.shape[0] // 2, a.shape[1] // 2
@@ -86,14 +102,13 @@ def block_sum(image: np.ndarray, factor: int) -> np.ndarray:
         f *= 2
     a = np.asarray(a)
     # x f^2 in the same pass (a power of two: exact, so the same as scaling the sum after)
-    f2 = np.float32(factor * factor)
     if a.ndim == 3:
-        s = cv2.transform(a.astype(np.float32, copy=False), np.full((1, 3), f2, np.float32))
+        s = cv2.transform(a.astype(np.float32, copy=False), np.full((1, 3), scale, np.float32))
     else:
         # a float32 copy scaled in place: the same values as np.multiply(a, f2,
         # dtype=np.float32), whose mixed-type loop on an integer image costs 3x more
         s = a.astype(np.float32)
-        s *= f2
+        s *= scale
     return np.asarray(s, np.float32).reshape(a.shape[:2])
 
 
@@ -117,10 +132,66 @@ def clipped_difference_noise(S: np.ndarray, samples: int = 60_000) -> float:
     return float(clipped_std_rows(d[None])[0]) / math.sqrt(2.0)
 
 
+def noise_skewness(S: np.ndarray, noise: float, samples: int = 60_000) -> float:
+    """Skewness of an image's pixel noise from pairs of horizontal neighbours, unitless.
+
+    For two neighbours ``a = t + n_a`` and ``b = t + n_b`` on a smooth scene ``t`` with
+    independent noise, ``E[(a - b)^2 (a + b - E[a + b])] = 2 k3``, the noise's third
+    cumulant: the scene cancels in the difference and averages out of the sum, so deck
+    texture and gradients do not count as skew (a plain third moment of the pixels would
+    take a bright marking for it). Pairs more than 4 noise sigmas apart or whose sum lies
+    more than 8 sigmas from the median sum (a spot, an edge) are left out. Returns
+    ``k3 / noise^3``; 0 where too few pairs remain.
+
+    Parameters
+    ----------
+    S : (h, w) array
+        The image (block sums of a frame).
+    noise : float
+        Its pixel noise (:func:`clipped_difference_noise`, floored), same units as ``S``.
+    """
+    h, w = S.shape
+    step = max(1, int(math.sqrt(h * w / samples)))
+    a = np.asarray(S[::step, 0 : w - 1 : step][:, : (w - 1) // step], np.float64).ravel()
+    b = np.asarray(S[::step, 1::step][:, : (w - 1) // step], np.float64).ravel()
+    d, t = a - b, a + b
+    ok = np.isfinite(d) & np.isfinite(t)
+    d, t = d[ok], t[ok]
+    if d.size < 100 or not noise > 0:
+        return 0.0
+    keep = (np.abs(d) < 4.0 * math.sqrt(2.0) * noise) & (
+        np.abs(t - np.median(t)) < 8.0 * math.sqrt(2.0) * noise)
+    if np.count_nonzero(keep) < 100:
+        return 0.0
+    d, t = d[keep], t[keep]
+    return float(np.mean(d * d * (t - t.mean()))) / 2.0 / noise**3
+
+
+def skew_threshold(k_sigma: float, skew: float) -> float:
+    """The threshold, in noise sigmas, with the tail probability of ``k_sigma`` on Gaussian noise.
+
+    Cornish-Fisher to first order: ``k + skew (k^2 - 1) / 6`` for noise of that skewness
+    (never below ``k``: a negative estimate leaves it). Counting noise is skewed: on a dark
+    8-bit frame a channel's pixels are 0 DN or, one in ten, 1 DN, and a 5-sigma threshold
+    on their smoothed sums is passed by chance clusters of 1-DN pixels some 100 times as
+    often as by Gaussian noise.
+    """
+    return k_sigma + max(skew, 0.0) * (k_sigma * k_sigma - 1.0) / 6.0
+
+
 def _gaussian_norm(sigma: float) -> tuple[int, float]:
     k = 2 * math.ceil(3.0 * sigma) + 1
     g = cv2.getGaussianKernel(k, sigma).ravel()
     return k, float(np.sum(g**2))  # the 2-D kernel's L2 norm is the 1-D one's squared
+
+
+def smoothed_skew_factor(sigma: float) -> float:
+    """``sum w^3 / (sum w^2)^1.5`` of the 2-D Gaussian kernel of ``sigma`` px (separable).
+
+    The skewness of white noise smoothed by the kernel is the pixels' skewness times this.
+    """
+    g = cv2.getGaussianKernel(2 * math.ceil(3.0 * sigma) + 1, sigma).ravel()
+    return float(np.sum(g**3) ** 2 / np.sum(g**2) ** 3)
 
 
 def box_means(G: np.ndarray, ys: np.ndarray, xs: np.ndarray, half: int) -> np.ndarray:
@@ -183,21 +254,40 @@ def significant_spots(
         That spots were left out (more than ``max_spots``); "" otherwise.
     """
     f = search_factor(image.shape[:2])
-    S = block_sum(image, f)
-    # On an integer image the noise is taken as at least 1 DN per channel and pixel (as the
-    # bright-spot search's thresholds do, background.noise_floor_dn): on a dark frame whose
-    # background is a fraction of a DN the few pixels at 1 DN are rare events, not Gaussian
-    # noise, and clusters of them would count as spots (8-bit RGB with a 0.6 DN background
-    # gave over 200 "spots").
+    S = block_sum(image, f, exact=False)
+    # On an integer image the noise is never below the rounding's (1/12 DN^2 a channel and
+    # pixel). It was floored at 1 DN a channel (3.5x a dark 8-bit frame's 0.3 DN), because
+    # the few pixels at 1 DN of a background of a fraction of a DN are counts, not Gaussian
+    # noise, and chance clusters of them counted as spots (over 200 on 8-bit RGB with a 0.6 DN
+    # background). Two faults made them: block means rounded to whole DN (block_sum now
+    # sums exactly) and a threshold blind to the counts' skew (skew_threshold now keeps the
+    # Gaussian tail probability). The floor had cost the dimmest beacons of such frames
+    # (1,600 e among 30,000 e beacons: 6 of 156, benchmarks/bench_independent.py rgb8_dark).
     n_ch = image.shape[2] if image.ndim == 3 else 1
-    floor = f * math.sqrt(n_ch) if np.issubdtype(image.dtype, np.integer) else MIN_NOISE_DN
-    noise_S = max(clipped_difference_noise(S), floor)
+    noise_S = clipped_difference_noise(S)
+    if np.issubdtype(image.dtype, np.integer):
+        # Noise at least the rounding's dithers it, and the rounding's variance is the floor;
+        # below that the rounding is not noise but the scene's own steps (a night sea's flat
+        # patches one DN apart, tests/detect/test_significance_steps.py), and the smallest
+        # step that counts is a whole DN a channel. Where the noise dithers the rounding, an
+        # 8-bit frame's block means rounded to whole DN lose a faint spot's light: its block
+        # sums are taken again, exactly (judged on the rounded sums, whose noise is larger).
+        rounding = f * math.sqrt(n_ch / 12.0)
+        dithered = noise_S >= rounding
+        if dithered and image.dtype.type is np.uint8 and f > 1:
+            S = block_sum(image, f)
+            noise_S = clipped_difference_noise(S)
+        noise_S = max(noise_S, rounding if dithered else f * math.sqrt(n_ch))
+    else:
+        noise_S = max(noise_S, MIN_NOISE_DN)
+    skew_S = noise_skewness(S, noise_S)
     pts_all: list[np.ndarray] = []
     rad_all: list[float] = []
     val_all: list[float] = []
     for n_scale, smooth_px in enumerate(SMOOTH_PX):
-        found = _spots_at_scale(S, max(0.5, smooth_px / f), noise_S, significance_sigma,
-                                RING_RADII[n_scale:], screen=screen)
+        sigma_c = max(0.5, smooth_px / f)
+        k_sigma = skew_threshold(significance_sigma, skew_S * smoothed_skew_factor(sigma_c))
+        found = _spots_at_scale(S, sigma_c, noise_S, k_sigma, RING_RADII[n_scale:], screen=screen)
         if isinstance(found, str):
             return np.zeros((0, 2)), np.zeros(0), found, ""
         pts, rad, val = found

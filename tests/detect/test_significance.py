@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 from deckpose.detect.background import row_median
-from deckpose.detect.significance import box_means, ring_samples
+from deckpose.detect.significance import block_sum, box_means, ring_samples
 from deckpose.detect.tile_texture import TEXTURE_TILE_PX, texture_noise, tiles_of
 
 
@@ -98,3 +98,15 @@ def test_tiles_of_are_the_sorted_tiles_holding_points(n: int) -> None:
     assert tiles.tolist() == [list(p) for p in pairs]
     for i in range(n):
         assert tuple(tiles[of[i]]) == (ys[i] // TEXTURE_TILE_PX, xs[i] // TEXTURE_TILE_PX)
+
+
+@pytest.mark.parametrize("factor", [2, 4])
+def test_block_sums_of_an_8bit_frame_are_exact(factor):
+    # OpenCV's area resampling rounds an 8-bit block mean to a whole DN; on a dark frame (pixels
+    # 0 or 1 DN) that dropped a faint spot's light. The block sums must be the exact sums.
+    rng = np.random.default_rng(3)
+    img = (rng.random((64, 96, 3)) < 0.1).astype(np.uint8) + (rng.random((64, 96, 3)) < 0.01) * 250
+    img = img.astype(np.uint8)
+    h, w = 64 // factor, 96 // factor
+    want = img.astype(np.float64).reshape(h, factor, w, factor, 3).sum(axis=(1, 3, 4))
+    np.testing.assert_array_equal(block_sum(img, factor), want)
