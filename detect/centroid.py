@@ -155,11 +155,17 @@ def cog_centroids(
         restarts.append((u, v, sigma, min(starts[k][3], FLOOR_SIGMA_GROWTH * sigma)))
         again.append(i)
     if again:
+        # the disc's covariance only where the noise-weighed pass fails (below)
         second = _windowed_centroids([cands[i] for i in again], floors, np.array(restarts),
-                                     window_sigma, max_iter, tol_px, cov_of=np.full(len(again), covariance))
+                                     window_sigma, max_iter, tol_px, cov_of=np.zeros(len(again), bool))
         for i, row in zip(again, second):
             rows[i] = row
-        _weigh_by_noise(cands, again, floors, rows, window_sigma, max_iter, tol_px, covariance)
+        kept = _weigh_by_noise(cands, again, floors, rows, window_sigma, max_iter, tol_px, covariance)
+        if covariance and kept:
+            redo = _windowed_centroids([cands[again[k]] for k in kept], [floors[k] for k in kept],
+                                       np.array([restarts[k] for k in kept]), window_sigma, max_iter, tol_px)
+            for k, row in zip(kept, redo):
+                rows[again[k]] = row
     if covariance:
         _add_clipped_phase_cov(cands, signals, disc, rows)
     return rows
@@ -168,17 +174,18 @@ def cog_centroids(
 def _weigh_by_noise(
     cands: Sequence[Candidate], again: Sequence[int], floors: Sequence[np.ndarray],
     rows: list[Row | None], window_sigma: float, max_iter: int, tol_px: float, covariance: bool,
-) -> None:
+) -> list[int]:
     """Re-measure the centres of the floor pass through its disc weighed by each pixel's noise, in place.
 
     The floor pass's centre, sigma and flux give each spot's model (a Gaussian of that flux
     and sigma), and :func:`noise_weight` its pixels' weights within the disc; the flux and
     size stay the disc's. Where photons dominate the whole disc (a bright 16-bit spot) the
-    weights are near 1 and the centre is the disc's.
+    weights are near 1 and the centre is the disc's. Returns the positions in ``again``
+    whose floor-pass row is kept (this pass degenerate: the step ran off the frame).
     """
     done = [(k, i) for k, i in enumerate(again) if rows[i] is not None]
     if not done:
-        return
+        return []
     disc_rows = [rows[i] for _, i in done]
     starts = np.array([(r[0], r[1], r[4], r[4]) for r in disc_rows if r is not None])
     flux = np.array([r[3] for r in disc_rows if r is not None])
@@ -186,9 +193,13 @@ def _weigh_by_noise(
     weighed = _windowed_centroids([cands[i] for _, i in done], [floors[k] for k, _ in done], starts,
                                   window_sigma, max_iter, tol_px, cov_of=np.full(len(done), covariance),
                                   amplitude_dn=amplitude)
-    for (_, i), disc, row in zip(done, disc_rows, weighed):
+    kept = []
+    for (k, i), disc, row in zip(done, disc_rows, weighed):
         if row is not None and disc is not None:
             rows[i] = (row[0], row[1], row[2], disc[3], disc[4], disc[5])
+        else:
+            kept.append(k)
+    return kept
 
 
 def _add_clipped_phase_cov(
