@@ -335,8 +335,12 @@ def _windowed_centroids(
                       for c in cands], float)
     u, v, sigma, sigma_max = (np.array(starts[:, j], float) for j in range(4))
     m2_frac = truncated_m2_fraction(window_sigma)
-    # the noise weight's level: where a pixel's signal variance equals its noise's, DN
-    k_dn = np.array([c.noise_dn**2 / c.gain_dn_per_e for c in cands], float)
+    # the noise weight's level: where a pixel's signal variance equals its noise's, DN (a zero
+    # gain: inf, no weight, a degenerate row)
+    k_dn = np.zeros(K)
+    if amplitude_dn is not None:
+        with np.errstate(divide="ignore"):
+            k_dn = np.array([c.noise_dn**2 for c in cands]) / np.array([c.gain_dn_per_e for c in cands])
     rows: list[Row | None] = [None] * K
     act = np.arange(K)
     for it in range(max_iter + 1):
