@@ -10,7 +10,8 @@ from :func:`cog_centroid`.
 * ``cog``: intensity-weighted centre of gravity of background-subtracted pixels,
   in a soft-edged circular window of ``window_sigma`` spot sigmas re-centred on
   the estimate until it converges (a symmetric window does not bias a
-  symmetric spot).
+  symmetric spot); a bright unclipped spot's last pass weighs the window's pixels
+  by their noise (:func:`noise_weight`).
 """
 
 from __future__ import annotations
@@ -89,7 +90,15 @@ def cog_centroids(
     1.50x the centroid CRB (1.14x above the floor, reports/detectors_crb/). In this
     second pass the spot sigma may grow to at most :data:`FLOOR_SIGMA_GROWTH` times
     the first pass's, so lit deck reaching into a window around a small housing
-    cannot widen the window without end. ``above_floor=False`` keeps the first pass.
+    cannot widen the window without end. Its centre is then measured once more through
+    that disc with each pixel weighed by its noise (:func:`noise_weight`: the spot's
+    expected signal over its variance, for a Gaussian of the floor pass's flux and
+    sigma), so that wings below the noise (read noise, the background's shot noise, the
+    rounding) count as little as they tell: a 3-sigma disc weighs them by their offset,
+    and on 8-bit RGB frames whose 30 e background rounds to 0 DN cog was 1.32x the
+    bound there (0.96x weighed; benchmarks/bench_independent.py, rgb8_dark). Where
+    photons dominate the disc the weights are near 1 and the centre is the disc's; the
+    flux and size stay the disc's. ``above_floor=False`` keeps the first pass.
     An unclipped spot found by its significance (not ``clip_signal``) is measured
     through a Gaussian window instead (:func:`_matched_centroid`). ``covariance=False``
     leaves the disc-window rows' covariances NaN (for a caller that reads the centres,
@@ -146,13 +155,51 @@ def cog_centroids(
         restarts.append((u, v, sigma, min(starts[k][3], FLOOR_SIGMA_GROWTH * sigma)))
         again.append(i)
     if again:
+        # the disc's covariance only where the noise-weighed pass fails (below)
         second = _windowed_centroids([cands[i] for i in again], floors, np.array(restarts),
-                                     window_sigma, max_iter, tol_px, cov_of=np.full(len(again), covariance))
+                                     window_sigma, max_iter, tol_px, cov_of=np.zeros(len(again), bool))
         for i, row in zip(again, second):
             rows[i] = row
+        kept = _weigh_by_noise(cands, again, floors, rows, window_sigma, max_iter, tol_px, covariance)
+        if covariance and kept:
+            redo = _windowed_centroids([cands[again[k]] for k in kept], [floors[k] for k in kept],
+                                       np.array([restarts[k] for k in kept]), window_sigma, max_iter, tol_px)
+            for k, row in zip(kept, redo):
+                rows[again[k]] = row
     if covariance:
         _add_clipped_phase_cov(cands, signals, disc, rows)
     return rows
+
+
+def _weigh_by_noise(
+    cands: Sequence[Candidate], again: Sequence[int], floors: Sequence[np.ndarray],
+    rows: list[Row | None], window_sigma: float, max_iter: int, tol_px: float, covariance: bool,
+) -> list[int]:
+    """Re-measure the centres of the floor pass through its disc weighed by each pixel's noise, in place.
+
+    The floor pass's centre, sigma and flux give each spot's model (a Gaussian of that flux
+    and sigma), and :func:`noise_weight` its pixels' weights within the disc; the flux and
+    size stay the disc's. Where photons dominate the whole disc (a bright 16-bit spot) the
+    weights are near 1 and the centre is the disc's. Returns the positions in ``again``
+    whose floor-pass row is kept (this pass degenerate: the step ran off the frame).
+    """
+    done = [(k, i) for k, i in enumerate(again) if rows[i] is not None]
+    if not done:
+        return []
+    disc_rows = [rows[i] for _, i in done]
+    starts = np.array([(r[0], r[1], r[4], r[4]) for r in disc_rows if r is not None])
+    flux = np.array([r[3] for r in disc_rows if r is not None])
+    amplitude = flux / (2.0 * math.pi * starts[:, 2] ** 2)
+    weighed = _windowed_centroids([cands[i] for _, i in done], [floors[k] for k, _ in done], starts,
+                                  window_sigma, max_iter, tol_px, cov_of=np.full(len(done), covariance),
+                                  amplitude_dn=amplitude)
+    kept = []
+    for (k, i), disc, row in zip(done, disc_rows, weighed):
+        if row is not None and disc is not None:
+            rows[i] = (row[0], row[1], row[2], disc[3], disc[4], disc[5])
+        else:
+            kept.append(k)
+    return kept
 
 
 def _add_clipped_phase_cov(
@@ -239,6 +286,7 @@ def _windowed_centroids(
     tol_px: float,
     *,
     cov_of: np.ndarray | None = None,
+    amplitude_dn: np.ndarray | None = None,
 ) -> list[Row | None]:
     """The iteration of :func:`cog_centroids` on the signal of each candidate, all together.
 
@@ -254,6 +302,11 @@ def _windowed_centroids(
     cov_of : (K,) array of bool, optional
         The candidates whose covariance is computed (default all); the others' are NaN (the
         centres, fluxes and sizes do not depend on them).
+    amplitude_dn : (K,) array of float, optional
+        Weigh the disc by each pixel's noise (:func:`noise_weight`) for a Gaussian spot of this
+        peak, DN, and the start sigma, which then stays fixed; the centre moves by Newton steps
+        of the weighted centroid's equation, whose slope also scales the covariance. Default:
+        the disc alone, its sigma re-estimated at each iteration.
 
     Returns
     -------
@@ -282,6 +335,12 @@ def _windowed_centroids(
                       for c in cands], float)
     u, v, sigma, sigma_max = (np.array(starts[:, j], float) for j in range(4))
     m2_frac = truncated_m2_fraction(window_sigma)
+    # the noise weight's level: where a pixel's signal variance equals its noise's, DN (a zero
+    # gain: inf, no weight, a degenerate row)
+    k_dn = np.zeros(K)
+    if amplitude_dn is not None:
+        with np.errstate(divide="ignore"):
+            k_dn = np.array([c.noise_dn**2 for c in cands]) / np.array([c.gain_dn_per_e for c in cands])
     rows: list[Row | None] = [None] * K
     act = np.arange(K)
     for it in range(max_iter + 1):
@@ -319,16 +378,26 @@ def _windowed_centroids(
         dv1 = rws + v0[act][:, None] - va[:, None]  # (n, rows)
         du, dv = du1[:, None, :], dv1[:, :, None]
         d2 = du * du + dv * dv
-        win = np.minimum(np.maximum(R[:, None, None] + 0.5 - np.sqrt(d2), 0.0), 1.0)
+        r = np.sqrt(d2)
+        win = np.minimum(np.maximum(R[:, None, None] + 0.5 - r, 0.0), 1.0)
+        wn = None if amplitude_dn is None else noise_weight(d2, amplitude_dn[act], k_dn[act], sa)
+        if wn is not None:
+            win = win * wn
         wsig = win * s
         # the moments from the windowed signal's column and row sums (two passes over the
         # squares instead of one per moment)
         by_col, by_row = wsig.sum(axis=1), wsig.sum(axis=2)  # (n, cols), (n, rows)
         F = by_col.sum(axis=1)
         good = F > 0  # no flux in the window: degenerate
+        # the slope of the centroid's equation: F for the disc (its moving edge neglected)
+        D_u, D_v = (F, F) if wn is None else _weighted_slopes(wsig, wn, s, r, R, du1, dv1, sa, F)
         with np.errstate(divide="ignore", invalid="ignore"):
-            su = (by_col * du1).sum(axis=1) / F
-            sv = (by_row * dv1).sum(axis=1) / F
+            su = (by_col * du1).sum(axis=1) / D_u
+            sv = (by_row * dv1).sum(axis=1) / D_v
+        if amplitude_dn is not None:  # a Newton step of at most a sigma
+            step = np.hypot(su, sv)
+            shrink = np.minimum(1.0, sa / np.where(step > 0, step, 1.0))
+            su, sv = su * shrink, sv * shrink
         done = good & ((np.hypot(su, sv) < tol_px) | (it == max_iter))
         for j in np.flatnonzero(done):
             cand = cands[act[j]]
@@ -339,10 +408,16 @@ def _windowed_centroids(
             inside = r_in[j][:, None] & c_in[j][None, :]
             duj, dvj = du[j] - su[j], dv[j] - sv[j]
             var = cand.variance(s[j]) * win[j] ** 2 * inside
-            cov = np.array([[(var * duj * duj).sum(), (var * duj * dvj).sum()],
-                            [(var * duj * dvj).sum(), (var * dvj * dvj).sum()]]) / F[j] ** 2
+            Du, Dv = float(D_u[j]), float(D_v[j])
+            cov = np.array([[(var * duj * duj).sum() / Du**2, (var * duj * dvj).sum() / (Du * Dv)],
+                            [(var * duj * dvj).sum() / (Du * Dv), (var * dvj * dvj).sum() / Dv**2]])
             # the surround's tilt left in the signal (a bright spot above its flat pedestal)
-            cov = cov + cand.surround_tilt_cov(win[j] * inside, s[j], duj, dvj, float(F[j]))
+            if amplitude_dn is None:
+                cov = cov + cand.surround_tilt_cov(win[j] * inside, s[j], duj, dvj, float(F[j]))
+            else:  # the slopes hold the disc edge's term already
+                r2 = duj * duj + dvj * dvj
+                m2 = 0.5 * float((win[j] * inside * (s[j] > 0) * r2).sum())
+                cov = cov + cand.surround_bias_cov(m2 / (0.5 * (Du + Dv)))
             rows[act[j]] = cand.blob(ua[j] + su[j], va[j] + sv[j], flux_dn=float(F[j]),
                                      size_px=float(sa[j]), cov_px2=cov)
         more = good & ~done
@@ -351,14 +426,61 @@ def _windowed_centroids(
         # the spot sigma from the windowed second moment, where the disc is whole (not cut
         # by the frame edge)
         m = np.flatnonzero(more)
-        d2sum = (by_col[m] * du1[m] ** 2).sum(axis=1) + (by_row[m] * dv1[m] ** 2).sum(axis=1)
-        m2 = d2sum / F[m] / 2.0 - (su[m] ** 2 + sv[m] ** 2) / 2.0
-        s_new = np.clip(np.sqrt(np.maximum(m2, 0.0) / m2_frac), 0.5, sigma_max[act[m]])
         act = act[m]
-        sigma[act] = np.where(cut[m], sa[m], s_new)
+        if amplitude_dn is None:
+            d2sum = (by_col[m] * du1[m] ** 2).sum(axis=1) + (by_row[m] * dv1[m] ** 2).sum(axis=1)
+            m2 = d2sum / F[m] / 2.0 - (su[m] ** 2 + sv[m] ** 2) / 2.0
+            s_new = np.clip(np.sqrt(np.maximum(m2, 0.0) / m2_frac), 0.5, sigma_max[act])
+            sigma[act] = np.where(cut[m], sa[m], s_new)
         u[act] = ua[m] + su[m]
         v[act] = va[m] + sv[m]
     return rows
+
+
+def noise_weight(d2_px2: np.ndarray, amplitude_dn: np.ndarray, k_dn: np.ndarray,
+                 sigma_px: np.ndarray) -> np.ndarray:
+    """Each pixel's weight in a centroid of a Gaussian spot under shot and even noise, (n, h, w) in [0, 1).
+
+    The centroid that is efficient to first order (the score of the spot's centre) weighs a
+    pixel of expected signal ``mu`` and variance ``V = n0^2 + g mu`` by ``mu / V``, up to a
+    constant: ``mu / (mu + k)`` with ``k = n0^2 / g``. Where photons dominate (``mu >> k``)
+    every pixel counts the same, as in a disc; where the even noise does (the wings, and
+    every pixel of a spot whose signal is below its noise: read noise, the background's shot
+    noise, the rounding's 1/12 DN^2 a channel) the weight falls as the spot, a Gaussian
+    window matched to it. A disc of 3 sigma weighs those wings by their offset instead: on
+    8-bit RGB frames whose background rounds to 0 DN it was 1.35-1.8x the Cramér–Rao bound.
+
+    Parameters
+    ----------
+    d2_px2 : (n, h, w) array of float
+        Squared distance of each pixel from the spot's centre, px^2.
+    amplitude_dn, k_dn, sigma_px : (n,) arrays of float
+        The spot's peak ``mu(0)`` (DN), the level ``k`` (DN) and its sigma (px, the pixels'
+        width included).
+    """
+    mu = amplitude_dn[:, None, None] * np.exp(-d2_px2 / (2.0 * sigma_px[:, None, None] ** 2))
+    with np.errstate(invalid="ignore"):
+        return np.where(mu > 0, mu / (mu + k_dn[:, None, None]), 0.0)
+
+
+def _weighted_slopes(
+    wsig: np.ndarray, wn: np.ndarray, s: np.ndarray, r: np.ndarray, R: np.ndarray,
+    du1: np.ndarray, dv1: np.ndarray, sigma: np.ndarray, F: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Slopes ``-dG/dc`` along u and v of the noise-weighted centroid's equation ``G = sum(w s (x - c)) = 0``, (n,) each.
+
+    ``w`` is the disc (soft edge) times :func:`noise_weight`; the weight's fall gives
+    ``sum(w s (1 - wn) du^2) / sigma^2`` and the disc's edge following the centre
+    ``sum_edge(wn s du^2 / r)``, both less than the windowed flux ``F``. The slope is held
+    to ``[F / 4, F]`` (a Gaussian window matched to its spot: ``F / 2``) so a spot far from
+    the model cannot make the step or the covariance run away.
+    """
+    t = wsig * (1.0 - wn)
+    edge = np.where(np.abs(r - R[:, None, None]) < 0.5, wn * s / np.maximum(r, 0.5), 0.0)
+    inv_s2 = 1.0 / sigma**2
+    D_u = F - (t.sum(axis=1) * du1**2).sum(axis=1) * inv_s2 - (edge.sum(axis=1) * du1**2).sum(axis=1)
+    D_v = F - (t.sum(axis=2) * dv1**2).sum(axis=1) * inv_s2 - (edge.sum(axis=2) * dv1**2).sum(axis=1)
+    return np.clip(D_u, 0.25 * F, F), np.clip(D_v, 0.25 * F, F)
 
 
 #: Largest step of one :func:`gaussian_window_centroid` iteration, in window sigmas.

@@ -102,37 +102,48 @@ def test_glare_bias_is_inside_the_reported_covariance(monkeypatch, detector):
     assert np.abs(e_n / sd_n).max() > 3.0, e_n / sd_n
 
 
-def _spot_candidate(tilt_dn_per_px: tuple[float, float]) -> tuple[Candidate, float, float]:
-    """A clipped-signal candidate of one unclipped Gaussian spot plus a linear tilt, no noise."""
+def _spot_candidate(tilt_dn_per_px: tuple[float, float], noise_dn: float = 1.0) -> tuple[Candidate, float, float]:
+    """A clipped-signal candidate of one unclipped Gaussian spot plus a linear tilt, no noise.
+
+    ``noise_dn`` is the noise the candidate's model assumes (gain 1 DN/e).
+    """
     n, uc, vc, s = 121, 60.3, 59.8, 8.0
     vv, uu = np.mgrid[0:n, 0:n].astype(float)
     spot = 2000.0 * np.exp(-((uu - uc) ** 2 + (vv - vc) ** 2) / (2 * s * s))
     gu, gv = tilt_dn_per_px
     pix = 50.0 + spot + gu * (uu - uc) + gv * (vv - vc)
     mask = spot > 1000.0
-    cand = Candidate(pix, mask, np.zeros_like(mask), 0, 0, 50.0, (0.0, 0.0), 1.0, 1.0, 1050.0,
+    cand = Candidate(pix, mask, np.zeros_like(mask), 0, 0, 50.0, (0.0, 0.0), noise_dn, 1.0, 1050.0,
                      clip_signal=True, frame_shape=(n, n), surround_grad=(gu, gv),
                      surround_grad_sd=0.0)
     return cand, uc, vc
 
 
-def test_tilt_term_is_the_shift_a_linear_tilt_gives():
+@pytest.mark.parametrize(("above_floor", "noise_dn", "min_shift_px"), [
+    (False, 1.0, 0.015),  # the disc
+    # the floor pass's centre weighed by the pixels' noise (centroid.noise_weight): with
+    # noise^2 / gain = 900 DN against a 2000 DN peak, the weight falls from 0.7 at the
+    # centre, and the term takes the weight's slope and the disc edge's from the Newton
+    # step's (0.007 px here)
+    (True, 30.0, 0.005),
+])
+def test_tilt_term_is_the_shift_a_linear_tilt_gives(above_floor, noise_dn, min_shift_px):
     # The centroid of spot + tilt, against the same spot without the tilt: its shift must
     # equal the term's sd, |g| sum(w x^2) / F, to first order in g (here the shift is
     # ~0.02 px against a spot sigma of 8 px, so second-order terms are ~1e-3 of it).
     g = (0.04, -0.03)
-    cand, _, _ = _spot_candidate(g)
+    cand, _, _ = _spot_candidate(g, noise_dn)
     flat = dataclasses.replace(cand, pixels=cand.pixels - (
         g[0] * (np.arange(121)[None, :] - 60.3) + g[1] * (np.arange(121)[:, None] - 59.8)))
-    tilted_row = cog_centroid(cand, 3.0, above_floor=False)
-    flat_row = cog_centroid(flat, 3.0, above_floor=False)
+    tilted_row = cog_centroid(cand, 3.0, above_floor=above_floor)
+    flat_row = cog_centroid(flat, 3.0, above_floor=above_floor)
     assert tilted_row is not None and flat_row is not None
     shift = math.hypot(tilted_row[0] - flat_row[0], tilted_row[1] - flat_row[1])
     no_tilt = dataclasses.replace(cand, surround_grad=(0.0, 0.0))
-    noise_cov = cog_centroid(no_tilt, 3.0, above_floor=False)
+    noise_cov = cog_centroid(no_tilt, 3.0, above_floor=above_floor)
     assert noise_cov is not None
     term = math.sqrt(tilted_row[2][0, 0] - noise_cov[2][0, 0])
-    assert shift > 0.015
+    assert shift > min_shift_px
     assert abs(term / shift - 1.0) < 0.05, (term, shift)
 
 

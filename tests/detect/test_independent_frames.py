@@ -46,12 +46,15 @@ def _run(detector: str, truth) -> tuple[object, np.ndarray]:
     return res, idx
 
 
-def _errors(detector: str, frames) -> np.ndarray:
-    """Normalised errors (error / CRB per axis) of every found, unclipped beacon, (m, 2)."""
+def _errors(detector: str, frames, *, min_flux_e: float = 0.0) -> np.ndarray:
+    """Normalised errors (error / CRB per axis) of every found, unclipped beacon, (m, 2).
+
+    ``min_flux_e``: only the beacons brighter than this (channel sum, electrons).
+    """
     out = []
     for t in frames:
         res, idx = _run(detector, t)
-        for i in np.flatnonzero((idx >= 0) & ~t.saturated):
+        for i in np.flatnonzero((idx >= 0) & ~t.saturated & (t.flux_e > min_flux_e)):
             out.append((res.detections.points_px[idx[i]] - t.centre_px[i]) / t.crb_px[i])
     return np.array(out)
 
@@ -148,6 +151,21 @@ def test_dark_8bit_frames_find_and_identify_every_beacon(dark_frames):
     assert frames_ok >= 7, frames_ok
 
 
+def test_cog_reaches_the_bound_on_the_bright_spots_of_dark_8bit_frames(dark_frames):
+    """cog on the dark 8-bit frames' beacons of 12,000-30,000 e (issue 15: 1.20x the bound at most).
+
+    There a beacon's wings are below the noise and rounding (0.1 DN of noise a channel cannot
+    dither a 1 DN step), and the 3-sigma disc weighed them by their offset: 1.64x the bound
+    on these 41 beacons (1.32x on all 103). Weighed by each pixel's noise
+    (:func:`deckpose.detect.centroid.noise_weight`) they read 1.18x (1.00x on all). The
+    tolerance is the target plus three standard errors of an RMS over ``m`` axes.
+    """
+    e = _errors("cog", dark_frames, min_flux_e=12_000.0)
+    ratio = float(np.sqrt(np.mean(e**2)))
+    assert e.shape[0] > 30, e.shape
+    assert ratio < _allowance(1.20, e.size), (ratio, _allowance(1.20, e.size))
+
+
 def test_cog_covariance_is_not_understated_on_dark_8bit_frames(dark_frames):
     """cog's sigmas on a dark 8-bit frame's spots: the channel sum's own noise, not the thresholds'.
 
@@ -156,6 +174,9 @@ def test_cog_covariance_is_not_understated_on_dark_8bit_frames(dark_frames):
     is it reads 0.86-0.92 (`benchmarks/independent_covariance.py`): not understated (below
     1 + 3 / sqrt(2 m)), and overstated by no more than the rounding, which noise of 0.1 DN does not
     dither, explains (the disc's wings are a fixed rounding there, counted as noise: 0.7).
+    With the bright spots' pixels weighed by their noise it reads 0.80 on these frames: the
+    frame's estimated gain (:func:`~deckpose.detect.gain.estimate_gain`, 0.038 DN/e against the
+    generator's 0.0128) overstates the shot noise; with the true gain it reads 1.00.
     """
     z = _own_sigma_errors("cog", dark_frames)
     m = 2 * len(z)
