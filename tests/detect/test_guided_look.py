@@ -94,9 +94,12 @@ def test_a_dim_red_bow_at_snr_8_to_12_is_found_and_identified(detector):
         if detector == "gauss":  # the search before the second look is the same for both
             before += bool(_full_search_alone(frame, detector)[1].ok)
     assert ok >= 8, f"{ok} of 10 frames identified with the second look"
-    # the full-frame search alone misses such a bow (its channel-sum statistic is the red
-    # one / sqrt(3) or less): the test would not tell the second look from nothing otherwise
-    assert before <= 2, f"{before} of 10 identified without the second look"
+    # the full-frame search alone often misses such a bow (its channel-sum statistic is the
+    # red one / sqrt(3) or less, about the threshold here: it found 4 of 10 once 8-bit block
+    # sums were exact, 0-2 before): the second look must add frames, or the test would not
+    # tell it from nothing
+    if detector == "gauss":
+        assert ok > before, f"the second look added nothing: {before} of 10 identified without it"
 
 
 def _noise_image(rng: np.random.Generator, shape=(1000, 1000)) -> np.ndarray:
@@ -209,9 +212,11 @@ def _paint_red(image: np.ndarray, points_px: np.ndarray, flux_e: float, sigma_px
 
 
 def test_one_red_spot_in_an_empty_slot_is_the_bow_and_two_are_not():
-    # A frame without its bow and with one ring beacon missing; red spots (800 e, sigma
-    # 1.5 px: red-channel SNR 11.5, too dim for the full-frame search) painted into its
-    # empty slots, found where the ring's homography puts them.
+    # A frame without its bow and with one ring beacon missing; red spots (650 e, sigma
+    # 1.5 px: red-channel SNR 9.6, a channel-sum statistic of about 9.6 / sqrt(3) = 5.5,
+    # under the full-frame search's threshold of 5 sigmas raised for the counts' skew; 800 e,
+    # SNR 11.5, was found by it once 8-bit block sums were exact) painted into its empty
+    # slots, found where the ring's homography puts them.
     spec = replace(RGB8, drop_bow=True, missing_ring=1)
     t = gen.make_frame(spec, np.random.default_rng(3))
     frame = _frame(t)
@@ -221,16 +226,16 @@ def test_one_red_spot_in_an_empty_slot_is_the_bow_and_two_are_not():
     ring = empty[slots >= 0]
     assert ring.shape[0] == 2  # the bow's slot and the missing beacon's
     rng = np.random.default_rng(4)
-    assert 11 < _red_snr(1.5, 800.0, RGB8) < 12
+    assert 9 < _red_snr(1.5, 650.0, RGB8) < 10
     for k in range(2):
-        one = Frame(_paint_red(t.image, ring[k : k + 1], 800.0, 1.5, rng), frame.camera, 0)
+        one = Frame(_paint_red(t.image, ring[k : k + 1], 650.0, 1.5, rng), frame.camera, 0)
         alone, _ = _full_search_alone(one, "gauss")
         assert np.linalg.norm(alone.points_px - ring[k], axis=1).min() > 3.0
         res = detect_frame(one, "gauss", LAYOUT)
         assert res.ok, res.reason
         d = np.linalg.norm(res.detections.points_px - ring[k], axis=1)
         assert res.detections.beacon_ids[int(np.argmin(d))] == LAYOUT.bow_id and d.min() < 1.5
-    both = Frame(_paint_red(t.image, ring, 800.0, 1.5, rng), frame.camera, 0)
+    both = Frame(_paint_red(t.image, ring, 650.0, 1.5, rng), frame.camera, 0)
     res = detect_frame(both, "gauss", LAYOUT)
     assert not res.ok
     assert "2 red spots in empty ring slots" in res.reason
