@@ -1,7 +1,7 @@
 """The thesis's estimator (Algorithm 2), faithfully, vectorised over frames.
 
 This is the port of the published implementation as specified in
-``shared/reference/THESIS_IMPLEMENTATION.md`` ("The estimator, step by step"),
+``docs/THESIS_IMPLEMENTATION.md`` ("The estimator, step by step"),
 including its quirks (the 90-degree turn of the orthographic projection, the
 mixing of distorted and undistorted quantities in the minor-axis point, and
 the quaternion formulas exactly as printed). Where the original produces NaN,

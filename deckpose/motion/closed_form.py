@@ -3,7 +3,7 @@
 The model of Jensen, Mansour & Olsen (2004), "Estimation of ship motions using
 closed-form expressions", Ocean Engineering 31 (as in Fossen's Marine Systems
 Simulator), written exactly as specified in
-``shared/reference/THESIS_IMPLEMENTATION.md`` ("The closed-form ship response").
+``docs/THESIS_IMPLEMENTATION.md`` ("The closed-form ship response").
 
 Regular waves of amplitude ``a`` and frequency ``omega0`` meet the ship at
 heading ``beta`` (180 deg = head seas, 90 deg = beam seas, 0 = following seas;

@@ -6,7 +6,7 @@ period, for the thesis ship with a 2.5 m wave at heading 45 deg and zero speed.
 The thesis's "yaw" is the synthetic ``heave_m * sin(t_s)`` used as degrees.
 
 :func:`thesis_motion_table` returns the series exactly as
-``shared/reference/thesis_motion_series.csv`` (thesis X-Y-Z angles in degrees);
+``deckpose/data/thesis_motion_series.csv`` (thesis X-Y-Z angles in degrees);
 :func:`thesis_motion_series` returns it as a :class:`MotionSeries` of ZYX angles
 on one continuous time axis.
 """
