@@ -71,9 +71,14 @@ def run(args: argparse.Namespace) -> int:
             "roll_deg": math.degrees(sig["roll_rad"]), "pitch_deg": math.degrees(sig["pitch_rad"]),
             "yaw_deg": math.degrees(sig["yaw_rad"]), "surge_m": sig["surge_m"],
             "sway_m": sig["sway_m"], "height_m": sig["height_m"],
+            "determined": b.ok,
         })
     if args.json:
-        print(json.dumps({"camera": camera.name, "height_m": args.height_m, "bounds": rows}, indent=2))
+        # strict JSON: a bound the beacons do not determine is null, not NaN
+        plain = [{k: None if isinstance(v, float) and not math.isfinite(v) else v for k, v in r.items()}
+                 for r in rows]
+        print(json.dumps({"camera": camera.name, "height_m": args.height_m, "bounds": plain}, indent=2,
+                         allow_nan=False))
         return 0
     print(f"Cramér–Rao bound (1 sigma) — camera {camera.name or args.camera}, "
           f"height {args.height_m:g} m, ring {layout.n_ring} r={layout.radius_m:g} m"
@@ -84,4 +89,8 @@ def run(args: argparse.Namespace) -> int:
         vals = [f"{r['sigma_px']:>10g}", f"{r['n_beacons']:>10d}"] + [
             f"{r[k]:>10.3g}" for k in head[2:]]
         print("  ".join(vals))
+    n_seen = rows[0]["n_beacons"]
+    if not all(r["determined"] for r in rows):
+        print(f"nan: the {n_seen} beacon(s) in view do not determine the pose (it takes at least 4, not all "
+              "on one line); raise --height-m, or tilt the camera toward the deck (--camera-tilt-deg)")
     return 0

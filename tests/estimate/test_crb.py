@@ -58,3 +58,15 @@ def test_crb_cli_table_and_json(capsys):
     b = cramer_rao_bound(DeckLayout(), preset("8mp"), ShipPose(), CameraPose.nadir(20.0, R_nadir_from_cam=rot_x(np.radians(5))), 1.0)
     assert doc["bounds"][0]["roll_deg"] == pytest.approx(np.degrees(b.sigma["roll_rad"]), rel=1e-9)
     assert main(["crb", "--sigma-px", "-1"]) == 2
+
+
+def test_crb_cli_says_why_a_bound_is_undetermined(capsys):
+    """At 1 m only the centre beacon is in view: the table's nan is explained, and --json is strict JSON."""
+    assert main(["crb", "--height-m", "1"]) == 0
+    out = capsys.readouterr().out
+    assert "do not determine the pose" in out and "raise --height-m" in out
+    assert main(["crb", "--height-m", "1", "--json"]) == 0
+    doc = json.loads(capsys.readouterr().out, parse_constant=lambda c: pytest.fail(f"{c} is not JSON"))
+    assert doc["bounds"][0]["determined"] is False and doc["bounds"][0]["roll_deg"] is None
+    assert main(["crb", "--height-m", "30"]) == 0
+    assert "do not determine" not in capsys.readouterr().out
