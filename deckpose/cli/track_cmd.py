@@ -38,6 +38,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--config", type=Path, default=None,
                    help="tracker config YAML (model, landing, gate_probability, reacquire_after, horizons_s; "
                         "configs/track/wave_bank.yaml lists them; default: the built-in values)")
+    p.add_argument("--name", default=None,
+                   help="the track's name in the run folder, tracks/DETECTOR--METHOD--NAME.parquet (default: the "
+                        "tracker's, wave-bank): give each config its own to keep their tracks side by side")
     p.add_argument("--horizons", default=None, metavar="S,S,...",
                    help="prediction horizons in seconds, comma list (overrides the config's horizons_s)")
     add_progress(p)
@@ -79,11 +82,12 @@ def run(args: argparse.Namespace) -> int:
                *(["--detector", args.detector] if args.detector else []),
                *(["--estimates", args.estimates] if args.estimates else []),
                *(["--config", str(args.config)] if args.config else []),
-               *(["--horizons", args.horizons] if args.horizons else [])]
+               *(["--horizons", args.horizons] if args.horizons else []),
+               *(["--name", args.name] if args.name else [])]
     with frame_bar(f"track ({args.method})", enabled=not args.no_progress) as bar:
         bar.total = n_frames
         res = track_run(run_folder.root, config, tracker=args.method, detector=args.detector,
-                        method=args.estimates, command=command, progress=bar.update)
+                        method=args.estimates, command=command, progress=bar.update, name=args.name)
     wrote(args, res.path, res.summary())
     say(args, f"predictions: {res.predictions_path}")
     say(args, "to play it in Foxglove (filtered and predicted decks, roll against time): "

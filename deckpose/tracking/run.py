@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -216,7 +217,7 @@ def _pick_estimates(run: RunPaths, detector: str | None, method: str | None) -> 
 
 def track_run(run_dir: str | Path, config: TrackConfig, *, tracker: str = "wave-bank", detector: str | None = None,
               method: str | None = None, command: list[str] | None = None,
-              progress: Progress | None = None) -> TrackRunResult:
+              progress: Progress | None = None, name: str | None = None) -> TrackRunResult:
     """Track one estimates table of a run folder and write the tracks.
 
     Parameters
@@ -231,6 +232,10 @@ def track_run(run_dir: str | Path, config: TrackConfig, *, tracker: str = "wave-
     command : list of str, optional, keyword-only
         The command line, for the run record.
     progress : callable, optional, keyword-only
+    name : str, optional, keyword-only
+        The track's name in the run folder, ``tracks/DETECTOR--METHOD--NAME.parquet``
+        (default: the tracker's): two configs of one tracker kept side by side. Letters,
+        digits, ``_``, ``.``, ``+`` and single ``-``.
 
     Returns
     -------
@@ -238,6 +243,10 @@ def track_run(run_dir: str | Path, config: TrackConfig, *, tracker: str = "wave-
     """
     if tracker not in TRACKERS:
         raise ConfigError(f"unknown tracker {tracker!r}; choose one of {list(TRACKERS)}")
+    label = tracker if name is None else name
+    if not re.fullmatch(r"[A-Za-z0-9_.+]+(-[A-Za-z0-9_.+]+)*", label):
+        raise ConfigError(f"track name {label!r}: use letters, digits, '_', '.', '+' and single '-' "
+                          "(it becomes part of a file name, tracks/DETECTOR--METHOD--NAME.parquet)")
     run = run_paths(run_dir)
     frames = read_frames(run)
     manifest = read_manifest(run)
@@ -256,8 +265,8 @@ def track_run(run_dir: str | Path, config: TrackConfig, *, tracker: str = "wave-
     tracks, predictions = track_table(frames, estimates, config, epoch_ns=epoch,
                                       source=str(run.estimates(det, meth)), progress=progress)
     tracks = tracks.astype({c.name: pandas_dtype(c) for c in TRACK_COLUMNS})
-    path = run.tracks(det, meth, tracker)
-    pred_path = run.track_predictions(det, meth, tracker)
+    path = run.tracks(det, meth, label)
+    pred_path = run.track_predictions(det, meth, label)
     write_table(tracks, path, "tracks")
     write_table(predictions, pred_path, "track predictions")
     from deckpose import __version__
@@ -265,13 +274,14 @@ def track_run(run_dir: str | Path, config: TrackConfig, *, tracker: str = "wave-
     st = tracks["status"].value_counts()
     record = {
         "format": TRACK_RUN_FORMAT, "deckpose_version": __version__, "command": command,
-        "tracker": tracker, "detector": det, "method": meth, "estimates": str(run.estimates(det, meth).name),
+        "tracker": tracker, "name": label, "detector": det, "method": meth,
+        "estimates": str(run.estimates(det, meth).name),
         "config": track_config_to_mapping(config),
         "n_frames": len(tracks), "n_sequences": int(tracks["sequence"].nunique()),
         **{f"n_{s.value}": int(st.get(s.value, 0)) for s in FilterStatus},
         "landing_go_fraction": float(tracks["landing_go"].mean()) if len(tracks) else math.nan,
     }
-    record_path = run.track_run_record(det, meth, tracker)
+    record_path = run.track_run_record(det, meth, label)
     with atomic_open(record_path) as f:
         json.dump(record, f, indent=2)
     return TrackRunResult(path, pred_path, record_path, tracks)

@@ -103,3 +103,19 @@ def test_the_committed_config_is_the_defaults():
 
     path = Path(__file__).resolve().parents[2] / "configs" / "track" / "wave_bank.yaml"
     assert load_track_config(path) == TrackConfig()
+
+
+def test_named_tracks_of_two_configs_stay_side_by_side(tmp_path):
+    """A second config's track under its own --name does not replace the default one."""
+    write_run(tmp_path / "run", duration_s=3.0)
+    first = track_run(tmp_path / "run", TrackConfig())
+    other = TrackConfig(gate_probability=0.99)
+    second = track_run(tmp_path / "run", other, name="gate99")
+    assert first.path.name == "cog--pnp--wave-bank.parquet" and second.path.name == "cog--pnp--gate99.parquet"
+    assert first.path.exists() and second.path.exists()
+    assert sorted(run_paths(tmp_path / "run").track_triples()) == [("cog", "pnp", "gate99"), ("cog", "pnp", "wave-bank")]
+    rec = json.loads(second.record_path.read_text())
+    assert (rec["tracker"], rec["name"], rec["config"]["gate_probability"]) == ("wave-bank", "gate99", 0.99)
+    for bad in ("a--b", "../x", "", "sp ace"):
+        with pytest.raises(ConfigError, match="track name"):
+            track_run(tmp_path / "run", TrackConfig(), name=bad)
