@@ -9,6 +9,7 @@ thesis's Table 4.2-4.13 maxima next to ours where resolution and height match.
 from __future__ import annotations
 
 import json
+import logging
 from collections.abc import Callable
 from pathlib import Path
 
@@ -31,6 +32,8 @@ from deckpose.camera import THESIS_RESOLUTIONS
 from deckpose.errors import InputDataError
 from deckpose.shell_command import deckpose_command
 from deckpose.tables import read_table
+
+log = logging.getLogger(__name__)
 
 
 def resolution_of(camera_name: str, size_px: tuple[int, int] | None = None) -> str | None:
@@ -202,6 +205,18 @@ def track_sections(run: rl.RunPaths, frames: pd.DataFrame, fig_dir: Path,
     return lines
 
 
+def _warn_unevaluated(run: rl.RunPaths, errors: pd.DataFrame) -> None:
+    """Warn of estimates tables the evaluation has not seen (estimated again, or anew, after it)."""
+    evaluated = set(zip(errors["detector"].astype(str), errors["method"].astype(str)))
+    t_eval = run.errors.stat().st_mtime
+    for d, m in run.estimate_pairs():
+        path = run.estimates(d, m)
+        if (d, m) not in evaluated or path.stat().st_mtime > t_eval:
+            log.warning("%s is newer than the evaluation, so the report %s it; evaluate again first: %s",
+                        path, "leaves it out" if (d, m) not in evaluated else "shows its older estimates",
+                        deckpose_command("evaluate", run.root))
+
+
 def write_report(run: rl.RunPaths, *, progress: Callable[[int, int], object] | None = None) -> Path:
     """Write ``report/report.md`` and its figures for an evaluated run; return the Markdown path.
 
@@ -211,6 +226,7 @@ def write_report(run: rl.RunPaths, *, progress: Callable[[int, int], object] | N
     if not run.errors.exists():
         raise InputDataError(f"{run.errors} is missing; make it with: {deckpose_command('evaluate', run.root)}")
     errors = read_table(run.errors, "errors")
+    _warn_unevaluated(run, errors)
     frames = rl.read_frames(run)
     beacons = rl.read_beacons(run)
     dets = {d: rl.read_detections(run, d) for d in run.detectors()}

@@ -222,3 +222,23 @@ def test_listings_ignore_a_killed_writers_temp_files(run):
     finally:
         (run / "detections" / ".fake.parquet.abc123.tmp.parquet").unlink()
         (run / "estimates" / ".fake--thesis.parquet.x.tmp.parquet").unlink()
+
+
+def test_report_warns_of_estimates_the_evaluation_has_not_seen(evaluated_run, tmp_path, capsys):
+    """A new estimator's table added after 'evaluate': the report says it is left out, and how to fix it."""
+    import shutil
+
+    from deckpose import run_folder as rl
+    from deckpose.cli import main
+
+    root = tmp_path / "run"
+    shutil.copytree(evaluated_run, root)
+    run = rl.run_paths(root)
+    assert main(["report", str(root)]) == 0
+    assert "newer than the evaluation" not in capsys.readouterr().err
+    assert main(["estimate", "--run", str(root), "--detector", "fake", "--method", "pnp"]) == 0
+    capsys.readouterr()
+    assert main(["report", str(root)]) == 0
+    err = capsys.readouterr().err
+    assert f"{run.estimates('fake', 'pnp')} is newer than the evaluation" in err
+    assert "leaves it out" in err and f"deckpose evaluate {root}" in err
