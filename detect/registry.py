@@ -106,7 +106,7 @@ class DetectorOptions:
 
     def __post_init__(self) -> None:
         if not self.threshold_sigma > 0:
-            raise ConfigError(f"threshold_sigma must be positive, got {self.threshold_sigma}")
+            raise ConfigError(f"threshold_sigma (--threshold-sigma) must be positive, got {self.threshold_sigma}")
         if self.coarse_max_px < 10_000:
             raise ConfigError(f"coarse_max_px must be >= 10000, got {self.coarse_max_px}")
         if self.min_area_px < 1 or self.max_blobs < 1:
@@ -114,15 +114,15 @@ class DetectorOptions:
         if not self.window_sigma >= 1.0:
             raise ConfigError(f"window_sigma must be >= 1, got {self.window_sigma}")
         if self.background_kernel_px < 0:
-            raise ConfigError(f"background_kernel_px must be >= 0, got {self.background_kernel_px}")
+            raise ConfigError(f"background_kernel_px (--background-kernel-px) must be >= 0, got {self.background_kernel_px}")
         if not 0.0 <= self.spot_level < 1.0:
-            raise ConfigError(f"spot_level must be in [0, 1), got {self.spot_level}")
+            raise ConfigError(f"spot_level (--spot-level) must be in [0, 1), got {self.spot_level}")
         if not (self.significance_sigma == 0 or self.significance_sigma >= 2.0):
             raise ConfigError(
-                f"significance_sigma must be 0 (off) or >= 2, got {self.significance_sigma}"
+                f"significance_sigma (--significance-sigma) must be 0 (off) or >= 2, got {self.significance_sigma}"
             )
         if self.gain_dn_per_e is not None and not self.gain_dn_per_e > 0:
-            raise ConfigError(f"gain_dn_per_e must be positive or None, got {self.gain_dn_per_e}")
+            raise ConfigError(f"gain_dn_per_e (--gain) must be positive or None, got {self.gain_dn_per_e}")
 
 
 def _ro(a: object, dtype: type = float) -> np.ndarray:

@@ -8,7 +8,9 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import signal
 import sys
+import threading
 from collections.abc import Sequence
 
 from deckpose.cli import exit_codes
@@ -95,20 +97,39 @@ def interrupted_line(argv: Sequence[str], args: argparse.Namespace | None = None
     return f"deckpose{' ' + command if command else ''}: interrupted; {hint}"
 
 
+class Terminated(KeyboardInterrupt):
+    """SIGTERM, raised where the process is, so that it stops as a Ctrl-C does."""
+
+
+def _raise_terminated(signum: int, frame: object) -> None:
+    raise Terminated
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``deckpose`` console script; returns the exit code.
 
     A Ctrl-C anywhere (the commands' imports included) prints one line and returns
     :data:`~deckpose.cli.exit_codes.INTERRUPTED`; the stages' worker processes ignore it
-    and are stopped by the stage (:mod:`deckpose.worker_pool`).
+    and are stopped by the stage (:mod:`deckpose.worker_pool`). A SIGTERM (``kill``,
+    ``timeout``, a batch scheduler) is taken the same way and returns
+    :data:`~deckpose.cli.exit_codes.TERMINATED`, where Python's default died at once,
+    leaving the worker processes and their semaphores behind. The handler is installed
+    only where SIGTERM has its default action, in the main thread, for the call.
     """
     words = list(sys.argv[1:] if argv is None else argv)
     parsed: list[argparse.Namespace] = []
+    own_sigterm = (threading.current_thread() is threading.main_thread()
+                   and signal.getsignal(signal.SIGTERM) == signal.SIG_DFL)
+    if own_sigterm:
+        signal.signal(signal.SIGTERM, _raise_terminated)
     try:
         return _main(words, parsed)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         print(interrupted_line(words, parsed[0] if parsed else None), file=sys.stderr)
-        return exit_codes.INTERRUPTED
+        return exit_codes.TERMINATED if isinstance(exc, Terminated) else exit_codes.INTERRUPTED
+    finally:
+        if own_sigterm:
+            signal.signal(signal.SIGTERM, signal.SIG_DFL)
 
 
 def _main(argv: list[str], parsed: list[argparse.Namespace]) -> int:

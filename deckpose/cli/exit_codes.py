@@ -9,7 +9,9 @@
 * :data:`INTERRUPTED` (130, 128 + SIGINT): stopped by Ctrl-C (finished files kept; the same
   command resumes);
 * :data:`BROKEN_PIPE` (141, 128 + SIGPIPE): the reader of the output went away
-  (``deckpose ... | head``); nothing is printed.
+  (``deckpose ... | head``); nothing is printed;
+* :data:`TERMINATED` (143, 128 + SIGTERM): stopped by SIGTERM (``kill``, ``timeout``, a
+  scheduler), handled as a Ctrl-C: one line, finished files kept, the same command resumes.
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ NO_FRAME_OK = 3
 SOME_FAILED = 4
 INTERRUPTED = 130
 BROKEN_PIPE = 141
+TERMINATED = 143
 
 
 def frames_exit_code(n_frames: int, n_ok: int, *, strict: bool = False) -> int:

@@ -31,7 +31,7 @@ def register(subparsers: Any) -> None:
     """Add the ``motion`` subcommand."""
     p = subparsers.add_parser(
         "motion", help="generate (thesis / regular / sea state) or read a ship-motion series",
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter,
+        description=(__doc__ or "").replace("``", ""), formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("source", choices=["thesis", "regular", "sea", "read"], help="where the motion comes from")
     p.add_argument("file", nargs="?", help="input file for 'read' (.csv or .parquet)")

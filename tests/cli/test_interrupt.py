@@ -81,3 +81,39 @@ def test_ctrl_c_stops_a_two_worker_render_with_one_line_and_it_resumes(tmp_path:
     assert sorted(frames.frame_id) == list(range(N_FRAMES))
     assert all((out / image).is_file() for image in frames.image)
     assert not [p for p in out.rglob("*") if is_temp_name(p.name)]
+
+
+def test_sigterm_to_the_parent_stops_the_workers_too_with_one_line(tmp_path: Path) -> None:
+    """``kill PID`` or ``timeout`` signal the parent alone: it stops as for Ctrl-C (exit 143), and no
+    worker outlives it (Python's default died at once and left the workers and their semaphores)."""
+    cfg, out = _config(tmp_path), tmp_path / "ds"
+    proc = subprocess.Popen(_deckpose("render", str(cfg), str(out), "--workers", "2", "--no-progress"),
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    parts = out / ".parts"
+    deadline = time.monotonic() + 120.0
+    while proc.poll() is None and time.monotonic() < deadline:
+        if parts.is_dir() and any(parts.glob("*.json")):
+            break
+        time.sleep(0.05)
+    assert proc.poll() is None, f"the render ended before it could be stopped: {proc.communicate()}"
+    proc.send_signal(signal.SIGTERM)  # the parent only
+    try:
+        _, err = proc.communicate(timeout=STOP_WITHIN_S)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+        raise AssertionError(f"deckpose render did not stop within {STOP_WITHIN_S} s of SIGTERM") from None
+    assert proc.returncode == exit_codes.TERMINATED, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("deckpose render: interrupted"), err
+    # the process group (the parent's session) empties: every worker has gone (an exited
+    # worker may stay a zombie for a moment, until init reaps it)
+    deadline = time.monotonic() + STOP_WITHIN_S
+    while time.monotonic() < deadline:
+        try:
+            os.killpg(proc.pid, 0)
+        except ProcessLookupError:
+            return
+        time.sleep(0.2)
+    os.killpg(proc.pid, signal.SIGKILL)
+    raise AssertionError("worker processes outlived the stopped render")
