@@ -141,6 +141,33 @@ def claim_output(
     return p
 
 
+def held_by_another(folder: str | os.PathLike[str]) -> str | None:
+    """The job that holds ``folder``'s lock now, as its lock file names it; ``None`` if none does.
+
+    A lock this process holds, or a lock file a finished or killed job left (no process
+    holds it any more), is no other job's.
+    """
+    p = Path(folder).resolve()
+    if p in _HELD:
+        return None
+    import fcntl
+
+    try:
+        fd = os.open(p / LOCK_NAME, os.O_RDONLY)
+    except OSError:
+        return None
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        holder = ""
+        with contextlib.suppress(OSError):
+            holder = os.pread(fd, 512, 0).decode("utf-8", "replace").strip()
+        return holder or "holder unknown"
+    finally:
+        os.close(fd)  # (closing drops a shared lock taken above)
+    return None
+
+
 def release(folder: str | os.PathLike[str]) -> None:
     """Give up this process's lock on ``folder`` (no-op when it holds none)."""
     p = Path(folder).resolve()

@@ -26,6 +26,7 @@ from deckpose.camera_info import read_camera_info
 from deckpose.errors import InputDataError
 from deckpose.image_store import decode_image
 from deckpose.layout import DeckLayout, layout_from_dict, read_layout
+from deckpose.output_folder import held_by_another
 from deckpose.records import Frame
 from deckpose.run_folder import DATASET_FORMAT, RunPaths
 from deckpose.shell_command import deckpose_command
@@ -123,6 +124,11 @@ def open_dataset(path: str | os.PathLike[str]) -> FrameSet:
         )
     if manifest.get("complete") is False:
         done = len(list((root / ".parts").glob("*.json"))) if (root / ".parts").is_dir() else 0
+        writer = held_by_another(root)
+        if writer is not None:
+            raise InputDataError(
+                f"{root} is still being rendered by another deckpose job ({writer}; {done} of "
+                f"{manifest.get('n_frames', '?')} frames so far); wait for it to finish")
         raise InputDataError(
             f"{root} is an unfinished dataset ({done} of {manifest.get('n_frames', '?')} frames "
             f"rendered); finish it with: {deckpose_command('render', 'CONFIG.yaml', root, '--resume')}"

@@ -178,3 +178,32 @@ def test_read_only_output_is_one_line_for_every_writer(tmp_path, monkeypatch, ca
         assert code == 2, (argv[0], err)
         assert "cannot write in" in err and "Read-only file system" in err, (argv[0], err)
         assert "Traceback" not in err and err.count("\n") == 1
+
+
+def test_reading_a_dataset_another_job_is_rendering_says_so(tmp_path):
+    """An unfinished dataset a live render holds: wait for it (not 'finish it with --resume')."""
+    import json
+
+    from deckpose.detect.sources import open_dataset
+
+    from deckpose.errors import InputDataError
+    from deckpose.output_folder import held_by_another
+    from deckpose.run_folder import DATASET_FORMAT
+
+    folder = tmp_path / "ds"
+    folder.mkdir()
+    (folder / "manifest.json").write_text(json.dumps({"format": DATASET_FORMAT, "complete": False, "n_frames": 4}))
+    with pytest.raises(InputDataError, match="unfinished dataset.*--resume"):
+        open_dataset(folder)  # nobody holds it: a killed render, to be resumed
+    proc = _holder(folder)
+    try:
+        assert (held_by_another(folder) or "").startswith(f"deckpose render, pid {proc.pid}, since ")
+        with pytest.raises(InputDataError, match=rf"still being rendered by another deckpose job \(deckpose "
+                                                 rf"render, pid {proc.pid}.*0 of 4 frames so far\); wait"):
+            open_dataset(folder)
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait()
+        assert proc.stdout is not None
+        proc.stdout.close()
+    assert held_by_another(folder) is None  # the dead job's lock file is no one's
