@@ -124,12 +124,10 @@ def claim_output(
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
-        holder = ""
-        with contextlib.suppress(OSError):
-            holder = os.pread(fd, 512, 0).decode("utf-8", "replace").strip()
+        holder = _holder(fd)
         os.close(fd)
         raise OutputFolderError(
-            f"{p} is being written by another deckpose job ({holder or 'holder unknown'}); "
+            f"{p} is being written by another deckpose job ({holder}); "
             "wait for it to finish or choose another folder"
         ) from None
     os.ftruncate(fd, 0)
@@ -139,6 +137,14 @@ def claim_output(
     # no other deckpose process writes here now: what a killed one left half-written goes
     remove_stale_temps(p)
     return p
+
+
+def _holder(fd: int) -> str:
+    """What a lock file open as ``fd`` says of the job that holds it ("holder unknown" if nothing)."""
+    text = ""
+    with contextlib.suppress(OSError):
+        text = os.pread(fd, 512, 0).decode("utf-8", "replace").strip()
+    return text or "holder unknown"
 
 
 def held_by_another(folder: str | os.PathLike[str]) -> str | None:
@@ -159,10 +165,7 @@ def held_by_another(folder: str | os.PathLike[str]) -> str | None:
     try:
         fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
     except BlockingIOError:
-        holder = ""
-        with contextlib.suppress(OSError):
-            holder = os.pread(fd, 512, 0).decode("utf-8", "replace").strip()
-        return holder or "holder unknown"
+        return _holder(fd)
     finally:
         os.close(fd)  # (closing drops a shared lock taken above)
     return None

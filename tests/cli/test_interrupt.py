@@ -40,6 +40,27 @@ def _deckpose(*argv: str) -> list[str]:
     return [sys.executable, "-m", "deckpose", *argv]
 
 
+def _wait_for_a_frame(proc: subprocess.Popen, parts: Path) -> None:
+    """Until the render has written a frame (its part file); it must still be running."""
+    deadline = time.monotonic() + 120.0
+    while proc.poll() is None and time.monotonic() < deadline:
+        if parts.is_dir() and any(parts.glob("*.json")):
+            break
+        time.sleep(0.05)
+    assert proc.poll() is None, f"the render ended before it could be stopped: {proc.communicate()}"
+
+
+def _stderr_once_stopped(proc: subprocess.Popen, what: str) -> str:
+    """The stopped command's stderr; it must stop within :data:`STOP_WITHIN_S` (else killed, and fail)."""
+    try:
+        _, err = proc.communicate(timeout=STOP_WITHIN_S)
+    except subprocess.TimeoutExpired:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.communicate()
+        raise AssertionError(f"deckpose render did not stop within {STOP_WITHIN_S} s of {what}") from None
+    return err
+
+
 def test_ctrl_c_stops_a_two_worker_render_with_one_line_and_it_resumes(tmp_path: Path) -> None:
     cfg, out = _config(tmp_path), tmp_path / "ds"
     # pytest started in the background of a shell (``&``, nohup) runs with SIGINT ignored, which
@@ -51,21 +72,9 @@ def test_ctrl_c_stops_a_two_worker_render_with_one_line_and_it_resumes(tmp_path:
     finally:
         signal.signal(signal.SIGINT, handler)
     parts = out / ".parts"
-    deadline = time.monotonic() + 120.0
-    while proc.poll() is None and time.monotonic() < deadline:  # until a frame is written
-        if parts.is_dir() and any(parts.glob("*.json")):
-            break
-        time.sleep(0.05)
-    assert proc.poll() is None, f"the render ended before it could be interrupted: {proc.communicate()}"
+    _wait_for_a_frame(proc, parts)
     os.killpg(proc.pid, signal.SIGINT)  # parent and workers, as Ctrl-C in a terminal
-    t0 = time.monotonic()
-    try:
-        _, err = proc.communicate(timeout=STOP_WITHIN_S)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.communicate()
-        raise AssertionError(f"deckpose render did not stop within {STOP_WITHIN_S} s of Ctrl-C") from None
-    assert time.monotonic() - t0 < STOP_WITHIN_S
+    err = _stderr_once_stopped(proc, "Ctrl-C")
     assert proc.returncode == exit_codes.INTERRUPTED, err
     assert "Traceback" not in err and "KeyboardInterrupt" not in err, err
     lines = err.strip().splitlines()
@@ -89,20 +98,9 @@ def test_sigterm_to_the_parent_stops_the_workers_too_with_one_line(tmp_path: Pat
     cfg, out = _config(tmp_path), tmp_path / "ds"
     proc = subprocess.Popen(_deckpose("render", str(cfg), str(out), "--workers", "2", "--no-progress"),
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
-    parts = out / ".parts"
-    deadline = time.monotonic() + 120.0
-    while proc.poll() is None and time.monotonic() < deadline:
-        if parts.is_dir() and any(parts.glob("*.json")):
-            break
-        time.sleep(0.05)
-    assert proc.poll() is None, f"the render ended before it could be stopped: {proc.communicate()}"
+    _wait_for_a_frame(proc, out / ".parts")
     proc.send_signal(signal.SIGTERM)  # the parent only
-    try:
-        _, err = proc.communicate(timeout=STOP_WITHIN_S)
-    except subprocess.TimeoutExpired:
-        os.killpg(proc.pid, signal.SIGKILL)
-        proc.communicate()
-        raise AssertionError(f"deckpose render did not stop within {STOP_WITHIN_S} s of SIGTERM") from None
+    err = _stderr_once_stopped(proc, "SIGTERM")
     assert proc.returncode == exit_codes.TERMINATED, err
     lines = err.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("deckpose render: interrupted"), err
