@@ -20,9 +20,15 @@ def _sleep(seconds: float) -> float:
 
 
 def test_workers_ignore_sigint() -> None:
-    with worker_pool(2) as pool:
-        assert all(pool.map(_sigint_ignored, range(4)))
-    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the parent's is restored
+    # pytest started in the background of a shell (``&``, nohup) runs with SIGINT ignored; the
+    # parent here handles it, as a command run in a terminal does
+    outer = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with worker_pool(2) as pool:
+            assert all(pool.map(_sigint_ignored, range(4)))
+        assert signal.getsignal(signal.SIGINT) is signal.default_int_handler  # the parent's is restored
+    finally:
+        signal.signal(signal.SIGINT, outer)
 
 
 def test_an_interrupt_cancels_the_queue_and_stops_busy_workers_within_the_grace() -> None:
