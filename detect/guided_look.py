@@ -52,7 +52,7 @@ from deckpose.detect.colour import blob_rgb_flux, redness
 from deckpose.detect.identification import Identification, IdentifyOptions
 from deckpose.detect.registry import BlobRow, Blobs, DetectorOptions, KernelFn
 from deckpose.detect.ring_homography import apply_homography
-from deckpose.detect.significance import clipped_difference_noise
+from deckpose.detect.search_noise import clipped_difference_noise
 from deckpose.detect.synthetic import pixel_fractions
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
@@ -151,7 +151,7 @@ def guided_threshold(n_positions: int, false_alarm: float = FALSE_ALARM_PER_FRAM
 def channel_noise(image: np.ndarray) -> tuple[FloatArray, FloatArray]:
     """Each channel's background level and pixel noise, DN, ((C,), (C,)).
 
-    The noise is :func:`~deckpose.detect.significance.clipped_difference_noise` of the
+    The noise is :func:`~deckpose.detect.search_noise.clipped_difference_noise` of the
     channel (horizontal pixel differences, a clipped standard deviation, which keeps
     the rounding's variance on a quantised frame), and on an integer image at least
     ``sqrt(1/12)`` DN: the variance of rounding to the 1-DN step, which no stored
