@@ -116,7 +116,7 @@ def run_benchmark(
     runs = detect_frames_with(
         fs, detectors, options=options, identify_options=IdentifyOptions(), progress=progress
     )
-    unread = unreadable_frames([runs[d][1] for d in detectors])
+    unread = unreadable_frames(runs[detectors[0]][1])
     if len(unread) == len(fs.sources):
         first = next(iter(unread.values()), "no frames")
         raise InputDataError(f"{dataset}: none of its {len(fs.sources)} frames can be read ({first})")
@@ -146,29 +146,22 @@ def run_benchmark(
     return pd.concat(summaries, ignore_index=True), pd.concat(matches, ignore_index=True)
 
 
-def unreadable_frames(frame_tables: list[pd.DataFrame]) -> dict[int, str]:
-    """Frames every detector failed on with one reason and no detection: the frame's own fault.
+def unreadable_frames(frames_table: pd.DataFrame) -> dict[int, str]:
+    """Frames the loader could not use (a missing, damaged or mis-sized image): the frame's own fault.
 
     Parameters
     ----------
-    frame_tables : list of DataFrame
-        Each detector's frames table (``frame_id``, ``ok``, ``reason``, ``n_detections``),
-        one row per frame, in the same frame order.
+    frames_table : DataFrame
+        A detector's frames table (``frame_id``, ``ok``, ``reason``); the loader's reason
+        is every detector's, so any detector's table will do.
 
     Returns
     -------
     dict
-        Frame id to the reason (a missing or undecodable image, a size that is not the
-        camera's), in frame order.
+        Frame id to the loader's reason (:data:`~deckpose.detect.sources.UNREADABLE_FRAME`), in frame order.
     """
-    first = frame_tables[0]
-    bad = ~first["ok"].to_numpy(bool) & (first["n_detections"].to_numpy() == 0)
-    for t in frame_tables[1:]:
-        bad &= (~t["ok"].to_numpy(bool) & (t["n_detections"].to_numpy() == 0)
-                & (t["reason"].to_numpy() == first["reason"].to_numpy()))
-    if len(frame_tables) == 1:  # one detector: only what the frame loader says is the frame's fault
-        bad &= np.array([bool(UNREADABLE_FRAME.match(str(r))) for r in first["reason"]], bool)
-    return {int(f): str(r) for f, r in zip(first["frame_id"][bad], first["reason"][bad])}
+    bad = [not ok and bool(UNREADABLE_FRAME.match(str(r))) for ok, r in zip(frames_table["ok"], frames_table["reason"])]
+    return {int(f): str(r) for f, r, b in zip(frames_table["frame_id"], frames_table["reason"], bad) if b}
 
 
 def _fmt(x: float, nd: int = 3) -> str:

@@ -183,19 +183,17 @@ def _weigh_by_noise(
     weights are near 1 and the centre is the disc's. Returns the positions in ``again``
     whose floor-pass row is kept (this pass degenerate: the step ran off the frame).
     """
-    done = [(k, i) for k, i in enumerate(again) if rows[i] is not None]
+    done = [(k, i, disc) for k, i in enumerate(again) if (disc := rows[i]) is not None]
     if not done:
         return []
-    disc_rows = [rows[i] for _, i in done]
-    starts = np.array([(r[0], r[1], r[4], r[4]) for r in disc_rows if r is not None])
-    flux = np.array([r[3] for r in disc_rows if r is not None])
-    amplitude = flux / (2.0 * math.pi * starts[:, 2] ** 2)
-    weighed = _windowed_centroids([cands[i] for _, i in done], [floors[k] for k, _ in done], starts,
+    starts = np.array([(d[0], d[1], d[4], d[4]) for _, _, d in done])
+    amplitude = np.array([d[3] for _, _, d in done]) / (2.0 * math.pi * starts[:, 2] ** 2)
+    weighed = _windowed_centroids([cands[i] for _, i, _ in done], [floors[k] for k, _, _ in done], starts,
                                   window_sigma, max_iter, tol_px, cov_of=np.full(len(done), covariance),
                                   amplitude_dn=amplitude)
     kept = []
-    for (k, i), disc, row in zip(done, disc_rows, weighed):
-        if row is not None and disc is not None:
+    for (k, i, disc), row in zip(done, weighed):
+        if row is not None:
             rows[i] = (row[0], row[1], row[2], disc[3], disc[4], disc[5])
         else:
             kept.append(k)

@@ -253,8 +253,7 @@ def _check_video_sizes(cfg: RenderConfig, source: str) -> None:
     H.264 refuses an odd size, and OpenCV's ``mp4v`` and ``vp9`` writers silently drop
     the odd row and column, so the frames would come back smaller than the camera.
     """
-    odd = [c.model() for c in cfg.cameras]
-    odd = [m for m in odd if m.width_px % 2 or m.height_px % 2]
+    odd = [m for m in (c.model() for c in cfg.cameras) if m.width_px % 2 or m.height_px % 2]
     if odd:
         sizes = ", ".join(f"{m.name} {m.width_px}x{m.height_px}" for m in odd)
         raise ConfigError(f"{source}: sensor.video needs an even image width and height (4:2:0 chroma), "
