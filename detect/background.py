@@ -91,6 +91,26 @@ def row_median(a: np.ndarray) -> np.ndarray:
     return (s[:, m // 2 - 1] + s[:, m // 2]) / 2
 
 
+def median(values: np.ndarray) -> float:
+    """``float(np.median(values))``, exactly, by a sort where every value is finite.
+
+    ``np.median`` partitions, which is slow where many values tie (a frame's integer
+    DN and its block sums: 30,000-80,000 samples of a few hundred distinct values take
+    4-5x a sort); a NaN or an empty array is left to ``np.median``.
+
+    Parameters
+    ----------
+    values : array
+        Any shape; flattened.
+    """
+    v = np.asarray(values).ravel()
+    if v.size == 0 or (v.dtype.kind == "f" and not np.isfinite(v).all()):
+        return float(np.median(v))
+    if v.dtype.kind != "f":  # the mean of the two middle values in float64, as np.median's
+        v = v.astype(np.float64)
+    return float(row_median(v[None])[0])
+
+
 def clipped_mean(values: np.ndarray, k_sigma: float = 3.0, passes: int = 3) -> np.ndarray:
     """Mean of each column of ``values`` within ``k_sigma`` standard deviations, (m,).
 
@@ -162,8 +182,8 @@ def clipped_std_rows(d: np.ndarray, sd0: np.ndarray | None = None, *, clip: floa
 def robust_stats(values: np.ndarray) -> tuple[float, float]:
     """Median and MAD-based standard deviation (floored at :data:`MIN_NOISE_DN`)."""
     v = np.asarray(values, dtype=np.float64).ravel()
-    med = float(np.median(v))
-    sigma = MAD_TO_SIGMA * float(np.median(np.abs(v - med)))
+    med = median(v)
+    sigma = MAD_TO_SIGMA * median(np.abs(v - med))
     if sigma < MIN_NOISE_DN:
         # Heavily quantised noise: the MAD can be 0; fall back to the standard deviation
         # of the central 80 % of the distribution.
@@ -308,5 +328,5 @@ def border_noise(pixels: np.ndarray) -> float:
             np.diff(p[:, -2:], axis=0).ravel(),
         ]
     )
-    med = float(np.median(d))
-    return max(MAD_TO_SIGMA * float(np.median(np.abs(d - med))) / math.sqrt(2.0), MIN_NOISE_DN)
+    med = median(d)
+    return max(MAD_TO_SIGMA * median(np.abs(d - med)) / math.sqrt(2.0), MIN_NOISE_DN)

@@ -16,7 +16,7 @@ import math
 
 import cv2
 import numpy as np
-from deckpose.detect.background import MIN_NOISE_DN, clipped_std_rows
+from deckpose.detect.background import MIN_NOISE_DN, clipped_std_rows, median
 
 
 def _neighbour_pairs(S: np.ndarray, samples: int) -> tuple[np.ndarray, np.ndarray]:
@@ -71,7 +71,7 @@ def noise_skewness(S: np.ndarray, noise: float, samples: int = 60_000) -> float:
     if d.size < 100 or not noise > 0:
         return 0.0
     keep = (np.abs(d) < 4.0 * math.sqrt(2.0) * noise) & (
-        np.abs(t - np.median(t)) < 8.0 * math.sqrt(2.0) * noise)
+        np.abs(t - median(t)) < 8.0 * math.sqrt(2.0) * noise)
     if np.count_nonzero(keep) < 100:
         return 0.0
     d, t = d[keep], t[keep]

@@ -34,7 +34,7 @@ import math
 
 import cv2
 import numpy as np
-from deckpose.detect.background import MIN_NOISE_DN, row_median
+from deckpose.detect.background import MIN_NOISE_DN, median, row_median
 from deckpose.detect.defects import point_defects
 from deckpose.detect.search_noise import (
     clipped_difference_noise,
@@ -259,7 +259,7 @@ def _spots_at_scale(
     sigma_G = noise_S * norm
     h, w = G.shape
     step = max(1, int(math.sqrt(h * w / 30_000)))
-    bg = float(np.median(G[::step, ::step]))
+    bg = median(G[::step, ::step])
     ys, xs = _local_maxima(G, bg + significance_sigma * sigma_G)
     # A spot is a local maximum above the frame's background that passes (a) the prefilter:
     # above the local mean of a box as wide as the largest ring by PREFILTER_FRACTION of the

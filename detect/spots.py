@@ -32,6 +32,7 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from deckpose.detect.background import median
 from deckpose.detect.defects import point_defects
 from deckpose.detect.registry import DetectorOptions
 
@@ -247,7 +248,7 @@ def spot_search(
     small = peak_block_max(image, f)
     if background_dn is None:
         step = max(1, int(math.sqrt(H * W / 30_000)))
-        background_dn = float(np.median(peak_channel(image[::step, ::step])))
+        background_dn = median(peak_channel(image[::step, ::step]))
     bg = background_dn
     bright = bright_level(image, small, f)
     if noise_dn is None:

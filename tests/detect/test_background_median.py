@@ -1,0 +1,26 @@
+"""background.median: np.median's value, exactly, by a sort."""
+
+import numpy as np
+import pytest
+from deckpose.detect.background import median
+
+
+@pytest.mark.parametrize("dtype", [np.uint8, np.uint16, np.int16, np.float32, np.float64])
+@pytest.mark.parametrize("n", [1, 2, 7, 30_000, 30_001])
+def test_median_is_numpy_median(dtype: type, n: int) -> None:
+    rng = np.random.default_rng(n)
+    # many ties (a frame's integer DN) and values near the dtype's top (no overflow of the
+    # two middle values' sum)
+    top = 255 if dtype == np.uint8 else 30_000
+    v = rng.integers(top - 40, top + 1, n).astype(dtype)
+    if np.dtype(dtype).kind == "f":
+        v = v + rng.normal(0, 0.3, n).astype(dtype)
+    assert median(v) == float(np.median(v))
+    assert median(v.reshape(1, -1)) == float(np.median(v))
+
+
+def test_median_leaves_nan_and_empty_to_numpy() -> None:
+    v = np.array([1.0, np.nan, 3.0])
+    assert np.isnan(median(v))
+    with pytest.warns(RuntimeWarning):
+        assert np.isnan(median(np.zeros(0)))
