@@ -17,6 +17,7 @@ import math
 import cv2
 import numpy as np
 from deckpose.detect.background import MIN_NOISE_DN, clipped_std_rows, median
+from scipy.optimize import minimize_scalar
 
 
 def _neighbour_pairs(S: np.ndarray, samples: int) -> tuple[np.ndarray, np.ndarray]:
@@ -108,3 +109,83 @@ def smoothed_skew_factor(sigma: float) -> float:
     """
     g = _gaussian_kernel(sigma)
     return float(np.sum(g**3) ** 2 / np.sum(g**2) ** 3)
+
+
+#: A frame's background is sparse counts where at most this fraction of its neighbour pairs
+#: differ (:func:`sparse_count_rate`).
+SPARSE_MAX_FRACTION = 0.05
+#: Pair differences larger than this (whole DN of the block sums) are a spot's or an edge's,
+#: not the background's counts.
+SPARSE_MAX_STEP = 3.0
+
+
+def sparse_count_rate(S: np.ndarray, samples: int = 60_000) -> float | None:
+    """Rate of chance counts per pixel of an exact-integer image whose background is sparse.
+
+    A dark 8-bit frame whose noise does not dither the rounding is a flat level with rare
+    single-DN counts above it (a 15 e background at 78 e a DN: one channel-pixel in some
+    thousands). Its pixel noise is then no Gaussian's: the clipped difference noise reads 0
+    and the counts' skew is beyond a Cornish-Fisher correction. Where at most
+    :data:`SPARSE_MAX_FRACTION` of the horizontal neighbour pairs of ``S`` differ, the counts
+    are modelled as Poisson with the rate ``mean(d^2) / 2`` of their differences ``d`` (pairs
+    more than :data:`SPARSE_MAX_STEP` apart left out: a spot or an edge), at least ``3 / n``
+    of the ``n`` pairs (none counted in ``n`` pairs bounds the rate at that, 95 %).
+
+    Parameters
+    ----------
+    S : (h, w) array
+        Exact sums of whole DN (block sums of an 8-bit frame), the search's image.
+
+    Returns
+    -------
+    float or None
+        Counts (DN) per pixel of ``S``; ``None`` where the background is not sparse.
+    """
+    left, right = _neighbour_pairs(S, samples)
+    d = (np.asarray(right, np.float64) - left).ravel()
+    d = d[np.isfinite(d)]
+    if d.size < 100 or np.count_nonzero(d) > SPARSE_MAX_FRACTION * d.size:
+        return None
+    d = d[np.abs(d) <= SPARSE_MAX_STEP]
+    return max(float(np.mean(d * d)) / 2.0, 3.0 / max(d.size, 1))
+
+
+def count_threshold(rate: float, sigma: float, tail_probability: float) -> float:
+    """Level of a Gaussian-smoothed image of Poisson counts passed with at most a given probability.
+
+    The smoothed value is ``G = sum_j w_j X_j`` with the kernel's weights ``w_j``
+    (:func:`gaussian_norm`'s kernel, 2-D) and independent counts ``X_j`` of mean ``rate``. By
+    Chernoff's bound, ``P(G - E G >= T) <= exp(rate sum_j (e^(t w_j) - 1 - t w_j) - t T)`` for
+    every ``t > 0``; the threshold returned is the smallest ``T`` whose bound, minimised over
+    ``t``, is ``tail_probability``. On dense counts it approaches the Gaussian threshold (about
+    ``sqrt(2 ln(1/p))`` sigmas, a little above the quantile); on sparse ones it asks for the
+    few counts together that chance does not give.
+
+    Parameters
+    ----------
+    rate : float
+        Mean count per pixel of the unsmoothed image, > 0.
+    sigma : float
+        The smoothing's sigma, pixels.
+    tail_probability : float
+        In (0, 1).
+
+    Returns
+    -------
+    float
+        ``T``, above the smoothed image's mean, in its units.
+    """
+    g = _gaussian_kernel(sigma)
+    w = np.outer(g, g).ravel()
+    log_p = math.log(tail_probability)
+
+    def level(t: float) -> float:
+        return (rate * float(np.sum(np.expm1(t * w) - t * w)) - log_p) / t
+
+    # T(t) is convex-like in t: bracket its minimum on a log scale, then refine
+    ts = np.geomspace(1e-3, 200.0 / float(w.max()), 80)
+    vals = np.array([level(float(t)) for t in ts])
+    i = int(np.argmin(vals))
+    lo, hi = ts[max(i - 1, 0)], ts[min(i + 1, ts.size - 1)]
+    res = minimize_scalar(level, bounds=(float(lo), float(hi)), method="bounded", options={"xatol": 1e-6})
+    return float(min(res.fun, vals[i]))
