@@ -101,8 +101,8 @@ def cog_centroids(
     flux and size stay the disc's. ``above_floor=False`` keeps the first pass.
     An unclipped spot found by its significance (not ``clip_signal``) is measured
     through a Gaussian window instead (:func:`_matched_centroid`). ``covariance=False``
-    leaves the disc-window rows' covariances NaN (for a caller that reads the centres,
-    fluxes and sizes alone: they are the same either way).
+    leaves the rows' covariances NaN (for a caller that reads the centres, fluxes and
+    sizes alone: they are the same either way).
 
     A clipped core's covariance also holds its pixel-phase error
     (:func:`~deckpose.detect.clipped_phase.clipped_phase_cov`, from its saturated pixels,
@@ -119,7 +119,7 @@ def cog_centroids(
     for i, cand in enumerate(cands):
         s_full = cand.signal()
         if not cand.clip_signal and not cand.saturated[cand.mask].any():
-            rows[i] = _matched_centroid(cand, s_full)
+            rows[i] = _matched_centroid(cand, s_full, covariance)
             continue
         ms = np.where(cand.mask, s_full, 0.0)
         F = ms.sum()
@@ -230,14 +230,15 @@ def _add_clipped_phase_cov(
         rows[i] = (u, v, cov + term, f, size, score)
 
 
-def _matched_centroid(cand: Candidate, s_full: np.ndarray) -> Row | None:
+def _matched_centroid(cand: Candidate, s_full: np.ndarray, covariance: bool = True) -> Row | None:
     """Gaussian-windowed centroid of an unclipped spot found by its significance.
 
     The window's sigma starts from the blob's half-maximum region (of the window
     smoothed by a 1 px Gaussian: radius ``1.177 sqrt(sigma^2 + 1)``) and is refined
     twice from the windowed second moment (a Gaussian spot of sigma ``s`` seen through
     a Gaussian window of sigma ``w`` has moment ``s^2 w^2 / (s^2 + w^2)``), within
-    0.7-1.4x its start so noise cannot run it away.
+    0.7-1.4x its start so noise cannot run it away. Only the last window's row gets a
+    covariance (NaN with ``covariance=False``); the others give its start.
     """
     vv, uu = np.nonzero(cand.mask)
     wts = np.maximum(s_full[vv, uu], 0.0)
@@ -249,16 +250,21 @@ def _matched_centroid(cand: Candidate, s_full: np.ndarray) -> Row | None:
     sigma0 = math.sqrt(max((r_half / 1.1774) ** 2 - 1.0, 0.25))
     sigma_w = sigma0
     row = None
+    last: tuple[tuple[float, float, int, int, int, int], float] | None = None
     for _ in range(3):
-        row = gaussian_window_centroid(cand, s_full, u, v, sigma_w)
-        if row is None:
+        fit = _gaussian_window_fit(cand, s_full, u, v, sigma_w)
+        row = None if fit is None else _gaussian_window_row(cand, s_full, fit, sigma_w, covariance=False)
+        if fit is None or row is None:
             return None
+        last = (fit, sigma_w)
         u, v = row[0], row[1]
         m2 = _window_moment(cand, s_full, u, v, sigma_w)
         if not (0.0 < m2 < sigma_w * sigma_w):
             break
         s2 = m2 * sigma_w * sigma_w / (sigma_w * sigma_w - m2) - 1.0 / 12.0
         sigma_w = float(np.clip(math.sqrt(max(s2, 0.0)), 0.7 * sigma0, 1.4 * sigma0))
+    if covariance and last is not None:
+        return _gaussian_window_row(cand, s_full, last[0], last[1])
     return row
 
 
@@ -507,6 +513,15 @@ def gaussian_window_centroid(
     ``s_full`` is the candidate's signal, DN (h, w). ``None`` when the window's flux
     is not positive or the estimate runs away.
     """
+    fit = _gaussian_window_fit(cand, s_full, u_px, v_px, sigma_w_px, max_iter, tol_px)
+    return None if fit is None else _gaussian_window_row(cand, s_full, fit, sigma_w_px)
+
+
+def _gaussian_window_fit(
+    cand: Candidate, s_full: np.ndarray, u_px: float, v_px: float, sigma_w_px: float,
+    max_iter: int = 30, tol_px: float = 1e-4,
+) -> tuple[float, float, int, int, int, int] | None:
+    """The iteration of :func:`gaussian_window_centroid`: ``(u, v, c0, c1, r0, r1)``, its centre and last square, or ``None``."""
     h, w = s_full.shape
     u, v = u_px, v_px
     inv2s2 = 1.0 / (2.0 * sigma_w_px**2)
@@ -539,16 +554,28 @@ def gaussian_window_centroid(
         if math.hypot(u - u_px, v - v_px) > 2.0 * sigma_w_px + 1.0:
             return None
         if step < tol_px or it == max_iter:
-            break
-    else:  # only an empty loop ends without a break (the last iteration breaks)
-        raise ValueError(f"max_iter must be >= 0, got {max_iter}")
+            return u, v, c0, c1, r0, r1
+    # only an empty loop ends without returning (the last iteration returns)
+    raise ValueError(f"max_iter must be >= 0, got {max_iter}")
+
+
+def _gaussian_window_row(
+    cand: Candidate, s_full: np.ndarray, fit: tuple[float, float, int, int, int, int], sigma_w_px: float,
+    *, covariance: bool = True,
+) -> Row | None:
+    """The row of :func:`gaussian_window_centroid` at its fit (``None``: no flux in the window); its covariance NaN with ``covariance=False``."""
+    u, v, c0, c1, r0, r1 = fit
+    inv2s2 = 1.0 / (2.0 * sigma_w_px**2)
+    s = s_full[r0:r1, c0:c1]
     du = np.arange(c0, c1, dtype=float)[None, :] + cand.u0 - u
     dv = np.arange(r0, r1, dtype=float)[:, None] + cand.v0 - v
     win = np.exp(-(du * du + dv * dv) * inv2s2)
-    var = cand.variance(s) * win**2
     F = float((win * s).sum())
     if not F > 0:
         return None
+    if not covariance:
+        return cand.blob(u, v, flux_dn=2.0 * F, size_px=sigma_w_px, cov_px2=np.full((2, 2), np.nan))
+    var = cand.variance(s) * win**2
     cov = 4.0 * np.array(
         [
             [(var * du * du).sum(), (var * du * dv).sum()],

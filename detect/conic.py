@@ -15,15 +15,22 @@ from deckpose.errors import check_shape
 FloatArray = NDArray[np.float64]
 
 
-def _normaliser(points: FloatArray) -> FloatArray:
-    c = points.mean(axis=0)
-    s = np.sqrt(2.0) / max(float(np.mean(np.linalg.norm(points - c, axis=1))), 1e-12)
-    return np.array([[s, 0.0, -s * c[0]], [0.0, s, -s * c[1]], [0.0, 0.0, 1.0]])
+def _normalisers(points: FloatArray) -> FloatArray:
+    """Hartley normalisation of each point set, (M, 3, 3): centroid to 0, mean distance sqrt(2)."""
+    c = points.mean(axis=1)  # (M, 2)
+    spread = np.linalg.norm(points - c[:, None, :], axis=2).mean(axis=1)
+    s = np.sqrt(2.0) / np.maximum(spread, 1e-12)
+    T = np.zeros((points.shape[0], 3, 3))
+    T[:, 0, 0] = T[:, 1, 1] = s
+    T[:, 0, 2] = -s * c[:, 0]
+    T[:, 1, 2] = -s * c[:, 1]
+    T[:, 2, 2] = 1.0
+    return T
 
 
 def _design(points: FloatArray) -> FloatArray:
-    x, y = points[:, 0], points[:, 1]
-    return np.column_stack([x * x, x * y, y * y, x, y, np.ones_like(x)])
+    x, y = points[..., 0], points[..., 1]
+    return np.stack([x * x, x * y, y * y, x, y, np.ones_like(x)], axis=-1)
 
 
 def conic_matrix(conic: FloatArray) -> FloatArray:
@@ -35,6 +42,8 @@ def conic_matrix(conic: FloatArray) -> FloatArray:
 def fit_conic(points_px: FloatArray) -> FloatArray:
     """Algebraic least-squares conic through ``points_px`` (N >= 5), unit-norm coefficients.
 
+    A batch of one of :func:`fit_conics`.
+
     Parameters
     ----------
     points_px : (N, 2) array of float
@@ -45,13 +54,40 @@ def fit_conic(points_px: FloatArray) -> FloatArray:
     """
     p = np.asarray(points_px, dtype=float)
     check_shape("points_px", p, (None, 2))
-    T = _normaliser(p)
-    pn = p @ T[:2, :2].T + T[:2, 2]
+    return fit_conics(p[None])[0]
+
+
+def fit_conics(points_px: FloatArray) -> FloatArray:
+    """Algebraic least-squares conic through each of M point sets (N >= 5 each), unit-norm coefficients.
+
+    Each set is Hartley-normalised, and its conic is the design matrix's right singular
+    vector of the least singular value, mapped back. A set's conic does not depend on
+    the others in the batch (each goes through the same LAPACK and BLAS calls as alone).
+
+    Parameters
+    ----------
+    points_px : (M, N, 2) array of float
+
+    Returns
+    -------
+    (M, 6) array of float
+    """
+    p = np.asarray(points_px, dtype=float)
+    check_shape("points_px", p, (None, None, 2))
+    T = _normalisers(p)
+    pn = p @ T[:, :2, :2].transpose(0, 2, 1) + T[:, None, :2, 2]
     _, _, vt = np.linalg.svd(_design(pn))
-    Qn = conic_matrix(vt[-1])
-    Q = T.T @ Qn @ T
-    c = np.array([Q[0, 0], 2 * Q[0, 1], Q[1, 1], 2 * Q[0, 2], 2 * Q[1, 2], Q[2, 2]])
-    return c / np.linalg.norm(c)
+    a = vt[:, -1]  # (M, 6)
+    Qn = np.stack([
+        np.stack([a[:, 0], a[:, 1] / 2, a[:, 3] / 2], axis=-1),
+        np.stack([a[:, 1] / 2, a[:, 2], a[:, 4] / 2], axis=-1),
+        np.stack([a[:, 3] / 2, a[:, 4] / 2, a[:, 5]], axis=-1),
+    ], axis=1)
+    Q = T.transpose(0, 2, 1) @ Qn @ T
+    c = np.stack([Q[:, 0, 0], 2 * Q[:, 0, 1], Q[:, 1, 1], 2 * Q[:, 0, 2], 2 * Q[:, 1, 2], Q[:, 2, 2]],
+                 axis=-1)
+    # each norm as np.linalg.norm's of one vector (a dot product: (1, 6) @ (6, 1) per set)
+    return c / np.sqrt(c[:, None, :] @ c[:, :, None])[:, 0]
 
 
 def ellipse_centre(conic: FloatArray) -> FloatArray:

@@ -41,7 +41,8 @@ def estimate_gain(cands: list[Candidate], window_sigma: float = 3.0, max_blobs: 
             pixel_fractions(v, sigma, np.arange(h) + c.v0),
             pixel_fractions(u, sigma, np.arange(w) + c.u0),
         )
-        uu, vv = c.grid()
+        uu = np.arange(w, dtype=float)[None, :] + c.u0  # broadcast: Candidate.grid()'s values
+        vv = np.arange(h, dtype=float)[:, None] + c.v0
         core = (np.hypot(uu - u, vv - v) <= 2.0 * sigma) & ~c.saturated
         r2 = (c.signal() - model)[core] ** 2
         num += float(np.sum(r2 - c.noise_dn**2))

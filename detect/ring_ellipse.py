@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Iterator
 
 import numpy as np
 from deckpose.detect import conic as cn
@@ -42,47 +43,74 @@ MIN_RANSAC_SAMPLES = 8
 def ransac_ellipse(
     points: FloatArray, opts: IdentifyOptions, max_inliers: int
 ) -> NDArray[np.bool_]:
-    """Largest set of points (at most ``max_inliers``) on one ellipse (boolean mask)."""
+    """Largest set of points (at most ``max_inliers``) on one ellipse (boolean mask).
+
+    The samples' conics are fitted a chunk at a time (:func:`~deckpose.detect.conic.fit_conics`,
+    each as alone), and the samples are then taken in their order, as one at a time: the
+    adaptive stop ends the search at the same sample, and the random stream is the same
+    (the chunk's samples past the stop are drawn and not used).
+    """
     n = points.shape[0]
     best = np.zeros(n, bool)
     best_cost = math.inf
     exhaustive = math.comb(n, 5) <= 100
-    if exhaustive:
-        samples: object = itertools.combinations(range(n), 5)
-    else:
-        rng = np.random.default_rng(opts.seed)
-        samples = (rng.choice(n, 5, replace=False) for _ in range(opts.max_ransac))
     needed = opts.max_ransac
     tried = 0
     # The local optimisation's result is a function of the inlier set alone: most samples
     # of a ring share one, whose refit is made once.
     refits: dict[bytes, tuple[NDArray[np.bool_] | None, FloatArray, float]] = {}
-    for s in samples:  # type: ignore[attr-defined]
-        c = cn.fit_conic(points[list(s)])
-        inl, d, tol = _ellipse_inliers(c, points, opts)
-        if inl is None or inl.sum() <= 5:
-            continue
-        # Local optimisation: refit on the inliers and count again, so a conic that
-        # only passes near points by the first-order distance does not win.
-        key = inl.tobytes()
-        if key not in refits:
-            refits[key] = _ellipse_inliers(cn.fit_conic(points[inl]), points, opts)
-        inl, d, tol = refits[key]
-        if inl is None:
-            continue
-        k = int(inl.sum())
-        if k < 5 or k > max_inliers:
-            continue
-        cost = -k + float(np.sum(np.minimum(d, tol))) / (tol * (n + 1))
-        if cost < best_cost:
-            best, best_cost = inl, cost
-            # Adaptive stopping: samples needed to draw one all-inlier 5-set with 99.9 %.
-            w5 = (k / n) ** 5
-            needed = math.ceil(math.log(1e-3) / math.log1p(-w5)) if w5 < 1 else 1
-        tried += 1
-        if not exhaustive and tried >= max(needed, MIN_RANSAC_SAMPLES):
-            break
+    for chunk in _sample_chunks(n, opts, exhaustive):
+        for c in cn.fit_conics(points[chunk]):
+            inl, d, tol = _ellipse_inliers(c, points, opts)
+            if inl is None or inl.sum() <= 5:
+                continue
+            # Local optimisation: refit on the inliers and count again, so a conic that
+            # only passes near points by the first-order distance does not win.
+            key = inl.tobytes()
+            if key not in refits:
+                refits[key] = _ellipse_inliers(cn.fit_conic(points[inl]), points, opts)
+            inl, d, tol = refits[key]
+            if inl is None:
+                continue
+            k = int(inl.sum())
+            if k < 5 or k > max_inliers:
+                continue
+            cost = -k + float(np.sum(np.minimum(d, tol))) / (tol * (n + 1))
+            if cost < best_cost:
+                best, best_cost = inl, cost
+                # Adaptive stopping: samples needed to draw one all-inlier 5-set with 99.9 %.
+                w5 = (k / n) ** 5
+                needed = math.ceil(math.log(1e-3) / math.log1p(-w5)) if w5 < 1 else 1
+            tried += 1
+            if not exhaustive and tried >= max(needed, MIN_RANSAC_SAMPLES):
+                return best
     return best
+
+
+#: Samples in the first chunk of :func:`_sample_chunks`; each next chunk doubles, to
+#: :data:`_MAX_CHUNK`. (A clean ring stops after 8-15 samples; a ring among other lights
+#: can take hundreds.)
+_FIRST_CHUNK = 16
+_MAX_CHUNK = 128
+
+
+def _sample_chunks(n: int, opts: IdentifyOptions, exhaustive: bool) -> Iterator[NDArray[np.intp]]:
+    """The RANSAC samples of 5 point indices, (m, 5) a chunk: every 5-set, or ``opts.max_ransac`` drawn.
+
+    Drawn samples come from ``default_rng(opts.seed)``, one ``choice`` each, in order.
+    """
+    if exhaustive:
+        combos = np.array(list(itertools.combinations(range(n), 5)), np.intp).reshape(-1, 5)
+        if combos.size:
+            yield combos
+        return
+    rng = np.random.default_rng(opts.seed)
+    drawn, size = 0, _FIRST_CHUNK
+    while drawn < opts.max_ransac:
+        m = min(size, opts.max_ransac - drawn)
+        yield np.array([rng.choice(n, 5, replace=False) for _ in range(m)], np.intp)
+        drawn += m
+        size = min(2 * size, _MAX_CHUNK)
 
 
 def ring_angles(pts: FloatArray, conic: FloatArray) -> FloatArray | None:
