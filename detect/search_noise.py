@@ -119,30 +119,30 @@ SPARSE_MAX_FRACTION = 0.05
 SPARSE_MAX_STEP = 3.0
 
 
-def sparse_count_rate(S: np.ndarray, samples: int = 60_000) -> float | None:
+def sparse_count_rate(d: np.ndarray) -> float | None:
     """Rate of chance counts per pixel of an exact-integer image whose background is sparse.
 
     A dark 8-bit frame whose noise does not dither the rounding is a flat level with rare
     single-DN counts above it (a 15 e background at 78 e a DN: one channel-pixel in some
     thousands). Its pixel noise is then no Gaussian's: the clipped difference noise reads 0
     and the counts' skew is beyond a Cornish-Fisher correction. Where at most
-    :data:`SPARSE_MAX_FRACTION` of the horizontal neighbour pairs of ``S`` differ, the counts
+    :data:`SPARSE_MAX_FRACTION` of the image's horizontal neighbour pairs differ, the counts
     are modelled as Poisson with the rate ``mean(d^2) / 2`` of their differences ``d`` (pairs
     more than :data:`SPARSE_MAX_STEP` apart left out: a spot or an edge), at least ``3 / n``
     of the ``n`` pairs (none counted in ``n`` pairs bounds the rate at that, 95 %).
 
     Parameters
     ----------
-    S : (h, w) array
-        Exact sums of whole DN (block sums of an 8-bit frame), the search's image.
+    d : (n,) array
+        Differences of neighbouring pixels of the image (exact sums of whole DN, e.g. block
+        sums of an 8-bit frame), DN.
 
     Returns
     -------
     float or None
-        Counts (DN) per pixel of ``S``; ``None`` where the background is not sparse.
+        Counts (DN) per pixel of the image; ``None`` where its background is not sparse.
     """
-    left, right = _neighbour_pairs(S, samples)
-    d = (np.asarray(right, np.float64) - left).ravel()
+    d = np.asarray(d, np.float64).ravel()
     d = d[np.isfinite(d)]
     if d.size < 100 or np.count_nonzero(d) > SPARSE_MAX_FRACTION * d.size:
         return None

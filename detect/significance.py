@@ -34,9 +34,10 @@ import math
 
 import cv2
 import numpy as np
-from deckpose.detect.background import MIN_NOISE_DN, median, row_median
+from deckpose.detect.background import MIN_NOISE_DN, median, neighbour_differences, row_median
 from deckpose.detect.defects import point_defects
 from deckpose.detect.search_noise import (
+    SPARSE_MAX_FRACTION,
     clipped_difference_noise,
     count_threshold,
     gaussian_norm,
@@ -119,6 +120,29 @@ def _halve_to_sum(a: np.ndarray, factor: int, scale: np.float32) -> np.ndarray:
         s = a.astype(np.float32)
         s *= scale
     return np.asarray(s, np.float32).reshape(a.shape[:2])
+
+
+def block_pair_differences(image: np.ndarray, f: int, samples: int = 60_000) -> np.ndarray:
+    """Exact differences of horizontally neighbouring ``f x f`` block channel sums, on a grid, (n,).
+
+    About ``samples`` pairs of :func:`block_sum`'s blocks (``exact=True``), summed in int64
+    from the blocks' own pixels: the frame is not copied.
+    """
+    a = np.asarray(image)
+    H, W = a.shape[:2]
+    h, w = H // f, W // f
+    step = max(1, int(math.sqrt(h * w / samples)))
+    n = (w - 1) // step
+    if h == 0 or n <= 0:
+        return np.zeros(0)
+    rows = (np.arange(0, h, step)[:, None] * f + np.arange(f)[None]).ravel()
+    left = (np.arange(n) * step)[:, None] * f + np.arange(f)[None]  # (n, f) pixel columns
+    band = a[rows]  # (h' f, W[, C])
+    sums = []
+    for cols in (left, left + f):
+        blk = band[:, cols.ravel()].reshape(-1, f, n, f, *a.shape[2:])
+        sums.append(blk.sum(axis=tuple(i for i in range(blk.ndim) if i not in (0, 2)), dtype=np.int64))
+    return (sums[1] - sums[0]).ravel()
 
 
 def box_means(G: np.ndarray, ys: np.ndarray, xs: np.ndarray, half: int) -> np.ndarray:
@@ -212,10 +236,16 @@ def significant_spots(
             # own (count_threshold); the whole-DN floor below asked a dim beacon for some 20
             # DN at its centre where 2-3 are beyond chance (recall 0.31-0.94 on the
             # independent generator's frames 2-4x darker than rgb8_dark).
-            exact = block_sum(image, f) if f > 1 else S
-            sparse_rate = sparse_count_rate(exact)
-            if sparse_rate is not None:
-                S = exact
+            # (judged on the exact sums of sampled block pairs: the whole frame's exact sums,
+            # a 16-bit copy of it, only where the frame is sparse)
+            # Pixel pairs differ less often than block pairs (a block holds f^2 pixels' counts):
+            # where more than the sparse fraction of the frame's own pixel pairs differ, its block
+            # sums are not sparse either, and the block pairs are not summed.
+            px = neighbour_differences(image, samples=30_000)
+            if np.count_nonzero(px) <= SPARSE_MAX_FRACTION * px.size:
+                sparse_rate = sparse_count_rate(block_pair_differences(image, f))
+            if sparse_rate is not None and f > 1:
+                S = block_sum(image, f)
         noise_S = max(noise_S, rounding if dithered else f * math.sqrt(n_ch))
     else:
         noise_S = max(noise_S, MIN_NOISE_DN)

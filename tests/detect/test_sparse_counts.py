@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 from deckpose.detect.frame_detection import detect_frame
 from deckpose.detect.search_noise import count_threshold, gaussian_norm, sparse_count_rate
-from deckpose.detect.significance import significant_spots
+from deckpose.detect.significance import block_pair_differences, significant_spots
 from scipy.special import erfc
 
 from deckpose.camera import CameraModel
@@ -78,12 +78,31 @@ def test_count_threshold_becomes_the_gaussian_one_on_dense_counts() -> None:
 def test_sparse_count_rate_measures_sparse_counts_and_refuses_dense_noise() -> None:
     rng = np.random.default_rng(2)
     rate = 0.004
+
+    def pair_differences(S: np.ndarray) -> np.ndarray:  # neighbours, every 4th row and pair
+        return (S[::4, 1::8] - S[::4, 0:-1:8]).ravel()
+
     S = rng.poisson(rate, (1080, 1920)).astype(np.float32) + 7.0  # a flat level of 7 DN
-    est = sparse_count_rate(S)
+    d = pair_differences(S)
+    est = sparse_count_rate(d)
     assert est is not None
-    # the pairs' squared differences: about 60,000 pairs, 2 rate of them non-zero
-    assert est == pytest.approx(rate, rel=4.0 / math.sqrt(2 * rate * 60_000))
-    assert sparse_count_rate(rng.poisson(3.0, (1080, 1920)).astype(np.float32)) is None
+    # the pairs' squared differences: 2 rate of them non-zero
+    assert est == pytest.approx(rate, rel=4.0 / math.sqrt(2 * rate * d.size))
+    assert sparse_count_rate(pair_differences(rng.poisson(3.0, (1080, 1920)).astype(np.float32))) is None
+
+
+def test_block_pair_differences_are_the_exact_block_sums_differences() -> None:
+    rng = np.random.default_rng(3)
+    for shape, f in (((1001, 1533, 3), 2), ((2163, 3841, 3), 4), ((999, 777), 2), ((500, 600, 3), 1)):
+        im = rng.integers(0, 256, shape).astype(np.uint8)
+        h, w = shape[0] // f, shape[1] // f
+        # the blocks' sums written out (int64), then the same grid of neighbour pairs
+        blocks = im[: h * f, : w * f].astype(np.int64).reshape(h, f, w, f, -1).sum(axis=(1, 3, 4))
+        d = block_pair_differences(im, f)
+        step = max(1, int(math.sqrt(h * w / 60_000)))
+        n = (w - 1) // step
+        want = blocks[::step, 1::step][:, :n] - blocks[::step, 0 : w - 1 : step][:, :n]
+        np.testing.assert_array_equal(d, want.ravel())
 
 
 def test_a_sparse_background_alone_gives_no_spots() -> None:
