@@ -10,6 +10,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from deckpose.detect.background import percentile
 
 __all__ = ["FLOOR_PERCENTILE", "Candidate"]
 
@@ -154,7 +155,7 @@ class Candidate:
         vv = np.arange(h, dtype=float)[:, None] + self.v0
         near = np.hypot(uu - u_px, vv - v_px) <= radius_px
         detilted = self.pixels if self._flat() else self.pixels - self.background_plane()
-        return detilted - float(np.percentile(detilted[near], FLOOR_PERCENTILE)), near
+        return detilted - percentile(detilted[near], FLOOR_PERCENTILE), near
 
     def variance(self, signal_dn: np.ndarray | None = None) -> np.ndarray:
         """Per-pixel noise variance, DN^2: background noise plus shot noise of the signal."""
