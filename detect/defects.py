@@ -109,7 +109,8 @@ def _gather(image: np.ndarray, rows: np.ndarray, cols: np.ndarray, half: int) ->
     return np.asarray(image[rr[:, :, None], cc[:, None, :]], np.float64)
 
 
-def point_defects(image: np.ndarray, centres_px: np.ndarray, search_px: int = 2) -> np.ndarray:
+def point_defects(image: np.ndarray, centres_px: np.ndarray, search_px: int = 2, *,
+                  sparse_counts: bool = False) -> np.ndarray:
     """Which candidates are point defects (hot pixels), by shape and colour.
 
     Parameters
@@ -121,6 +122,13 @@ def point_defects(image: np.ndarray, centres_px: np.ndarray, search_px: int = 2)
     search_px : int
         The peak pixel (of the channel sum) is sought within this many pixels of each
         centre (a coarse search's block size).
+    sparse_counts : bool
+        The frame's background is sparse counts (a dark 8-bit frame whose noise does not
+        dither the rounding, :func:`~deckpose.detect.search_noise.sparse_count_rate`). The
+        tests' least noise is then the rounding's, ``sqrt(C / 12)`` DN, not a whole DN a
+        channel (no noise at all there), and a candidate whose light is one pixel alone in
+        its 3x3 is a defect: a spot of sigma >= 0.6 px that is visible (several DN) lights a
+        neighbour too, while a lone hot pixel of 10 DN among zeros had passed as a spot.
 
     Returns
     -------
@@ -160,11 +168,14 @@ def point_defects(image: np.ndarray, centres_px: np.ndarray, search_px: int = 2)
     # dark background most border pixels hold the same value, their MAD is 0, and every faint
     # beacon's noisy peak pixel looked sharp (an 8-bit frame of the independent generator lost
     # 3 beacons of 1,900-3,700 e that way)
-    floor_dn = noise_floor_dn(image)
+    n_ch = excess.shape[3]
+    floor_dn = math.sqrt(n_ch / 12.0) if sparse_counts else noise_floor_dn(image)
     sigma_s = np.maximum(
         MAD_TO_SIGMA * np.median(np.abs(s_border - np.median(s_border, axis=1, keepdims=True)), axis=1),
         floor_dn)
     sharp = (half * peak - neighbours) > SHARP_SIGMAS * sigma_s * math.sqrt(half**2 + 8.0)
+    if sparse_counts:
+        sharp |= np.count_nonzero(s > 0.5, axis=(1, 2)) <= 1
     if excess.shape[3] == 1:
         return sharp
     # colour: each channel's light measured with the strongest channel's own profile as the

@@ -283,7 +283,7 @@ def significant_spots(
     radii = np.array(rad_all, float) * f
     order = np.argsort(-np.array(val_all), kind="stable")
     centres, radii = centres[order], radii[order]
-    real = ~point_defects(image, centres, search_px=f + 1)
+    real = ~point_defects(image, centres, search_px=f + 1, sparse_counts=sparse_rate is not None)
     n_defects = int(np.count_nonzero(~real))
     centres, radii = centres[real], radii[real]
     note = ""

@@ -116,6 +116,20 @@ def test_a_sparse_background_alone_gives_no_spots() -> None:
         assert reason == "" and len(centres) == 0, centres
 
 
+def test_lone_hot_pixels_on_a_sparse_background_are_no_spots() -> None:
+    # a single pixel of 2-255 DN in one channel among zeros: its neighbours hold none of the
+    # light a spot of sigma >= 0.6 px gives them. The sparse threshold finds such a pixel; the
+    # defect test, with a whole DN a channel as its noise, had let 5-14 of 300 a frame through
+    rng = np.random.default_rng(12)
+    for bg_e in (3.0, 15.0, 20.0):
+        e = rng.poisson(bg_e, (1080, 1920, 3)) + rng.normal(0.0, 3.0, (1080, 1920, 3))
+        img = np.clip(np.rint(e * 255 / 20_000), 0, 255).astype(np.uint8)
+        ys, xs = rng.integers(0, 1080, 300), rng.integers(0, 1920, 300)
+        img[ys, xs, rng.integers(0, 3, 300)] = rng.integers(2, 256, 300)
+        centres, _radii, reason, _note = significant_spots(img, 5.0, 200)
+        assert reason == "" and len(centres) == 0, centres
+
+
 def _expected_dn(mu_e: np.ndarray, read_e: float, gain_dn_per_e: float) -> np.ndarray:
     """E[rint(e * gain)] for e normal of mean and variance ``mu_e`` plus the read noise's."""
     sd = np.sqrt(mu_e + read_e**2)
