@@ -112,7 +112,7 @@ def median(values: np.ndarray) -> float:
 
 
 def percentile(values: np.ndarray, q: float) -> float:
-    """``float(np.percentile(values, q))`` (its default, linear method), exactly, by one partition.
+    """``float(np.percentile(values, q))`` of the values as float64 (its linear method), exactly, by one partition.
 
     ``np.percentile``'s own overhead is most of its time on the few hundred values of a
     spot's surroundings; this takes its steps (the virtual index ``(n - 1) q / 100``, the
@@ -126,6 +126,8 @@ def percentile(values: np.ndarray, q: float) -> float:
     q : float
         Percentile, 0-100.
     """
+    if not 0.0 <= q <= 100.0:
+        raise ValueError(f"percentile: q must be within [0, 100], got {q}")
     v = np.asarray(values, np.float64).ravel()
     if v.size == 0 or not np.isfinite(v).all():
         return float(np.percentile(v, q))

@@ -129,7 +129,8 @@ def sparse_count_rate(d: np.ndarray) -> float | None:
     :data:`SPARSE_MAX_FRACTION` of the image's horizontal neighbour pairs differ, the counts
     are modelled as Poisson with the rate ``mean(d^2) / 2`` of their differences ``d`` (pairs
     more than :data:`SPARSE_MAX_STEP` apart left out: a spot or an edge), at least ``3 / n``
-    of the ``n`` pairs (none counted in ``n`` pairs bounds the rate at that, 95 %).
+    of the ``n`` pairs (none counted in ``n`` pairs would bound it at that, 95 %, were the
+    pairs' blocks shared; they are not, so the floor is conservative by up to 2x).
 
     Parameters
     ----------
@@ -150,14 +151,15 @@ def sparse_count_rate(d: np.ndarray) -> float | None:
     return max(float(np.mean(d * d)) / 2.0, 3.0 / max(d.size, 1))
 
 
-def count_threshold(rate: float, sigma: float, tail_probability: float) -> float:
+def count_threshold(rate: float, sigma: float, log_tail_probability: float) -> float:
     """Level of a Gaussian-smoothed image of Poisson counts passed with at most a given probability.
 
     The smoothed value is ``G = sum_j w_j X_j`` with the kernel's weights ``w_j``
     (:func:`gaussian_norm`'s kernel, 2-D) and independent counts ``X_j`` of mean ``rate``. By
     Chernoff's bound, ``P(G - E G >= T) <= exp(rate sum_j (e^(t w_j) - 1 - t w_j) - t T)`` for
     every ``t > 0``; the threshold returned is the smallest ``T`` whose bound, minimised over
-    ``t``, is ``tail_probability``. On dense counts it approaches the Gaussian threshold (about
+    ``t``, is the tail probability (given as its logarithm: a 40-sigma Gaussian tail is
+    below the smallest float). On dense counts it approaches the Gaussian threshold (about
     ``sqrt(2 ln(1/p))`` sigmas, a little above the quantile); on sparse ones it asks for the
     few counts together that chance does not give.
 
@@ -167,8 +169,8 @@ def count_threshold(rate: float, sigma: float, tail_probability: float) -> float
         Mean count per pixel of the unsmoothed image, > 0.
     sigma : float
         The smoothing's sigma, pixels.
-    tail_probability : float
-        In (0, 1).
+    log_tail_probability : float
+        Natural logarithm of the tail probability, < 0.
 
     Returns
     -------
@@ -177,7 +179,9 @@ def count_threshold(rate: float, sigma: float, tail_probability: float) -> float
     """
     g = _gaussian_kernel(sigma)
     w = np.outer(g, g).ravel()
-    log_p = math.log(tail_probability)
+    log_p = float(log_tail_probability)
+    if not log_p < 0:
+        raise ValueError(f"count_threshold: log_tail_probability must be < 0, got {log_p}")
 
     def level(t: float) -> float:
         return (rate * float(np.sum(np.expm1(t * w) - t * w)) - log_p) / t

@@ -47,6 +47,7 @@ from deckpose.detect.search_noise import (
     sparse_count_rate,
 )
 from deckpose.detect.tile_texture import TileTextures
+from scipy.special import log_ndtr
 
 #: The coarse image has at most this many pixels (block size a power of two).
 SEARCH_MAX_PX = 4_200_000
@@ -126,7 +127,8 @@ def block_pair_differences(image: np.ndarray, f: int, samples: int = 60_000) -> 
     """Exact differences of horizontally neighbouring ``f x f`` block channel sums, on a grid, (n,).
 
     About ``samples`` pairs of :func:`block_sum`'s blocks (``exact=True``), summed in int64
-    from the blocks' own pixels: the frame is not copied.
+    from the blocks' own pixels: only the sampled rows are copied (``1 / step`` of the
+    frame), not the whole frame in 16 bits as the exact block sums take it.
     """
     a = np.asarray(image)
     H, W = a.shape[:2]
@@ -260,8 +262,8 @@ def significant_spots(
         if sparse_rate is not None:
             # the noise for which k_sigma of it, smoothed, is the counts' threshold (above
             # their mean, which the background median is at most below)
-            tail = 0.5 * math.erfc(significance_sigma / math.sqrt(2.0))
-            level = count_threshold(sparse_rate, sigma_c, tail) + sparse_rate
+            log_tail = float(log_ndtr(-significance_sigma))
+            level = count_threshold(sparse_rate, sigma_c, log_tail) + sparse_rate
             noise_scale = level / (k_sigma * gaussian_norm(sigma_c)[1])
         found = _spots_at_scale(S, sigma_c, noise_scale, k_sigma, RING_RADII[n_scale:], screen=screen)
         if isinstance(found, str):

@@ -38,3 +38,11 @@ def test_percentile_is_numpy_percentile() -> None:
 
 def test_percentile_leaves_nan_to_numpy() -> None:
     assert np.isnan(percentile(np.array([1.0, np.nan, 3.0]), 20.0))
+
+
+def test_percentile_refuses_q_outside_0_100_as_numpy_does() -> None:
+    for q in (-10.0, 110.0):
+        with pytest.raises(ValueError):
+            np.percentile(np.arange(5.0), q)
+        with pytest.raises(ValueError, match="within"):
+            percentile(np.arange(5.0), q)

@@ -60,7 +60,7 @@ def test_count_threshold_bounds_the_smoothed_counts_tail(rate: float) -> None:
     rng = np.random.default_rng(4)
     x = rng.poisson(rate, (1400, 1400)).astype(np.float64)
     G = cv2.filter2D(x, -1, _kernel(sigma), borderType=cv2.BORDER_REFLECT)[10:-10, 10:-10]
-    T = count_threshold(rate, sigma, p)
+    T = count_threshold(rate, sigma, math.log(p))
     frac = float(np.mean(G - rate >= T))
     assert frac <= p + 3 * math.sqrt(p / G.size), (frac, p)
     # ... and it is a threshold, not a wall: it is passed at all
@@ -72,7 +72,7 @@ def test_count_threshold_becomes_the_gaussian_one_on_dense_counts() -> None:
     p = _tail(5.0)
     rate, sigma = 1e5, 0.75
     sd = math.sqrt(rate) * gaussian_norm(sigma)[1]
-    assert count_threshold(rate, sigma, p) / sd == pytest.approx(math.sqrt(2 * math.log(1 / p)), rel=0.02)
+    assert count_threshold(rate, sigma, math.log(p)) / sd == pytest.approx(math.sqrt(2 * math.log(1 / p)), rel=0.02)
 
 
 def test_sparse_count_rate_measures_sparse_counts_and_refuses_dense_noise() -> None:
@@ -103,6 +103,20 @@ def test_block_pair_differences_are_the_exact_block_sums_differences() -> None:
         n = (w - 1) // step
         want = blocks[::step, 1::step][:, :n] - blocks[::step, 0 : w - 1 : step][:, :n]
         np.testing.assert_array_equal(d, want.ravel())
+
+
+def test_a_sparse_frame_takes_any_significance_threshold() -> None:
+    # a 40-sigma Gaussian tail is below the smallest float: the threshold is reached through
+    # its logarithm (the tail itself, 0.0, had failed in math.log)
+    rng = np.random.default_rng(0)
+    img = (rng.random((300, 400)) < 0.003).astype(np.uint8)
+    img[100:103, 200:203] = 40  # one bright compact spot
+    assert sparse_count_rate(block_pair_differences(img, 1)) is not None
+    for k in (5.0, 39.0, 60.0):
+        centres, _radii, reason, _note = significant_spots(img, k, 100)
+        assert reason == ""
+        # the spot, 360 DN among single counts, stands above any threshold; nothing else does
+        assert len(centres) == 1 and np.allclose(centres[0], (201, 101), atol=1.5), centres
 
 
 def test_a_sparse_background_alone_gives_no_spots() -> None:
