@@ -32,7 +32,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.special import erf
+from scipy.special import erf, erfc
 
 #: Ring beacons, ring radius (m) and id of the bow beacon of the standard deck.
 N_RING = 12
@@ -314,6 +314,43 @@ def make_frame(spec: SpotFrameSpec, rng: np.random.Generator) -> SpotFrame:
     return SpotFrame(img, K, ids, uv, crb, sigma, flux * np.where(
         (ids == 0) & (not spec.rgb), MONO_RED_FACTOR, 1.0), sat,
         np.array(lights, float).reshape(-1, 2), kinds, gain)
+
+
+def expected_dn(mu_e: np.ndarray, read_e: float, gain_dn_per_e: float, step_dn: float = 1.0) -> np.ndarray:
+    """E[DN] of pixels of ``mu_e`` expected electrons after the sensor's rounding to ``step_dn``.
+
+    The electrons are taken as normal, of mean and variance ``mu_e`` plus the read noise's
+    (Poisson's mean and variance), rounded to whole steps; full scale is not applied.
+    """
+    mu = np.asarray(mu_e, float)
+    sd = np.sqrt(mu + read_e**2)
+    scale = gain_dn_per_e / step_dn  # steps per electron
+    return step_dn * sum(0.5 * erfc(((k - 0.5) / scale - mu) / (sd * math.sqrt(2.0))) for k in range(1, 60))
+
+
+def visible_dn(truth: SpotFrame, spec: SpotFrameSpec) -> np.ndarray:
+    """Each beacon's expected DN above the background after rounding, over its pixels and channels, (M,).
+
+    What the stored frame holds of a beacon's light: on a dark 8-bit frame whose noise does
+    not dither the rounding, a wing pixel of 0.3 DN stores 0 DN, and a beacon of some
+    thousand electrons can round away altogether (no detector can find it). Computed from
+    the spot model and :func:`expected_dn` (at most 59 steps a pixel: for dark frames).
+    """
+    step = 16.0 if spec.bits == 12 else 1.0
+    bg = float(expected_dn(np.array(spec.background_e), spec.read_noise_e, truth.gain_dn_per_e, step))
+    out = []
+    for (u, v), s, f, bid in zip(truth.centre_px, truth.sigma_px, truth.flux_e, truth.beacon_id):
+        r = _half(s)
+        xs = np.arange(int(u) - r, int(u) + r + 1, dtype=float)
+        ys = np.arange(int(v) - r, int(v) + r + 1, dtype=float)
+        prof = np.outer(spot_profile(v, s, ys), spot_profile(u, s, xs))
+        if spec.rgb:
+            light = f * prof[..., None] * np.asarray(RED if bid == 0 else WHITE)
+        else:
+            light = f * (MONO_RED_FACTOR if bid == 0 else 1.0) * prof[..., None]
+        dn = expected_dn(spec.background_e + light, spec.read_noise_e, truth.gain_dn_per_e, step)
+        out.append(float(np.sum(dn - bg)))
+    return np.array(out)
 
 
 def match(points_px: np.ndarray, truth: SpotFrame, tol_px: float = 3.0

@@ -5,7 +5,7 @@ darker than ``bench_independent.py``'s ``rgb8_dark``: backgrounds of 1-30 e at 7
 where the noise does not dither the rounding and the background is a flat 0 DN with rare
 single-DN counts. A detector cannot find light the rounding took: each beacon's expected DN above
 the background after rounding (Poisson + read noise as a normal variable, rounded to whole DN,
-summed over its pixels and channels) is computed here, independently of ``detect/``, and the
+summed over its pixels and channels: ``independent_spots.visible_dn``), independent of ``detect/``, and the
 table gives the recall of the beacons with at least ``--visible-dn`` of it besides the plain
 recall. *false*: detections on no beacon.
 
@@ -17,7 +17,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import math
 import os
 import sys
 import time
@@ -25,7 +24,6 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
-from scipy.special import erfc
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 import independent_spots as gen
@@ -38,27 +36,6 @@ from deckpose.records import Frame
 #: (background e, read noise e, full well e) per setting; rgb8_dark's first.
 SETTINGS = ((30.0, 5.0, 20_000.0), (15.0, 5.0, 20_000.0), (8.0, 3.0, 20_000.0), (3.0, 2.0, 20_000.0),
             (1.0, 1.0, 20_000.0), (30.0, 5.0, 40_000.0), (10.0, 2.0, 40_000.0))
-
-
-def expected_dn(mu_e: np.ndarray, read_e: float, gain_dn_per_e: float) -> np.ndarray:
-    """E[rint(e * gain)] for ``e`` normal with mean and variance ``mu_e`` plus the read noise's."""
-    sd = np.sqrt(mu_e + read_e**2)
-    return sum(0.5 * erfc(((k - 0.5) / gain_dn_per_e - mu_e) / (sd * math.sqrt(2.0))) for k in range(1, 60))
-
-
-def visible_dn(t: gen.SpotFrame, spec: gen.SpotFrameSpec) -> np.ndarray:
-    """Each beacon's expected DN above the background after rounding, all its pixels and channels."""
-    bg = float(expected_dn(np.array(spec.background_e), spec.read_noise_e, t.gain_dn_per_e))
-    out = []
-    for (u, v), s, f, bid in zip(t.centre_px, t.sigma_px, t.flux_e, t.beacon_id):
-        r = int(4 * s) + 2
-        xs = np.arange(int(u) - r, int(u) + r + 1, dtype=float)
-        ys = np.arange(int(v) - r, int(v) + r + 1, dtype=float)
-        prof = np.outer(gen.spot_profile(v, s, ys), gen.spot_profile(u, s, xs))
-        col = np.asarray(gen.RED if bid == 0 else gen.WHITE)
-        mu = spec.background_e + f * prof[..., None] * col
-        out.append(float(np.sum(expected_dn(mu, spec.read_noise_e, t.gain_dn_per_e) - bg)))
-    return np.array(out)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -85,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
             cam = CameraModel(t.image.shape[1], t.image.shape[0], t.K)
             res = detect_frame(Frame(t.image, cam, 0), args.detector, DeckLayout())
             idx, _ = gen.match(res.detections.points_px, t)
-            vis = visible_dn(t, spec)
+            vis = gen.visible_dn(t, spec)
             hit = idx >= 0
             n += idx.size
             found += int(hit.sum())

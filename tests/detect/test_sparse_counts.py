@@ -24,7 +24,6 @@ import pytest
 from deckpose.detect.frame_detection import detect_frame
 from deckpose.detect.search_noise import count_threshold, gaussian_norm, sparse_count_rate
 from deckpose.detect.significance import block_pair_differences, significant_spots
-from scipy.special import erfc
 
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
@@ -144,27 +143,6 @@ def test_lone_hot_pixels_on_a_sparse_background_are_no_spots() -> None:
         assert reason == "" and len(centres) == 0, centres
 
 
-def _expected_dn(mu_e: np.ndarray, read_e: float, gain_dn_per_e: float) -> np.ndarray:
-    """E[rint(e * gain)] for e normal of mean and variance ``mu_e`` plus the read noise's."""
-    sd = np.sqrt(mu_e + read_e**2)
-    return sum(0.5 * erfc(((k - 0.5) / gain_dn_per_e - mu_e) / (sd * math.sqrt(2.0))) for k in range(1, 60))
-
-
-def _visible_dn(t, spec) -> np.ndarray:
-    """Each beacon's expected DN above the background, summed over its pixels and channels."""
-    bg = float(_expected_dn(np.array(spec.background_e), spec.read_noise_e, t.gain_dn_per_e))
-    out = []
-    for (u, v), s, f, bid in zip(t.centre_px, t.sigma_px, t.flux_e, t.beacon_id):
-        r = int(4 * s) + 2
-        xs = np.arange(int(u) - r, int(u) + r + 1, dtype=float)
-        ys = np.arange(int(v) - r, int(v) + r + 1, dtype=float)
-        prof = np.outer(gen.spot_profile(v, s, ys), gen.spot_profile(u, s, xs))
-        col = np.asarray(gen.RED if bid == 0 else gen.WHITE)
-        mu = spec.background_e + f * prof[..., None] * col
-        out.append(float(np.sum(_expected_dn(mu, spec.read_noise_e, t.gain_dn_per_e) - bg)))
-    return np.array(out)
-
-
 @pytest.mark.parametrize(("bg_e", "read_e", "full_well_e", "seed"),
                          [(10.0, 2.0, 40_000.0, 31), (3.0, 2.0, 20_000.0, 32), (15.0, 5.0, 20_000.0, 33)])
 def test_every_visible_beacon_of_a_sparse_dark_frame_is_found_and_nothing_else(
@@ -177,7 +155,7 @@ def test_every_visible_beacon_of_a_sparse_dark_frame_is_found_and_nothing_else(
         cam = CameraModel(t.image.shape[1], t.image.shape[0], t.K)
         res = detect_frame(Frame(t.image, cam, 0), "cog", DeckLayout())
         idx, _ = gen.match(res.detections.points_px, t)
-        visible = _visible_dn(t, spec) >= VISIBLE_DN
+        visible = gen.visible_dn(t, spec) >= VISIBLE_DN
         n_visible += int(visible.sum())
         assert np.all(idx[visible] >= 0), (t.flux_e[visible & (idx < 0)], t.sigma_px[visible & (idx < 0)])
         # every detection is a beacon's
