@@ -237,12 +237,11 @@ def significant_spots(
             # the exact sums' background is such sparse counts, the threshold is the counts'
             # own (count_threshold); the whole-DN floor below asked a dim beacon for some 20
             # DN at its centre where 2-3 are beyond chance (recall 0.31-0.94 on the
-            # independent generator's frames 2-4x darker than rgb8_dark).
-            # (judged on the exact sums of sampled block pairs: the whole frame's exact sums,
-            # a 16-bit copy of it, only where the frame is sparse)
-            # Pixel pairs differ less often than block pairs (a block holds f^2 pixels' counts):
-            # where more than the sparse fraction of the frame's own pixel pairs differ, its block
-            # sums are not sparse either, and the block pairs are not summed.
+            # independent generator's frames 2-4x darker than rgb8_dark). Sparseness is
+            # judged on sampled block pairs, summed exactly (the whole frame's exact sums, a
+            # 16-bit copy of it, only where it is sparse), and not even those where more than
+            # the sparse fraction of the frame's own pixel pairs differ: a block holds f^2
+            # pixels' counts, so its pairs differ more often still.
             px = neighbour_differences(image, samples=30_000)
             if np.count_nonzero(px) <= SPARSE_MAX_FRACTION * px.size:
                 sparse_rate = sparse_count_rate(block_pair_differences(image, f))
