@@ -9,7 +9,11 @@ finds spots by their significance instead, whatever their brightness:
    :data:`SEARCH_MAX_PX` pixels remain; OpenCV area resampling, which keeps every
    photon) and smoothed with a small Gaussian: together, close to a matched filter
    for a spot of 1.5-3 px sigma. Its noise ``sigma_G`` follows from the block sums'
-   pixel-difference noise and the Gaussian's norm.
+   pixel-difference noise and the Gaussian's norm. On a dark 8-bit frame whose
+   background is sparse single-DN counts (the noise does not dither the rounding),
+   ``sigma_G`` is instead the noise whose ``significance_sigma`` multiple is the
+   counts' own threshold at the same tail probability
+   (:func:`~deckpose.detect.search_noise.count_threshold`).
 2. Candidates are local maxima of the smoothed image at least ``significance_sigma``
    of its noise above the frame's background.
 3. Each candidate is tested against its own surroundings: on rings of
