@@ -28,15 +28,18 @@ def _normalisers(points: FloatArray) -> FloatArray:
     return T
 
 
-def _design(points: FloatArray) -> FloatArray:
+def conic_design(points: FloatArray) -> FloatArray:
+    """Rows ``[x^2, xy, y^2, x, y, 1]`` of the points, (..., N, 6) for (..., N, 2)."""
     x, y = points[..., 0], points[..., 1]
     return np.stack([x * x, x * y, y * y, x, y, np.ones_like(x)], axis=-1)
 
 
 def conic_matrix(conic: FloatArray) -> FloatArray:
-    """The symmetric 3x3 matrix ``Q`` with ``[x y 1] Q [x y 1]^T = 0``."""
-    A, B, C, D, E, F = conic
-    return np.array([[A, B / 2, D / 2], [B / 2, C, E / 2], [D / 2, E / 2, F]])
+    """The symmetric 3x3 matrix ``Q`` with ``[x y 1] Q [x y 1]^T = 0``, (..., 3, 3) for (..., 6)."""
+    A, B, C, D, E, F = np.moveaxis(np.asarray(conic, dtype=float), -1, 0)
+    return np.stack([np.stack([A, B / 2, D / 2], axis=-1),
+                     np.stack([B / 2, C, E / 2], axis=-1),
+                     np.stack([D / 2, E / 2, F], axis=-1)], axis=-2)
 
 
 def fit_conic(points_px: FloatArray) -> FloatArray:
@@ -76,14 +79,8 @@ def fit_conics(points_px: FloatArray) -> FloatArray:
     check_shape("points_px", p, (None, None, 2))
     T = _normalisers(p)
     pn = p @ T[:, :2, :2].transpose(0, 2, 1) + T[:, None, :2, 2]
-    _, _, vt = np.linalg.svd(_design(pn))
-    a = vt[:, -1]  # (M, 6)
-    Qn = np.stack([
-        np.stack([a[:, 0], a[:, 1] / 2, a[:, 3] / 2], axis=-1),
-        np.stack([a[:, 1] / 2, a[:, 2], a[:, 4] / 2], axis=-1),
-        np.stack([a[:, 3] / 2, a[:, 4] / 2, a[:, 5]], axis=-1),
-    ], axis=1)
-    Q = T.transpose(0, 2, 1) @ Qn @ T
+    _, _, vt = np.linalg.svd(conic_design(pn))
+    Q = T.transpose(0, 2, 1) @ conic_matrix(vt[:, -1]) @ T
     c = np.stack([Q[:, 0, 0], 2 * Q[:, 0, 1], Q[:, 1, 1], 2 * Q[:, 0, 2], 2 * Q[:, 1, 2], Q[:, 2, 2]],
                  axis=-1)
     # each norm as np.linalg.norm's of one vector (a dot product: (1, 6) @ (6, 1) per set)
@@ -124,7 +121,7 @@ def sampson_distance(conic: FloatArray, points_px: FloatArray) -> FloatArray:
     p = np.asarray(points_px, dtype=float)
     A, B, C, D, E, _ = conic
     x, y = p[:, 0], p[:, 1]
-    f = _design(p) @ conic
+    f = conic_design(p) @ conic
     gx = 2 * A * x + B * y + D
     gy = B * x + 2 * C * y + E
     return np.abs(f) / np.maximum(np.hypot(gx, gy), 1e-300)

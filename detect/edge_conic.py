@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+from deckpose.detect.conic import conic_design, conic_matrix
 from numpy.typing import NDArray
 
 __all__ = ["REJECT_SIGMAS", "fit_edge_conic", "sampson_distance"]
@@ -11,16 +12,6 @@ FloatArray = NDArray[np.float64]
 
 #: Robust sigmas beyond which an edge point is dropped from its ellipse.
 REJECT_SIGMAS = 4.0
-
-
-def _design(p: FloatArray) -> FloatArray:
-    x, y = p[:, 0], p[:, 1]
-    return np.column_stack([x * x, x * y, y * y, x, y, np.ones_like(x)])
-
-
-def _conic_matrix(theta: FloatArray) -> FloatArray:
-    a, b, c, d, e, f = theta
-    return np.array([[a, b / 2, d / 2], [b / 2, c, e / 2], [d / 2, e / 2, f]])
 
 
 def sampson_distance(C: FloatArray, points: FloatArray) -> FloatArray:
@@ -54,7 +45,7 @@ def fit_edge_conic(points_px: FloatArray, *, iterations: int = 6) -> tuple[Float
     if not scale > 0:
         return None
     q = (p - mean) / scale
-    D = _design(q)
+    D = conic_design(q)
     keep = np.ones(len(q), bool)
     w = np.ones(len(q))
     theta = np.zeros(6)
@@ -62,7 +53,7 @@ def fit_edge_conic(points_px: FloatArray, *, iterations: int = 6) -> tuple[Float
         Dk = D[keep] * np.sqrt(w[keep])[:, None]
         _, _, Vt = np.linalg.svd(Dk, full_matrices=False)
         theta = Vt[-1]
-        C = _conic_matrix(theta)
+        C = conic_matrix(theta)
         d = sampson_distance(C, q)
         X = np.column_stack([q, np.ones(len(q))]) @ C
         grad2 = 4.0 * (X[:, 0] ** 2 + X[:, 1] ** 2)
@@ -72,7 +63,7 @@ def fit_edge_conic(points_px: FloatArray, *, iterations: int = 6) -> tuple[Float
         if keep.sum() < 8:
             return None
     T = np.array([[1 / scale, 0, -mean[0] / scale], [0, 1 / scale, -mean[1] / scale], [0, 0, 1]])
-    C = T.T @ _conic_matrix(theta) @ T
+    C = T.T @ conic_matrix(theta) @ T
     C /= np.linalg.norm(C)
     if np.linalg.det(C[:2, :2]) <= 0:
         return None
