@@ -211,9 +211,11 @@ def _warn_unevaluated(run: rl.RunPaths, errors: pd.DataFrame) -> None:
     t_eval = run.errors.stat().st_mtime
     for d, m in run.estimate_pairs():
         path = run.estimates(d, m)
-        if (d, m) not in evaluated or path.stat().st_mtime > t_eval:
-            log.warning("%s is newer than the evaluation, so the report %s it; evaluate again first: %s",
-                        path, "leaves it out" if (d, m) not in evaluated else "shows its older estimates",
+        seen, newer = (d, m) in evaluated, path.stat().st_mtime > t_eval
+        if not seen or newer:
+            log.warning("%s is %s, so the report %s it; evaluate again first: %s", path,
+                        "newer than the evaluation" if newer else "not in the evaluation",
+                        "shows its older estimates" if seen else "leaves it out",
                         deckpose_command("evaluate", run.root))
 
 
