@@ -134,14 +134,16 @@ def detect_run(
                              "images with --camera CAMERA.yaml")
     if is_dataset(source):
         frameset = open_dataset(source)
-        at_render = frameset.manifest.get("detect_at_render", {}).get("detectors", [])
-        where = RunPaths(frameset.root).detections(detector)
-        require_images(frameset, (
-            f"its {detector} detections were made at render time ({where}): estimate from them "
-            f"({deckpose_command('estimate', '--run', source, '--detector', detector)})"
-            if detector in at_render else
-            f"its detections were made at render time ({', '.join(at_render) or 'none'}); for "
-            f"{detector}, render it again with --detect {detector} (or without --no-images)"))
+        def fix() -> str:
+            at_render = frameset.manifest.get("detect_at_render", {}).get("detectors", [])
+            if detector in at_render:
+                return (f"its {detector} detections were made at render time "
+                        f"({RunPaths(frameset.root).detections(detector)}): estimate from them "
+                        f"({deckpose_command('estimate', '--run', source, '--detector', detector)})")
+            return (f"its detections were made at render time ({', '.join(at_render) or 'none'}); for "
+                    f"{detector}, render it again with --detect {detector} (or without --no-images)")
+
+        require_images(frameset, fix)
     else:
         record = detections_folder_record(source)
         if record is not None:

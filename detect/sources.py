@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import os
 import re
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -178,14 +179,16 @@ def open_image_folder(
     return FrameSet(sources, {name: camera}, {name: Path(camera_info)}, layout, "images", root)
 
 
-def require_images(frameset: FrameSet, fix: str) -> None:
+def require_images(frameset: FrameSet, fix: str | Callable[[], str]) -> None:
     """Raise unless the dataset keeps its frames (a ``--no-images`` render keeps none).
 
-    ``fix`` ends the one-line message: what to do instead, for the command that asked.
+    ``fix`` ends the one-line message: what to do instead, for the command that asked (a
+    callable is called only for that message).
     """
     if frameset.manifest.get("images_kept") is False:
+        hint = fix() if callable(fix) else fix
         raise InputDataError(f"{frameset.root} keeps no frames (rendered with --no-images), so there is "
-                             f"nothing to detect in; {fix}")
+                             f"nothing to detect in; {hint}")
 
 
 #: What every reason :func:`read_image` and :func:`load_frame` give starts with: the frame's
