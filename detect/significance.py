@@ -39,6 +39,7 @@ import math
 import cv2
 import numpy as np
 from deckpose.detect.background import MIN_NOISE_DN, median, neighbour_differences, row_median
+from deckpose.detect.block_sums import block_pair_differences, block_sum
 from deckpose.detect.defects import point_defects
 from deckpose.detect.search_noise import (
     SPARSE_MAX_FRACTION,
@@ -84,71 +85,6 @@ def search_factor(shape: tuple[int, int]) -> int:
     while shape[0] * shape[1] / (f * f) > SEARCH_MAX_PX:
         f *= 2
     return f
-
-
-def block_sum(image: np.ndarray, factor: int, *, exact: bool = True) -> np.ndarray:
-    """Channel sum of ``image`` in ``factor x factor`` blocks (as block means x f^2), float32.
-
-    Rows and columns beyond a multiple of ``factor`` are dropped. ``exact=False`` lets an
-    8-bit image's block means be rounded to whole DN (OpenCV's fast path, a third of the
-    time of the exact sums at 8 MP).
-    """
-    a = np.asarray(image)
-    if a.dtype.type is np.uint8 and factor > 1 and exact:
-        # OpenCV's area resampling rounds each block mean to a whole DN: on a dark 8-bit frame
-        # (a background of 0.4 DN, its noise mostly the pixels' rounding) that loses a faint
-        # spot's light and makes the block sums' noise coarse and non-Gaussian (steps of f^2 a
-        # channel). Scaled by f^2 in 16 bits first (255 f^2 fits up to f = 16), every halving's
-        # mean is a whole number: the block sums are exact.
-        b = a.astype(np.uint16)
-        b *= np.uint16(factor * factor)
-        return _halve_to_sum(b, factor, np.float32(1.0))
-    if a.dtype.type not in (np.uint8, np.uint16, np.float32):
-        a = a.astype(np.float32)
-    return _halve_to_sum(a, factor, np.float32(factor * factor))
-
-
-def _halve_to_sum(a: np.ndarray, factor: int, scale: np.float32) -> np.ndarray:
-    """``a`` halved ``log2 factor`` times (area means), channels summed, times ``scale``, float32."""
-    f = 1
-    while f < factor:  # halve at a time: OpenCV's 2x area path is the fast one
-        h, w = a.shape[0] // 2, a.shape[1] // 2
-        a = cv2.resize(a[: 2 * h, : 2 * w], (w, h), interpolation=cv2.INTER_AREA)
-        f *= 2
-    a = np.asarray(a)
-    # x f^2 in the same pass (a power of two: exact, so the same as scaling the sum after)
-    if a.ndim == 3:
-        s = cv2.transform(a.astype(np.float32, copy=False), np.full((1, 3), scale, np.float32))
-    else:
-        # a float32 copy scaled in place: the same values as np.multiply(a, f2,
-        # dtype=np.float32), whose mixed-type loop on an integer image costs 3x more
-        s = a.astype(np.float32)
-        s *= scale
-    return np.asarray(s, np.float32).reshape(a.shape[:2])
-
-
-def block_pair_differences(image: np.ndarray, f: int, samples: int = 60_000) -> np.ndarray:
-    """Exact differences of horizontally neighbouring ``f x f`` block channel sums, on a grid, (n,).
-
-    About ``samples`` pairs of :func:`block_sum`'s blocks (``exact=True``), summed in int64
-    from the blocks' own pixels: only the sampled rows are copied (``1 / step`` of the
-    frame), not the whole frame in 16 bits as the exact block sums take it.
-    """
-    a = np.asarray(image)
-    H, W = a.shape[:2]
-    h, w = H // f, W // f
-    step = max(1, int(math.sqrt(h * w / samples)))
-    n = (w - 1) // step
-    if h == 0 or n <= 0:
-        return np.zeros(0)
-    rows = (np.arange(0, h, step)[:, None] * f + np.arange(f)[None]).ravel()
-    left = (np.arange(n) * step)[:, None] * f + np.arange(f)[None]  # (n, f) pixel columns
-    band = a[rows]  # (h' f, W[, C])
-    sums = []
-    for cols in (left, left + f):
-        blk = band[:, cols.ravel()].reshape(-1, f, n, f, *a.shape[2:])
-        sums.append(blk.sum(axis=tuple(i for i in range(blk.ndim) if i not in (0, 2)), dtype=np.int64))
-    return (sums[1] - sums[0]).ravel()
 
 
 def box_means(G: np.ndarray, ys: np.ndarray, xs: np.ndarray, half: int) -> np.ndarray:
@@ -211,49 +147,7 @@ def significant_spots(
         That spots were left out (more than ``max_spots``); "" otherwise.
     """
     f = search_factor(image.shape[:2])
-    S = block_sum(image, f, exact=False)
-    # On an integer image the noise is never below the rounding's (1/12 DN^2 a channel and
-    # pixel). It was floored at 1 DN a channel (3.5x a dark 8-bit frame's 0.3 DN), because
-    # the few pixels at 1 DN of a background of a fraction of a DN are counts, not Gaussian
-    # noise, and chance clusters of them counted as spots (over 200 on 8-bit RGB with a 0.6 DN
-    # background). Two faults made them: block means rounded to whole DN (block_sum now
-    # sums exactly) and a threshold blind to the counts' skew (skew_threshold now keeps the
-    # Gaussian tail probability). The floor had cost the dimmest beacons of such frames
-    # (1,600 e among 30,000 e beacons: 6 of 156, benchmarks/bench_independent.py rgb8_dark).
-    n_ch = image.shape[2] if image.ndim == 3 else 1
-    noise_S = clipped_difference_noise(S)
-    sparse_rate: float | None = None
-    if np.issubdtype(image.dtype, np.integer):
-        # Noise at least the rounding's dithers it, and the rounding's variance is the floor;
-        # below that the rounding is not noise but the scene's own steps (a night sea's flat
-        # patches one DN apart, tests/detect/test_significance_steps.py), and the smallest
-        # step that counts is a whole DN a channel. Where the noise dithers the rounding, an
-        # 8-bit frame's block means rounded to whole DN lose a faint spot's light: its block
-        # sums are taken again, exactly (judged on the rounded sums, whose noise is larger).
-        rounding = f * math.sqrt(n_ch / 12.0)
-        dithered = noise_S >= rounding
-        if dithered and image.dtype.type is np.uint8 and f > 1:
-            S = block_sum(image, f)
-            noise_S = clipped_difference_noise(S)
-        elif not dithered and image.dtype.type is np.uint8:
-            # A darker frame still (a 15 e background at 78 e a DN): the level is flat and the
-            # noise is rare single-DN counts, whose light the rounded block means drop. Where
-            # the exact sums' background is such sparse counts, the threshold is the counts'
-            # own (count_threshold); the whole-DN floor below asked a dim beacon for some 20
-            # DN at its centre where 2-3 are beyond chance (recall 0.31-0.94 on the
-            # independent generator's frames 2-4x darker than rgb8_dark). Sparseness is
-            # judged on sampled block pairs, summed exactly (the whole frame's exact sums, a
-            # 16-bit copy of it, only where it is sparse), and not even those where more than
-            # the sparse fraction of the frame's own pixel pairs differ: a block holds f^2
-            # pixels' counts, so its pairs differ more often still.
-            px = neighbour_differences(image, samples=30_000)
-            if np.count_nonzero(px) <= SPARSE_MAX_FRACTION * px.size:
-                sparse_rate = sparse_count_rate(block_pair_differences(image, f))
-            if sparse_rate is not None and f > 1:
-                S = block_sum(image, f)
-        noise_S = max(noise_S, rounding if dithered else f * math.sqrt(n_ch))
-    else:
-        noise_S = max(noise_S, MIN_NOISE_DN)
+    S, noise_S, sparse_rate = _search_image(image, f)
     skew_S = noise_skewness(S, noise_S) if sparse_rate is None else 0.0
     pts_all: list[np.ndarray] = []
     rad_all: list[float] = []
@@ -298,6 +192,59 @@ def significant_spots(
                 "texture?)")
         centres, radii = centres[:max_spots], radii[:max_spots]
     return centres, radii, "", note
+
+
+def _search_image(image: np.ndarray, f: int) -> tuple[np.ndarray, float, float | None]:
+    """The search's coarse image (channel sums in ``f x f`` blocks) and its pixel noise.
+
+    Returns the block sums, their noise (floored as below) and, on an 8-bit frame of
+    sparse counts, the counts' rate per block (:func:`~deckpose.detect.search_noise.sparse_count_rate`;
+    ``None`` elsewhere), for which the threshold is the counts' own.
+    """
+    S = block_sum(image, f, exact=False)
+    # On an integer image the noise is never below the rounding's (1/12 DN^2 a channel and
+    # pixel). It was floored at 1 DN a channel (3.5x a dark 8-bit frame's 0.3 DN), because
+    # the few pixels at 1 DN of a background of a fraction of a DN are counts, not Gaussian
+    # noise, and chance clusters of them counted as spots (over 200 on 8-bit RGB with a 0.6 DN
+    # background). Two faults made them: block means rounded to whole DN (block_sum now
+    # sums exactly) and a threshold blind to the counts' skew (skew_threshold now keeps the
+    # Gaussian tail probability). The floor had cost the dimmest beacons of such frames
+    # (1,600 e among 30,000 e beacons: 6 of 156, benchmarks/bench_independent.py rgb8_dark).
+    n_ch = image.shape[2] if image.ndim == 3 else 1
+    noise_S = clipped_difference_noise(S)
+    sparse_rate: float | None = None
+    if np.issubdtype(image.dtype, np.integer):
+        # Noise at least the rounding's dithers it, and the rounding's variance is the floor;
+        # below that the rounding is not noise but the scene's own steps (a night sea's flat
+        # patches one DN apart, tests/detect/test_significance_steps.py), and the smallest
+        # step that counts is a whole DN a channel. Where the noise dithers the rounding, an
+        # 8-bit frame's block means rounded to whole DN lose a faint spot's light: its block
+        # sums are taken again, exactly (judged on the rounded sums, whose noise is larger).
+        rounding = f * math.sqrt(n_ch / 12.0)
+        dithered = noise_S >= rounding
+        if dithered and image.dtype.type is np.uint8 and f > 1:
+            S = block_sum(image, f)
+            noise_S = clipped_difference_noise(S)
+        elif not dithered and image.dtype.type is np.uint8:
+            # A darker frame still (a 15 e background at 78 e a DN): the level is flat and the
+            # noise is rare single-DN counts, whose light the rounded block means drop. Where
+            # the exact sums' background is such sparse counts, the threshold is the counts'
+            # own (count_threshold); the whole-DN floor below asked a dim beacon for some 20
+            # DN at its centre where 2-3 are beyond chance (recall 0.31-0.94 on the
+            # independent generator's frames 2-4x darker than rgb8_dark). Sparseness is
+            # judged on sampled block pairs, summed exactly (the whole frame's exact sums, a
+            # 16-bit copy of it, only where it is sparse), and not even those where more than
+            # the sparse fraction of the frame's own pixel pairs differ: a block holds f^2
+            # pixels' counts, so its pairs differ more often still.
+            px = neighbour_differences(image, samples=30_000)
+            if np.count_nonzero(px) <= SPARSE_MAX_FRACTION * px.size:
+                sparse_rate = sparse_count_rate(block_pair_differences(image, f))
+            if sparse_rate is not None and f > 1:
+                S = block_sum(image, f)
+        noise_S = max(noise_S, rounding if dithered else f * math.sqrt(n_ch))
+    else:
+        noise_S = max(noise_S, MIN_NOISE_DN)
+    return S, noise_S, sparse_rate
 
 
 def _spots_at_scale(

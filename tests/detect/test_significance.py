@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 from deckpose.detect.background import row_median
-from deckpose.detect.significance import block_sum, box_means, ring_samples
+from deckpose.detect.block_sums import block_sum
+from deckpose.detect.significance import box_means, ring_samples
 from deckpose.detect.tile_texture import TEXTURE_TILE_PX, texture_noise, tiles_of
 
 

@@ -17,7 +17,8 @@ import math
 import cv2
 import numpy as np
 import pytest
-from deckpose.detect.significance import block_sum, search_factor, significant_spots
+from deckpose.detect.block_sums import block_sum
+from deckpose.detect.significance import search_factor, significant_spots
 
 from tests.detect.independent_generator import load_independent_generator
 

@@ -21,9 +21,10 @@ from dataclasses import replace
 import cv2
 import numpy as np
 import pytest
+from deckpose.detect.block_sums import block_pair_differences
 from deckpose.detect.frame_detection import detect_frame
 from deckpose.detect.search_noise import count_threshold, gaussian_norm, sparse_count_rate
-from deckpose.detect.significance import block_pair_differences, significant_spots
+from deckpose.detect.significance import significant_spots
 
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
