@@ -22,8 +22,8 @@ from collections.abc import Sequence
 import numpy as np
 from deckpose.detect.candidate import Candidate
 from deckpose.detect.clipped_phase import clipped_phase_cov, spot_aspect
-
-Row = tuple[float, float, np.ndarray, float, float, float]
+from deckpose.detect.gaussian_window import matched_centroid
+from deckpose.detect.registry import BlobRow
 
 
 def truncated_m2_fraction(k: float) -> float:
@@ -32,7 +32,7 @@ def truncated_m2_fraction(k: float) -> float:
     return (1.0 - (1.0 + k * k / 2.0) * e) / (1.0 - e)
 
 
-def binary_centroid(cand: Candidate) -> Row:
+def binary_centroid(cand: Candidate) -> BlobRow:
     """Unweighted centre of the blob's mask; covariance adds the mask's quantisation."""
     u, v, sigma = cand.mask_moments()
     flux = float(cand.signal()[cand.mask].sum())
@@ -54,7 +54,7 @@ def cog_centroid(
     tol_px: float = 1e-4,
     *,
     above_floor: bool = True,
-) -> Row | None:
+) -> BlobRow | None:
     """Iterated, soft-windowed intensity centroid of one candidate (``None`` if degenerate).
 
     A batch of one of :func:`cog_centroids`, which has the method. Measuring a frame's
@@ -72,7 +72,7 @@ def cog_centroids(
     *,
     above_floor: bool = True,
     covariance: bool = True,
-) -> list[Row | None]:
+) -> list[BlobRow | None]:
     """Iterated, soft-windowed intensity centroid of each candidate, (K,) rows (``None`` if degenerate).
 
     The window is a disc of radius ``window_sigma * sigma`` whose edge pixels are
@@ -112,14 +112,14 @@ def cog_centroids(
     """
     if max_iter < 0:
         raise ValueError(f"max_iter must be >= 0, got {max_iter}")
-    rows: list[Row | None] = [None] * len(cands)
+    rows: list[BlobRow | None] = [None] * len(cands)
     disc: list[int] = []
     signals: list[np.ndarray] = []
     starts: list[tuple[float, float, float, float]] = []
     for i, cand in enumerate(cands):
         s_full = cand.signal()
         if not cand.clip_signal and not cand.saturated[cand.mask].any():
-            rows[i] = _matched_centroid(cand, s_full, covariance)
+            rows[i] = matched_centroid(cand, s_full, covariance)
             continue
         ms = np.where(cand.mask, s_full, 0.0)
         F = ms.sum()
@@ -173,7 +173,7 @@ def cog_centroids(
 
 def _weigh_by_noise(
     cands: Sequence[Candidate], again: Sequence[int], floors: Sequence[np.ndarray],
-    rows: list[Row | None], window_sigma: float, max_iter: int, tol_px: float, covariance: bool,
+    rows: list[BlobRow | None], window_sigma: float, max_iter: int, tol_px: float, covariance: bool,
 ) -> list[int]:
     """Re-measure the centres of the floor pass through its disc weighed by each pixel's noise, in place.
 
@@ -202,7 +202,7 @@ def _weigh_by_noise(
 
 def _add_clipped_phase_cov(
     cands: Sequence[Candidate], signals: Sequence[np.ndarray], disc: Sequence[int],
-    rows: list[Row | None],
+    rows: list[BlobRow | None],
 ) -> None:
     """Add the clipped cores' pixel-phase covariance to their rows, in place (all of them at once).
 
@@ -211,7 +211,7 @@ def _add_clipped_phase_cov(
     its floor). The clip level is the median signal of the blob's saturated pixels, the
     spot's aspect that of its signal's second moments over the blob (:func:`spot_aspect`).
     """
-    clipped: list[tuple[int, Row]] = []
+    clipped: list[tuple[int, BlobRow]] = []
     clip, n_sat, aspect = [], [], []
     for k, i in enumerate(disc):
         row = rows[i]
@@ -230,57 +230,6 @@ def _add_clipped_phase_cov(
         rows[i] = (u, v, cov + term, f, size, score)
 
 
-def _matched_centroid(cand: Candidate, s_full: np.ndarray, covariance: bool = True) -> Row | None:
-    """Gaussian-windowed centroid of an unclipped spot found by its significance.
-
-    The window's sigma starts from the blob's half-maximum region (of the window
-    smoothed by a 1 px Gaussian: radius ``1.177 sqrt(sigma^2 + 1)``) and is refined
-    twice from the windowed second moment (a Gaussian spot of sigma ``s`` seen through
-    a Gaussian window of sigma ``w`` has moment ``s^2 w^2 / (s^2 + w^2)``), within
-    0.7-1.4x its start so noise cannot run it away. Only the last window's row gets a
-    covariance (NaN with ``covariance=False``); the others give its start.
-    """
-    vv, uu = np.nonzero(cand.mask)
-    wts = np.maximum(s_full[vv, uu], 0.0)
-    if not wts.sum() > 0:
-        return None
-    u = float((wts * uu).sum() / wts.sum()) + cand.u0
-    v = float((wts * vv).sum() / wts.sum()) + cand.v0
-    r_half = math.sqrt(vv.size / math.pi)
-    sigma0 = math.sqrt(max((r_half / 1.1774) ** 2 - 1.0, 0.25))
-    sigma_w = sigma0
-    row = None
-    last: tuple[tuple[float, float, int, int, int, int], float] | None = None
-    for _ in range(3):
-        fit = _gaussian_window_fit(cand, s_full, u, v, sigma_w)
-        row = None if fit is None else _gaussian_window_row(cand, s_full, fit, sigma_w, covariance=False)
-        if fit is None or row is None:
-            return None
-        last = (fit, sigma_w)
-        u, v = row[0], row[1]
-        m2 = _window_moment(cand, s_full, u, v, sigma_w)
-        if not (0.0 < m2 < sigma_w * sigma_w):
-            break
-        s2 = m2 * sigma_w * sigma_w / (sigma_w * sigma_w - m2) - 1.0 / 12.0
-        sigma_w = float(np.clip(math.sqrt(max(s2, 0.0)), 0.7 * sigma0, 1.4 * sigma0))
-    if covariance and last is not None:
-        return _gaussian_window_row(cand, s_full, last[0], last[1])
-    return row
-
-
-def _window_moment(cand: Candidate, s_full: np.ndarray, u: float, v: float, sw: float) -> float:
-    """Per-axis second moment of the signal through a Gaussian window at ``(u, v)``, px^2."""
-    h, w = s_full.shape
-    R = 4.0 * sw
-    c0, c1 = max(0, int(u - cand.u0 - R)), min(w, int(u - cand.u0 + R) + 2)
-    r0, r1 = max(0, int(v - cand.v0 - R)), min(h, int(v - cand.v0 + R) + 2)
-    du = (np.arange(c0, c1, dtype=float) + cand.u0 - u)[None, :]
-    dv = (np.arange(r0, r1, dtype=float) + cand.v0 - v)[:, None]
-    ws = np.exp(-(du * du + dv * dv) / (2 * sw * sw)) * s_full[r0:r1, c0:c1]
-    F = float(ws.sum())
-    return float((ws * (du * du + dv * dv)).sum()) / (2.0 * F) if F > 0 else math.nan
-
-
 def _windowed_centroids(
     cands: Sequence[Candidate],
     signals: Sequence[np.ndarray],
@@ -291,7 +240,7 @@ def _windowed_centroids(
     *,
     cov_of: np.ndarray | None = None,
     amplitude_dn: np.ndarray | None = None,
-) -> list[Row | None]:
+) -> list[BlobRow | None]:
     """The iteration of :func:`cog_centroids` on the signal of each candidate, all together.
 
     Parameters
@@ -314,7 +263,7 @@ def _windowed_centroids(
 
     Returns
     -------
-    list of K Row or None
+    list of K BlobRow or None
         ``None`` where the candidate is degenerate (no flux in its window, or the frame
         edge cuts it within a sigma).
 
@@ -345,7 +294,7 @@ def _windowed_centroids(
     if amplitude_dn is not None:
         with np.errstate(divide="ignore"):
             k_dn = np.array([c.noise_dn**2 for c in cands]) / np.array([c.gain_dn_per_e for c in cands])
-    rows: list[Row | None] = [None] * K
+    rows: list[BlobRow | None] = [None] * K
     act = np.arange(K)
     for it in range(max_iter + 1):
         ua, va, sa = u[act], v[act], sigma[act]
@@ -485,102 +434,3 @@ def _weighted_slopes(
     D_u = F - (t.sum(axis=1) * du1**2).sum(axis=1) * inv_s2 - (edge.sum(axis=1) * du1**2).sum(axis=1)
     D_v = F - (t.sum(axis=2) * dv1**2).sum(axis=1) * inv_s2 - (edge.sum(axis=2) * dv1**2).sum(axis=1)
     return np.clip(D_u, 0.25 * F, F), np.clip(D_v, 0.25 * F, F)
-
-
-#: Largest step of one :func:`gaussian_window_centroid` iteration, in window sigmas.
-MAX_STEP_SIGMA = 1.0
-
-
-def gaussian_window_centroid(
-    cand: Candidate,
-    s_full: np.ndarray,
-    u_px: float,
-    v_px: float,
-    sigma_w_px: float,
-    max_iter: int = 30,
-    tol_px: float = 1e-4,
-) -> Row | None:
-    """Gaussian-windowed centroid of an unclipped spot (the windowed position of SExtractor).
-
-    Iterates ``c <- c + 2 sum(w I (x - c)) / sum(w I)`` with the window
-    ``w = exp(-|x - c|^2 / (2 sigma_w^2))`` over the square of pixels within 4 ``sigma_w``
-    of ``c`` (or, where the frame edge is nearer, within the edge distance, so the
-    window stays symmetric about the spot and the edge does not pull it inward) and ``I`` the signal above the candidate's background (not clipped, so noise
-    does not bias it). For a Gaussian spot of sigma ``sigma_w`` the fixed point is
-    its centre and the estimate is the matched-filter centroid, close to the
-    Cramér–Rao bound where the background dominates; a disc window of 3 sigma
-    weighs the noisy wings as much as the core (1.5-2.7x the bound on dim spots).
-    ``s_full`` is the candidate's signal, DN (h, w). ``None`` when the window's flux
-    is not positive or the estimate runs away.
-    """
-    fit = _gaussian_window_fit(cand, s_full, u_px, v_px, sigma_w_px, max_iter, tol_px)
-    return None if fit is None else _gaussian_window_row(cand, s_full, fit, sigma_w_px)
-
-
-def _gaussian_window_fit(
-    cand: Candidate, s_full: np.ndarray, u_px: float, v_px: float, sigma_w_px: float,
-    max_iter: int = 30, tol_px: float = 1e-4,
-) -> tuple[float, float, int, int, int, int] | None:
-    """The iteration of :func:`gaussian_window_centroid`: ``(u, v, c0, c1, r0, r1)``, its centre and last square, or ``None``."""
-    h, w = s_full.shape
-    u, v = u_px, v_px
-    inv2s2 = 1.0 / (2.0 * sigma_w_px**2)
-    for it in range(max_iter + 1):
-        # Pixels within 4 window sigmas, or (where the frame edge is nearer) within the
-        # edge distance, so the window stays symmetric about the spot.
-        R = min(4.0 * sigma_w_px, cand.edge_distance_px(u, v))
-        if R < sigma_w_px:
-            return None
-        c0 = max(0, int(np.floor(u - cand.u0 - R)))
-        c1 = min(w, int(np.ceil(u - cand.u0 + R)) + 1)
-        r0 = max(0, int(np.floor(v - cand.v0 - R)))
-        r1 = min(h, int(np.ceil(v - cand.v0 + R)) + 1)
-        if c1 - c0 < 3 or r1 - r0 < 3:
-            return None
-        s = s_full[r0:r1, c0:c1]
-        du = (np.arange(c0, c1, dtype=float) + cand.u0 - u)[None, :]
-        dv = (np.arange(r0, r1, dtype=float) + cand.v0 - v)[:, None]
-        win = np.exp(-(du * du) * inv2s2) * np.exp(-(dv * dv) * inv2s2)
-        ws = win * s
-        F = float(ws.sum())
-        if not F > 0:
-            return None
-        su = 2.0 * float((ws * du).sum()) / F
-        sv = 2.0 * float((ws * dv).sum()) / F
-        step = math.hypot(su, sv)
-        if step > MAX_STEP_SIGMA * sigma_w_px:
-            su, sv = su * MAX_STEP_SIGMA * sigma_w_px / step, sv * MAX_STEP_SIGMA * sigma_w_px / step
-        u, v = u + su, v + sv
-        if math.hypot(u - u_px, v - v_px) > 2.0 * sigma_w_px + 1.0:
-            return None
-        if step < tol_px or it == max_iter:
-            return u, v, c0, c1, r0, r1
-    # only an empty loop ends without returning (the last iteration returns)
-    raise ValueError(f"max_iter must be >= 0, got {max_iter}")
-
-
-def _gaussian_window_row(
-    cand: Candidate, s_full: np.ndarray, fit: tuple[float, float, int, int, int, int], sigma_w_px: float,
-    *, covariance: bool = True,
-) -> Row | None:
-    """The row of :func:`gaussian_window_centroid` at its fit (``None``: no flux in the window); its covariance NaN with ``covariance=False``."""
-    u, v, c0, c1, r0, r1 = fit
-    inv2s2 = 1.0 / (2.0 * sigma_w_px**2)
-    s = s_full[r0:r1, c0:c1]
-    du = np.arange(c0, c1, dtype=float)[None, :] + cand.u0 - u
-    dv = np.arange(r0, r1, dtype=float)[:, None] + cand.v0 - v
-    win = np.exp(-(du * du + dv * dv) * inv2s2)
-    F = float((win * s).sum())
-    if not F > 0:
-        return None
-    if not covariance:
-        return cand.blob(u, v, flux_dn=2.0 * F, size_px=sigma_w_px, cov_px2=np.full((2, 2), np.nan))
-    var = cand.variance(s) * win**2
-    cov = 4.0 * np.array(
-        [
-            [(var * du * du).sum(), (var * du * dv).sum()],
-            [(var * du * dv).sum(), (var * dv * dv).sum()],
-        ]
-    ) / F**2
-    # flux: the window's flux over the Gaussian window's own weight of a sigma_w spot
-    return cand.blob(u, v, flux_dn=2.0 * F, size_px=sigma_w_px, cov_px2=cov)

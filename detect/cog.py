@@ -4,15 +4,15 @@ from __future__ import annotations
 
 from deckpose.detect.candidate import Candidate
 from deckpose.detect.candidates import measure_candidate_batch
-from deckpose.detect.centroid import Row, cog_centroids
-from deckpose.detect.registry import Blobs, DetectorOptions, register, register_kernel
+from deckpose.detect.centroid import cog_centroids
+from deckpose.detect.registry import BlobRow, Blobs, DetectorOptions, register, register_kernel
 
 from deckpose.records import Frame
 
 __all__ = ["detect_cog", "measure_cog"]
 
 
-def measure_cog(cands: list[Candidate], options: DetectorOptions) -> list[Row | None]:
+def measure_cog(cands: list[Candidate], options: DetectorOptions) -> list[BlobRow | None]:
     """The ``cog`` row of each candidate (``None``: a clipped core cut by the frame edge)."""
     rows = cog_centroids(cands, options.window_sigma)
     return [None if c.clipped_at_frame_edge() else r for c, r in zip(cands, rows)]

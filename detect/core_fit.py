@@ -33,7 +33,7 @@ import math
 import cv2
 import numpy as np
 from deckpose.detect.candidate import Candidate
-from deckpose.detect.centroid import Row
+from deckpose.detect.registry import BlobRow
 from scipy.optimize import least_squares
 
 #: Pixels of a clipped core whose signal reaches this fraction of the clip level enter the
@@ -79,33 +79,33 @@ def elliptical_gaussian(
     return b + s, J
 
 
-def core_fit(cand: Candidate, start: Row, window_sigma: float = 3.0) -> Row | None:
+def core_fit(cand: Candidate, start: BlobRow, window_sigma: float = 3.0) -> BlobRow | None:
     """Censored elliptical-Gaussian fit of one candidate's core (module docstring).
 
     Parameters
     ----------
     cand : Candidate
-    start : Row
+    start : BlobRow
         The ``cog`` measurement of the candidate (start point and window size).
     window_sigma : float
         Radius of the window searched for core pixels, in ``cog`` spot sigmas.
 
     Returns
     -------
-    Row or None
+    BlobRow or None
         ``None`` when too few unsaturated core pixels remain or the fit fails.
     """
     fit = core_fit_residuals(cand, start, window_sigma)
     return None if fit is None else fit[0]
 
 
-def core_fit_residuals(cand: Candidate, start: Row, window_sigma: float = 3.0
-                       ) -> tuple[Row, np.ndarray, np.ndarray] | None:
+def core_fit_residuals(cand: Candidate, start: BlobRow, window_sigma: float = 3.0
+                       ) -> tuple[BlobRow, np.ndarray, np.ndarray] | None:
     """:func:`core_fit`, with what its unsaturated pixels say of the noise.
 
     Returns
     -------
-    (Row, (M,) array of float, (M,) array of float) or None
+    (BlobRow, (M,) array of float, (M,) array of float) or None
         The row; per unsaturated fitted pixel its squared residual over ``1 - h``
         (``h``: its leverage in the weighted fit), DN^2, and the fitted spot signal
         there, DN: the inputs of :func:`~deckpose.detect.gain.fitted_noise_model`.

@@ -31,11 +31,11 @@ from dataclasses import replace
 import numpy as np
 from deckpose.detect.candidate import Candidate
 from deckpose.detect.candidates import measure_candidate_batch
-from deckpose.detect.centroid import Row, cog_centroid, cog_centroids
+from deckpose.detect.centroid import cog_centroid, cog_centroids
 from deckpose.detect.core_fit import core_fit, core_fit_residuals
 from deckpose.detect.crb import gaussian_pixel_terms
 from deckpose.detect.gain import MIN_FITTED_SPOTS, fitted_noise_model
-from deckpose.detect.registry import Blobs, DetectorOptions, register, register_kernel
+from deckpose.detect.registry import BlobRow, Blobs, DetectorOptions, register, register_kernel
 from scipy.optimize import least_squares
 
 from deckpose.records import Frame
@@ -59,12 +59,12 @@ def _model_and_jac(
     return m, J
 
 
-def gauss_fit(cand: Candidate, window_sigma: float = 3.0) -> Row | None:
+def gauss_fit(cand: Candidate, window_sigma: float = 3.0) -> BlobRow | None:
     """Fit one candidate; ``None`` when the fit fails or is degenerate."""
     return gauss_fit_from(cand, cog_centroid(cand, window_sigma, above_floor=False), window_sigma)
 
 
-def gauss_fit_from(cand: Candidate, start: Row | None, window_sigma: float = 3.0) -> Row | None:
+def gauss_fit_from(cand: Candidate, start: BlobRow | None, window_sigma: float = 3.0) -> BlobRow | None:
     """:func:`gauss_fit` from the candidate's ``cog`` row ``start`` (its first pass, ``above_floor=False``).
 
     ``None`` when ``start`` is (``cog`` found no centre) or the fit fails or is degenerate.
@@ -84,7 +84,7 @@ def _clipped(cand: Candidate) -> bool:
     return bool(cand.clip_signal or cand.saturated[cand.mask].any())
 
 
-def _fit(cand: Candidate, start: Row, window_sigma: float) -> tuple[Row, np.ndarray, np.ndarray] | None:
+def _fit(cand: Candidate, start: BlobRow, window_sigma: float) -> tuple[BlobRow, np.ndarray, np.ndarray] | None:
     """The unclipped fit: its row, and per fitted pixel the squared residual over ``1 - h`` and the spot signal.
 
     Returns ``(row, sq_residual_dn2 (M,), signal_dn (M,))``, the inputs of
@@ -139,7 +139,7 @@ def _fit(cand: Candidate, start: Row, window_sigma: float) -> tuple[Row, np.ndar
     return row, sq_res, spot
 
 
-def frame_noise_model(cands: list[Candidate], starts: list[Row | None],
+def frame_noise_model(cands: list[Candidate], starts: list[BlobRow | None],
                       window_sigma: float = 3.0) -> list[Candidate]:
     """The candidates with the noise model their frame's own fits give (or as they are).
 
@@ -177,7 +177,7 @@ def frame_noise_model(cands: list[Candidate], starts: list[Row | None],
     ----------
     cands : list of Candidate
         One frame's candidates.
-    starts : list of Row or None
+    starts : list of BlobRow or None
         Their ``cog`` rows (``above_floor=False``), one per candidate.
     window_sigma : float
         As :func:`gauss_fit`'s.
@@ -186,8 +186,8 @@ def frame_noise_model(cands: list[Candidate], starts: list[Row | None],
     return cands if refined is None else refined
 
 
-def _first_fits(cands: list[Candidate], starts: list[Row | None], window_sigma: float
-                ) -> list[tuple[Row, np.ndarray, np.ndarray] | None]:
+def _first_fits(cands: list[Candidate], starts: list[BlobRow | None], window_sigma: float
+                ) -> list[tuple[BlobRow, np.ndarray, np.ndarray] | None]:
     """The first fit of each candidate with a start under its first-guess noise model (else None).
 
     :func:`_fit` of each unclipped candidate; where fewer than
@@ -207,7 +207,7 @@ def _unsaturated_core(cand: Candidate) -> bool:
     return bool(cand.clip_signal and not cand.saturated[cand.mask].any())
 
 
-def _with_noise_model(cands: list[Candidate], first: list[tuple[Row, np.ndarray, np.ndarray] | None]
+def _with_noise_model(cands: list[Candidate], first: list[tuple[BlobRow, np.ndarray, np.ndarray] | None]
                       ) -> list[Candidate] | None:
     """:func:`frame_noise_model` from the first fits; None where the candidates stay as they are."""
     fits = [f for f in first if f is not None]
@@ -222,7 +222,7 @@ def _with_noise_model(cands: list[Candidate], first: list[tuple[Row, np.ndarray,
                     else math.sqrt(var_dn2)) for c in cands]
 
 
-def measure_gauss(cands: list[Candidate], options: DetectorOptions) -> list[Row | None]:
+def measure_gauss(cands: list[Candidate], options: DetectorOptions) -> list[BlobRow | None]:
     """The ``gauss`` row of each candidate (``None``: no fit and no clipped core to fall back on).
 
     The fit weights come from the frame's own noise model (:func:`frame_noise_model`).

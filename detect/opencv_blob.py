@@ -15,8 +15,7 @@ import cv2
 import numpy as np
 from deckpose.detect.candidate import Candidate
 from deckpose.detect.candidates import measure_candidates
-from deckpose.detect.centroid import Row
-from deckpose.detect.registry import Blobs, DetectorOptions, register
+from deckpose.detect.registry import BlobRow, Blobs, DetectorOptions, register
 
 from deckpose.records import Frame
 
@@ -41,7 +40,7 @@ def _params(min_threshold: float, min_area: int) -> cv2.SimpleBlobDetector.Param
     return p
 
 
-def opencv_blob(cand: Candidate) -> Row | None:
+def opencv_blob(cand: Candidate) -> BlobRow | None:
     """Measure one candidate with ``SimpleBlobDetector``; ``None`` if it finds nothing there."""
     s = cand.signal()
     peak = float(s[cand.mask].max())
