@@ -100,7 +100,7 @@ def cog_centroids(
     photons dominate the disc the weights are near 1 and the centre is the disc's; the
     flux and size stay the disc's. ``above_floor=False`` keeps the first pass.
     An unclipped spot found by its significance (not ``clip_signal``) is measured
-    through a Gaussian window instead (:func:`_matched_centroid`). ``covariance=False``
+    through a Gaussian window instead (:func:`~deckpose.detect.gaussian_window.matched_centroid`). ``covariance=False``
     leaves the rows' covariances NaN (for a caller that reads the centres, fluxes and
     sizes alone: they are the same either way).
 
