@@ -47,6 +47,7 @@ from deckpose.render.light_pools import AMBIENT_LUX, apply_light_pools, pool_gai
 from deckpose.render.scene_config import DEFAULT_TEXTURE_SEED, Lighting, SceneSpec, Shading
 from deckpose.render.sea import Waves, sea_colour, sea_grid_m, sea_grid_surface, sea_waves
 from deckpose.render.ship_model import hull_mesh, superstructure_mesh
+from deckpose.render.sun_shader import sun_program_cache
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -318,13 +319,20 @@ class DeckRenderer:
             node = s.add(cam, pose=T_cam)
             s.main_camera_node = node
             renderer = self._renderer(W, tile_h)
+            gl = renderer._renderer
             rows = out[r0:r1]
-            renderer._renderer.deckpose_read_into = rows  # read back straight into the frame
+            gl.deckpose_read_into = rows  # read back straight into the frame
+            own_programs = gl._program_cache
+            if pbr:  # the sun's lean shader in place of pyrender's mesh.frag (render/sun_shader.py)
+                if getattr(gl, "deckpose_sun_programs", None) is None:
+                    gl.deckpose_sun_programs = sun_program_cache(pr)
+                gl._program_cache = gl.deckpose_sun_programs
             try:
                 color, _ = renderer.render(s, flags=flags)
             finally:
                 s.remove_node(node)
-                renderer._renderer.deckpose_read_into = None
+                gl.deckpose_read_into = None
+                gl._program_cache = own_programs
             if color is not rows:  # a platform without framebuffers reads through pyrender
                 rows[:] = color[: r1 - r0]
         if self.spec.light_pools_cd > 0 and lighting is not Lighting.DAY:

@@ -1,0 +1,53 @@
+"""The ``pbr`` shading's fragment shader: pyrender's lighting for one sun, at a fraction of its cost.
+
+pyrender draws ``pbr`` materials with ``pyrender/shaders/mesh.frag``: loops over point,
+spot and directional lights, each through Cook-Torrance, and a shadow test that reads
+36 texels (nine bilinear 4-texel lookups). Under EGL/llvmpipe the fragment shader runs
+on the CPU for every pixel, and that shader made a ``pbr`` frame cost about 2.4x a
+``flat`` one (issue 23's budget for all realism: 1.5x).
+
+The deck scene has one light, the sun (a directional light), plus ambient light, and
+materials with a base colour (texture or vertex colours), metallic and roughness
+factors. ``shaders/sun_lit.frag`` draws exactly that: the same Cook-Torrance terms
+(Schlick's Fresnel, Smith-Schlick geometry, GGX distribution), the same ambient and
+output encoding, and one bilinear 4-texel shadow lookup (the shadow's edge is one
+shadow-map texel wide instead of three). Point and spot lights and normal, occlusion
+and emissive textures are not drawn; the deck scene has none.
+
+:func:`sun_program_cache` is a pyrender ``ShaderProgramCache`` that loads this shader
+where pyrender asks for ``mesh.frag`` and pyrender's own files for everything else
+(the shadow pass's depth shaders, ``flat`` shading).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+#: The lean fragment shader, shipped with the package (``pyproject.toml``'s package data).
+SUN_LIT_FRAG = Path(__file__).resolve().parent / "shaders" / "sun_lit.frag"
+
+
+def sun_program_cache(pr: Any) -> Any:
+    """A pyrender ``ShaderProgramCache`` that draws ``mesh.frag`` materials with ``sun_lit.frag``.
+
+    Parameters
+    ----------
+    pr : module
+        The imported ``pyrender`` (imported by the caller after choosing the GL platform).
+
+    Returns
+    -------
+    pyrender.shader_program.ShaderProgramCache
+        Its programs are keyed by file name, so they never mix with pyrender's own.
+    """
+    base = pr.shader_program.ShaderProgramCache
+
+    class SunProgramCache(base):  # type: ignore[misc, valid-type]
+        def get_program(self, vertex_shader: str, fragment_shader: str, geometry_shader: str | None = None,
+                        defines: dict[str, Any] | None = None) -> Any:
+            if fragment_shader == "mesh.frag":
+                fragment_shader = str(SUN_LIT_FRAG)  # absolute: os.path.join keeps it as it is
+            return super().get_program(vertex_shader, fragment_shader, geometry_shader, defines)
+
+    return SunProgramCache()

@@ -1,0 +1,79 @@
+"""``pbr`` shading's lean shader (render/sun_shader.py) against pyrender's own ``mesh.frag``.
+
+pyrender's shader is the independent computation: the same scene, camera and sun drawn
+through both must agree to rounding where the sun is unshadowed, and the shadows must
+cover the same pixels up to the shadow edges (pyrender blurs them over 3 shadow-map
+texels, ours over 1).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.ndimage as ndi
+from deckpose.render.config import Lighting
+from deckpose.render.scene import DeckRenderer
+from deckpose.render.sun_shader import SUN_LIT_FRAG
+
+from deckpose.pose import CameraPose, ShipPose
+
+from .conftest import tiny_config
+
+SHIP = {"hull": True, "superstructure": True}
+
+
+def _both(renderer: DeckRenderer, cfg, lighting: Lighting, pose: CameraPose) -> tuple[np.ndarray, np.ndarray]:
+    """(ours, pyrender's) raster of one frame of the deck and the ship."""
+    import pyrender
+
+    cam = cfg.cameras_by_name()["4mp-320x240"]
+    ship = ShipPose(0.04, -0.03, 0.3, 0.5, -0.4)
+    ours = renderer.render(cam, pose, ship, 2.0, lighting).copy()
+    gl = renderer.offscreen(cam.width_px, cam.height_px)._renderer
+    lean = gl.deckpose_sun_programs
+    gl.deckpose_sun_programs = pyrender.shader_program.ShaderProgramCache()  # pyrender's mesh.frag
+    try:
+        theirs = renderer.render(cam, pose, ship, 2.0, lighting).copy()
+    finally:
+        gl.deckpose_sun_programs = lean
+    return ours, theirs
+
+
+@pytest.mark.parametrize("lighting", [Lighting.DAY, Lighting.DUSK, Lighting.NIGHT])
+def test_unshadowed_pbr_frames_match_pyrenders_shader(egl_renderer_factory, lighting: Lighting) -> None:
+    cfg = tiny_config(scene={"shading": "pbr", "texture_px": 256, "ship": SHIP, "sea": {"waves": 4},
+                             "shadows": False})
+    ours, theirs = _both(egl_renderer_factory(cfg), cfg, lighting, CameraPose.nadir(30.0))
+    diff = np.abs(ours.astype(int) - theirs.astype(int))
+    assert theirs.std() > 5  # a scene, not a blank
+    # float32 rounding of the same terms: one 8-bit step at most
+    assert diff.max() <= 1, diff.max()
+
+
+def test_shadows_fall_where_pyrenders_do(egl_renderer_factory) -> None:
+    lit = tiny_config(scene={"shading": "pbr", "texture_px": 256, "ship": SHIP, "sea": {"waves": 0},
+                             "shadows": False})
+    shaded = tiny_config(scene={"shading": "pbr", "texture_px": 256, "ship": SHIP, "sea": {"waves": 0},
+                                "shadows": True})
+    # 60 m up, 10 m aft: the ship's shadow in view, and the whole view inside the shadow map
+    # (render/scene.py frames 120 m around the ship; beyond it pyrender's shader compares with
+    # the map's edge texels and shades the sea there, ours calls it lit)
+    pose = CameraPose.nadir(60.0, x_m=10.0)
+    no_shadow, _ = _both(egl_renderer_factory(lit), lit, Lighting.DAY, pose)
+    ours, theirs = _both(egl_renderer_factory(shaded), shaded, Lighting.DAY, pose)
+    drop_ours = no_shadow.astype(int).sum(-1) - ours.astype(int).sum(-1)
+    drop_theirs = no_shadow.astype(int).sum(-1) - theirs.astype(int).sum(-1)
+    in_theirs, in_ours = drop_theirs > 30, drop_ours > 30  # clearly shadowed pixels (full: ~55)
+    assert in_theirs.sum() > 80  # the superstructure's shadow on the foredeck and the hull's side
+    # each clearly shadowed pixel of one lies within 2 px of the other's shadow or penumbra
+    # (pyrender's PCF spreads a thin shadow over 3 texels, so it may only darken it partly)
+    near_theirs = ndi.binary_dilation(drop_theirs > 5, iterations=2)
+    near_ours = ndi.binary_dilation(drop_ours > 5, iterations=2)
+    assert not (in_ours & ~near_theirs).any() and not (in_theirs & ~near_ours).any()
+    lit = ~(near_theirs | near_ours)
+    assert lit.mean() > 0.9
+    np.testing.assert_array_equal(ours[lit], no_shadow[lit])  # far from shadows: untouched
+
+
+def test_the_shader_ships_with_the_package() -> None:
+    assert SUN_LIT_FRAG.is_file() and SUN_LIT_FRAG.read_text().startswith("#version 330 core")
