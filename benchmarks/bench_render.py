@@ -16,7 +16,10 @@ Each case runs in a fresh process (so its peak RSS is its own):
   ratios of their medians are printed (issue 23's budget: 1.5x);
 * ``ship``, with ``--ship``: ``ours`` with the ``scene`` section of
   ``configs/realistic_ship.yaml`` (hull, superstructure, wave sea, light pools, bloom,
-  shadows, auto-sized deck texture, ``pbr`` shading), timed and compared the same way.
+  shadows, auto-sized deck texture) under its own ``flat`` shading at night, timed and
+  compared the same way; ``ship-day``: that scene by day under ``pbr`` shading (sun
+  shading, glitter and shadows: the contact sheet's day tile, drawn with
+  ``render/sun_shader.py``'s shader), against ``day``, ``ours`` by day.
 
 Usage::
 
@@ -60,23 +63,29 @@ SENSOR_EFFECT_KEYS = ("bayer", "prnu", "dsnu_e", "hot_pixel_fraction", "hot_pixe
 #: Where each realism case takes its sections from (a config in configs/).
 CASE_SECTIONS = {"real": ("detector_benchmark_hard.yaml", REALISM_SECTIONS),
                  "bloom": ("detector_benchmark_hard.yaml", REALISM_SECTIONS),
-                 "ship": ("realistic_ship.yaml", ("scene",))}
+                 "ship": ("realistic_ship.yaml", ("scene",)),
+                 "ship-day": ("realistic_ship.yaml", ("scene",))}
+#: The lighting of each case (night unless named).
+CASE_LIGHTING = {"day": "day", "ship-day": "day"}
 
 
-def _case_ours(size: str, frames: int, backend: str, out: Path, realism: str = "") -> dict[str, float]:
+def _case_ours(size: str, frames: int, backend: str, out: Path, realism: str = "",
+               lighting: str = "night") -> dict[str, float]:
     import yaml
     from deckpose.render.config import config_from_dict
     from deckpose.render.dataset import render_one
     from deckpose.render.plan import plan_frames
 
     doc = {
-        "cameras": [{"preset": size}], "heights_m": [30.0], "lighting": ["night"], "backend": backend,
+        "cameras": [{"preset": size}], "heights_m": [30.0], "lighting": [lighting], "backend": backend,
         "motion": {"source": "fixed", "attitudes_deg": [[3.0 + i, -2.0, 5.0 * i] for i in range(frames + 1)]},
     }
     if realism:
         name, sections = CASE_SECTIONS[realism]
         base = yaml.safe_load((Path(__file__).resolve().parent.parent / "configs" / name).read_text())
         doc.update({k: base[k] for k in sections})
+        if realism == "ship-day":
+            doc["scene"] = {**doc["scene"], "shading": "pbr"}
         if realism in ("real", "bloom"):  # the hard rung's sensor effects, and vibration over a 10 ms exposure
             doc["shutter"] = {**base["shutter"], "vibration_deg_rms": 0.05}
             doc["motion"] = {**doc["motion"], "exposure_s": 0.01}
@@ -147,7 +156,8 @@ def _child(args: argparse.Namespace) -> None:
             res = _case_naive(args.size, args.frames, args.backend, Path(tmp))
         else:
             res = _case_ours(args.size, args.frames, args.backend, Path(tmp),
-                             realism=args.case if args.case in CASE_SECTIONS else "")
+                             realism=args.case if args.case in CASE_SECTIONS else "",
+                             lighting=CASE_LIGHTING.get(args.case, "night"))
     res["peak_rss_gib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2 ** 20
     print(json.dumps(res))
 
@@ -170,20 +180,20 @@ def main() -> None:
         return
     print(f"deckpose render benchmark: backend={args.backend}, {os.cpu_count()} CPUs, one worker, "
           f"1-minute load {os.getloadavg()[0]:.1f}")
-    print(f"{'size':>6} {'case':>6} {'s/frame':>8} {'min s':>7} {'first s':>8} {'peak GiB':>9} {'CPU s':>7}")
+    print(f"{'size':>6} {'case':>8} {'s/frame':>8} {'min s':>7} {'first s':>8} {'peak GiB':>9} {'CPU s':>7}")
 
     def run(case: str, size: str, n: int) -> dict[str, float]:
         cmd = [sys.executable, __file__, "--case", case, "--size", size, "--frames", str(n),
                "--backend", args.backend]
         out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout.strip().splitlines()[-1]
         r = json.loads(out)
-        print(f"{size:>6} {case:>6} {r['per_frame_s']:8.2f} {r['min_s']:7.2f} {r['first_s']:8.2f} "
+        print(f"{size:>6} {case:>8} {r['per_frame_s']:8.2f} {r['min_s']:7.2f} {r['first_s']:8.2f} "
               f"{r['peak_rss_gib']:9.2f} {r.get('cpu_s', float('nan')):7.2f}", flush=True)
         return r
 
     for size in args.sizes:
         res: dict[str, list[dict[str, float]]] = {}
-        cases = ("ours",) + (("real", "bloom") if args.realism else ()) + (("ship",) if args.ship else ())
+        cases = ("ours",) + (("real", "bloom") if args.realism else ()) + (("ship", "day", "ship-day") if args.ship else ())
         for _ in range(args.repeat if len(cases) > 1 else 1):
             for case in cases:
                 res.setdefault(case, []).append(run(case, size, args.frames))
@@ -203,6 +213,10 @@ def main() -> None:
         if "ship" in med:
             print(f"{size:>6} ship look (realistic_ship.yaml scene) / ours, medians of {args.repeat} interleaved: "
                   f"{med['ship'] / med['ours']:.2f}x wall, {cpu['ship'] / cpu['ours']:.2f}x CPU (budget 1.5x)")
+        if "ship-day" in med:
+            print(f"{size:>6} ship look by day, pbr (sun, glitter, shadows) / ours by day, medians of {args.repeat} "
+                  f"interleaved: {med['ship-day'] / med['day']:.2f}x wall, {cpu['ship-day'] / cpu['day']:.2f}x CPU "
+                  f"(budget 1.5x)")
 
 
 if __name__ == "__main__":

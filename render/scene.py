@@ -62,6 +62,10 @@ _CV_TO_GL = np.diag([1.0, -1.0, -1.0, 1.0])
 #: buffers take 4 x 8 bytes a pixel, 512 MiB. Four draws of a 64 MP frame measured 1.95 s
 #: against 2.12 s for five (median of 4 interleaved, llvmpipe, load 0.9 on 2 cores).
 MAX_TILE_PX = 2**24
+#: The direction the sun's light travels in (world frame, unit): from azimuth 35 degrees (x toward
+#: y), 54.5 degrees above the horizon (the same sun for every lighting preset).
+SUN_TRAVEL_WORLD = (np.array([math.cos(math.radians(35.0)) * 0.5, math.sin(math.radians(35.0)) * 0.5, -0.7])
+                    / math.hypot(0.5, 0.7))
 #: Texture seed: the scene is the same in every worker and every run.
 
 
@@ -229,6 +233,7 @@ class DeckRenderer:
         deck = pyrender.Mesh([pyrender.Primitive(**plane_primitive(self.half_m, self.half_m, 0.0, 1.0), material=deck_mat)])
         L = self.spec.sea_half_size_m
         sea = pyrender.Mesh([pyrender.Primitive(**plane_primitive(L, L, 0.0, 2 * L / self._sea_tile_m), material=sea_mat)])
+        sea.deckpose_background = True  # drawn last, casts no shadow (_background_last, _shadow_pass_of_casters)
         s = pyrender.Scene(bg_color=[0, 0, 0, 1], ambient_light=[0.3] * 3)
         self._nodes["deck"] = s.add(deck)
         if self._waves is None:
@@ -291,9 +296,7 @@ class DeckRenderer:
         sun = self._nodes["sun"]
         sun.light.intensity = light.sun_intensity
         sun.light.color = np.array(light.tint)
-        az = math.radians(35.0)
-        d = np.array([math.cos(az) * 0.5, math.sin(az) * 0.5, -0.7])  # sun direction (travel)
-        z = -d / np.linalg.norm(d)
+        z = -SUN_TRAVEL_WORLD
         x = np.cross([0.0, 0.0, 1.0], z)
         x /= np.linalg.norm(x)
         T_sun = np.eye(4)
@@ -363,7 +366,9 @@ class DeckRenderer:
                                   color_0=colour, indices=self._sea_faces, material=self._sea_mat)
         if "sea" in self._nodes:
             self._scene.remove_node(self._nodes["sea"])
-        self._nodes["sea"] = self._scene.add(self._pr.Mesh([prim]))
+        mesh = self._pr.Mesh([prim])
+        mesh.deckpose_background = True  # drawn last, casts no shadow (_background_last, _shadow_pass_of_casters)
+        self._nodes["sea"] = self._scene.add(mesh)
 
     def close(self) -> None:
         """Forget this scene (the process's GL context lives until the process exits)."""
@@ -390,14 +395,19 @@ def _solid_mesh(pr: Any, mesh: Any, material: Any, *, linear: bool) -> Any:
 
 
 def _deck_shadow_camera(self: Any, scene_scale: float) -> Any:
-    """A directional light's shadow camera over the ship (120 m square), not the whole sea.
+    """A directional light's shadow camera over the ship (120 m square, 500 m deep), not the whole sea.
 
-    pyrender's own covers the scene's scale (the 4 km sea), 2 m a shadow texel; this one
-    keeps its depth range and frames the 120 m around the scene's centre, 6 cm a texel.
+    pyrender puts the camera ``scene_scale`` (the 4 km sea's diagonal) back from the scene's
+    centre toward the sun. Its own camera covers that scale, 2 m a shadow texel, and 0.01 to
+    10 times it in depth (57 km). Its shaders' depth bias (1e-4 to 1e-3 of the depth range)
+    then came to 6-57 m, so nothing within 6 m of its occluder was shadowed: the hull cast
+    no shadow on the sea 6 m below the deck. This one frames the 120 m around the centre,
+    6 cm a texel, and 250 m either side of it in depth: a bias of 5-50 cm.
     """
     import pyrender
 
-    return pyrender.OrthographicCamera(xmag=60.0, ymag=60.0, znear=0.01 * scene_scale, zfar=10 * scene_scale)
+    return pyrender.OrthographicCamera(xmag=60.0, ymag=60.0, znear=max(scene_scale - 250.0, 0.01 * scene_scale),
+                                       zfar=scene_scale + 250.0)
 
 
 _OFFSCREEN: list[Any] = []
@@ -417,6 +427,8 @@ def _offscreen(pr: Any, width: int, height: int, samples: int = 4) -> Any:
         r = pr.OffscreenRenderer(width, height)
         r._renderer._read_main_framebuffer = types.MethodType(_read_colour_only, r._renderer)
         r._renderer._configure_main_framebuffer = types.MethodType(_configure_framebuffer, r._renderer)
+        r._renderer._shadow_mapping_pass = types.MethodType(_shadow_pass_of_casters, r._renderer)
+        r._renderer._sorted_mesh_nodes = types.MethodType(_background_last, r._renderer)
         _OFFSCREEN.append(r)
         _OFFSCREEN_THREAD[:] = [threading.get_ident()]
         atexit.register(_delete_offscreen)
@@ -466,6 +478,37 @@ def _configure_framebuffer(self: Any) -> None:
                                  self._main_db_ms)
     self._main_fb_dims = (w, h)
     self._deckpose_fb_samples = samples
+
+
+def _background_last(self: Any, scene: Any) -> list[Any]:
+    """pyrender's ``Renderer._sorted_mesh_nodes`` with the meshes marked ``deckpose_background`` last.
+
+    pyrender draws solid meshes farthest origin first, which put the sea (its origin 6 m
+    below the deck's) under the ship first: every pixel of the ship was shaded twice. Drawn
+    last, the sea's hidden fragments fail the depth test before they are shaded. The depth
+    test picks the same surface in either order, so the frame is the same.
+    """
+    nodes = type(self)._sorted_mesh_nodes(self, scene)
+    back = [n for n in nodes if getattr(n.mesh, "deckpose_background", False) and not n.mesh.is_transparent]
+    return [n for n in nodes if all(n is not b for b in back)] + back
+
+
+def _shadow_pass_of_casters(self: Any, scene: Any, light_node: Any, flags: int) -> None:
+    """pyrender's ``Renderer._shadow_mapping_pass`` without the meshes marked ``deckpose_background``.
+
+    The sea fills the whole 120 m shadow map, so drawing its depth was most of the pass's
+    cost, and it shades nothing: its waves are far too gentle to shadow each other under a
+    sun 54 degrees up (slopes of a few degrees). Left out, the map holds the ship and the
+    deck, and a point of the sea outside their shadow reads the cleared (farthest) depth: lit.
+    """
+    hidden = [m for m in scene.meshes if getattr(m, "deckpose_background", False) and m.is_visible]
+    for m in hidden:
+        m.is_visible = False
+    try:
+        type(self)._shadow_mapping_pass(self, scene, light_node, flags)
+    finally:
+        for m in hidden:
+            m.is_visible = True
 
 
 def _read_colour_only(self: Any, scene: Any, flags: int) -> tuple[np.ndarray, None]:

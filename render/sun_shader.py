@@ -24,12 +24,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-#: The lean fragment shader, shipped with the package (``pyproject.toml``'s package data).
+#: The lean shaders, shipped with the package (``pyproject.toml``'s package data).
 SUN_LIT_FRAG = Path(__file__).resolve().parent / "shaders" / "sun_lit.frag"
+SUN_LIT_VERT = SUN_LIT_FRAG.with_suffix(".vert")
 
 
 def sun_program_cache(pr: Any) -> Any:
-    """A pyrender ``ShaderProgramCache`` that draws ``mesh.frag`` materials with ``sun_lit.frag``.
+    """A pyrender ``ShaderProgramCache`` that draws ``mesh.vert/.frag`` materials with ``sun_lit.vert/.frag``.
 
     Parameters
     ----------
@@ -46,8 +47,8 @@ def sun_program_cache(pr: Any) -> Any:
     class SunProgramCache(base):  # type: ignore[misc, valid-type]
         def get_program(self, vertex_shader: str, fragment_shader: str, geometry_shader: str | None = None,
                         defines: dict[str, Any] | None = None) -> Any:
-            if fragment_shader == "mesh.frag":
-                fragment_shader = str(SUN_LIT_FRAG)  # absolute: os.path.join keeps it as it is
+            if fragment_shader == "mesh.frag":  # absolute paths: os.path.join keeps them as they are
+                vertex_shader, fragment_shader = str(SUN_LIT_VERT), str(SUN_LIT_FRAG)
             return super().get_program(vertex_shader, fragment_shader, geometry_shader, defines)
 
     return SunProgramCache()

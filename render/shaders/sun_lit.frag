@@ -29,6 +29,9 @@ uniform vec3 cam_pos;
 uniform vec3 ambient_light;
 
 in vec3 frag_position;
+#ifdef DIRECTIONAL_LIGHT_SHADOWS
+in vec4 light_position;  // in the sun's shadow-map space (sun_lit.vert)
+#endif
 #ifdef NORMAL_LOC
 in vec3 frag_normal;
 #endif
@@ -49,9 +52,9 @@ vec3 srgb_to_linear(vec3 c)
 }
 
 #ifdef DIRECTIONAL_LIGHT_SHADOWS
-float lit_fraction(mat4 light_matrix, sampler2D shadow_map, float nl)
+float lit_fraction(sampler2D shadow_map, float nl)
 {
-    vec4 p = light_matrix * vec4(frag_position, 1.0);
+    vec4 p = light_position;
     vec3 c = p.xyz / p.w * 0.5 + 0.5;
     if (c.z > 1.0 || any(lessThan(c.xy, vec2(0.0))) || any(greaterThan(c.xy, vec2(1.0)))) {
         return 1.0;  // beyond the shadow map (render/scene.py frames 120 m around the ship): lit
@@ -103,8 +106,7 @@ void main()
         vec3 radiance = directional_lights[0].intensity * directional_lights[0].color;
         vec3 res = nl * radiance * ((1.0 - F) * c_diff / PI + F * G * D / (4.0 * nl * nv + 0.001));
 #ifdef DIRECTIONAL_LIGHT_SHADOWS
-        res *= lit_fraction(directional_lights[0].light_matrix, directional_lights[0].shadow_map,
-                            clamp(dot(n, l), 0.0, 1.0));
+        res *= lit_fraction(directional_lights[0].shadow_map, clamp(dot(n, l), 0.0, 1.0));
 #endif
         color += res;
     }
