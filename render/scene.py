@@ -232,7 +232,7 @@ class DeckRenderer:
                                                      roughnessFactor=0.15)
         deck = pyrender.Mesh([pyrender.Primitive(**plane_primitive(self.half_m, self.half_m, 0.0, 1.0), material=deck_mat)])
         L = self.spec.sea_half_size_m
-        sea = pyrender.Mesh([pyrender.Primitive(**plane_primitive(L, L, 0.0, 2 * L / self._sea_tile_m), material=sea_mat)])
+        sea: Any = pyrender.Mesh([pyrender.Primitive(**plane_primitive(L, L, 0.0, 2 * L / self._sea_tile_m), material=sea_mat)])
         sea.deckpose_background = True  # drawn last, casts no shadow (_background_last, _shadow_pass_of_casters)
         s = pyrender.Scene(bg_color=[0, 0, 0, 1], ambient_light=[0.3] * 3)
         self._nodes["deck"] = s.add(deck)
