@@ -213,6 +213,7 @@ class DeckRenderer:
         self._sea_mat: Any = None
         self._sea_grid = np.zeros(0)
         self._sea_faces = np.zeros((0, 3), np.uint32)
+        self._shadow_centre_deck_m = np.zeros(3)
 
     def _build(self) -> Any:
         """Make the scene (pyrender's Scene), kept as ``_scene``; returns it."""
@@ -244,12 +245,18 @@ class DeckRenderer:
             self._sea_grid = sea_grid_m(L)
         ship = self.spec.ship
         hull_mat = pyrender.MetallicRoughnessMaterial(metallicFactor=0.0, roughnessFactor=0.7)
+        a = self.half_m
+        casters = [np.array([[-a, -a, 0.0], [a, -a, 0.0], [a, a, 0.0], [-a, a, 0.0]])]  # the deck plate
         for name, on, mesh in (("hull", ship.hull, lambda: hull_mesh(self.half_m, self.spec.freeboard_m)),
                                ("superstructure", ship.superstructure, lambda: superstructure_mesh(self.half_m))):
             if on:
-                self._nodes[name] = s.add(_solid_mesh(pyrender, mesh(), hull_mat, linear=pbr))
-        sun = pyrender.DirectionalLight(color=np.ones(3), intensity=1.0)
+                m = mesh()
+                casters.append(np.asarray(m.vertices))
+                self._nodes[name] = s.add(_solid_mesh(pyrender, m, hull_mat, linear=pbr))
+        sun: Any = pyrender.DirectionalLight(color=np.ones(3), intensity=1.0)
         if self.spec.shadows:
+            self._shadow_centre_deck_m, sun.deckpose_shadow_half_m = shadow_frame_m(np.vstack(casters),
+                                                                                     self.spec.freeboard_m)
             sun._get_shadow_camera = types.MethodType(_deck_shadow_camera, sun)
         self._nodes["sun"] = s.add(sun)
         self._scene = s
@@ -325,6 +332,8 @@ class DeckRenderer:
             gl = renderer._renderer
             rows = out[r0:r1]
             gl.deckpose_read_into = rows  # read back straight into the frame
+            gl.deckpose_shadow_centre = (ship.T_world_from_deck[:3, :3] @ self._shadow_centre_deck_m
+                                         + ship.T_world_from_deck[:3, 3])
             own_programs = gl._program_cache
             if pbr:  # the sun's lean shader in place of pyrender's mesh.frag (render/sun_shader.py)
                 if getattr(gl, "deckpose_sun_programs", None) is None:
@@ -335,6 +344,7 @@ class DeckRenderer:
             finally:
                 s.remove_node(node)
                 gl.deckpose_read_into = None
+                gl.deckpose_shadow_centre = None
                 gl._program_cache = own_programs
             if color is not rows:  # a platform without framebuffers reads through pyrender
                 rows[:] = color[: r1 - r0]
@@ -394,20 +404,65 @@ def _solid_mesh(pr: Any, mesh: Any, material: Any, *, linear: bool) -> Any:
     return pr.Mesh([prim])
 
 
+def shadow_frame_m(casters_deck_m: NDArray[np.float64], freeboard_m: float) -> tuple[NDArray[np.float64], float]:
+    """Where the sun's shadow map is centred and how far it reaches, so every shadow is in it.
+
+    Parameters
+    ----------
+    casters_deck_m : (N, 3) array of float
+        The vertices of everything that casts a shadow (deck plate, hull, superstructure),
+        deck frame, metres.
+    freeboard_m : float
+        Height of the deck above the sea, metres (the lowest a shadow falls).
+
+    Returns
+    -------
+    centre_deck_m : (3,) array of float
+        The middle of the casters' extent in the deck plane, deck frame, metres.
+    half_m : float
+        Half the side of the square the map covers, metres: the casters' farthest reach from
+        the centre, plus the longest shadow (the highest caster's height above the sea times
+        the sun's cotangent of elevation), plus 10 % and 2 m for the deck's roll and pitch.
+    """
+    xy = casters_deck_m[:, :2]
+    centre = np.array([*(xy.min(0) + xy.max(0)) / 2.0, 0.0])
+    reach = float(np.max(np.hypot(*(xy - centre[:2]).T)))
+    shadow = (float(casters_deck_m[:, 2].max()) + freeboard_m) * math.hypot(*SUN_TRAVEL_WORLD[:2]) / -SUN_TRAVEL_WORLD[2]
+    return centre, float(1.1 * (reach + shadow) + 2.0)
+
+
 def _deck_shadow_camera(self: Any, scene_scale: float) -> Any:
-    """A directional light's shadow camera over the ship (120 m square, 500 m deep), not the whole sea.
+    """A directional light's shadow camera over the ship (:func:`shadow_frame_m`, 500 m deep).
 
     pyrender puts the camera ``scene_scale`` (the 4 km sea's diagonal) back from the scene's
-    centre toward the sun. Its own camera covers that scale, 2 m a shadow texel, and 0.01 to
-    10 times it in depth (57 km). Its shaders' depth bias (1e-4 to 1e-3 of the depth range)
-    then came to 6-57 m, so nothing within 6 m of its occluder was shadowed: the hull cast
-    no shadow on the sea 6 m below the deck. This one frames the 120 m around the centre,
-    6 cm a texel, and 250 m either side of it in depth: a bias of 5-50 cm.
+    centre toward the sun (:func:`_shadow_view_over_ship` moves it over the ship). Its own
+    camera covers that scale, 2 m a shadow texel, and 0.01 to 10 times it in depth (57 km).
+    Its shaders' depth bias (1e-4 to 1e-3 of the depth range) then came to 6-57 m, so
+    nothing within 6 m of its occluder was shadowed: the hull cast no shadow on the sea 6 m
+    below the deck. This one frames the square :func:`shadow_frame_m` gives (130 m for the
+    default ship, 6 cm a texel) and 250 m either side of the centre in depth: a bias of 5-50 cm.
     """
     import pyrender
 
-    return pyrender.OrthographicCamera(xmag=60.0, ymag=60.0, znear=max(scene_scale - 250.0, 0.01 * scene_scale),
+    half_m = float(self.deckpose_shadow_half_m)
+    return pyrender.OrthographicCamera(xmag=half_m, ymag=half_m, znear=max(scene_scale - 250.0, 0.01 * scene_scale),
                                        zfar=scene_scale + 250.0)
+
+
+def _shadow_view_over_ship(self: Any, scene: Any, light_node: Any, flags: int) -> tuple[Any, Any]:
+    """pyrender's ``Renderer._get_light_cam_matrices``, a directional light's camera over the ship.
+
+    pyrender aims it at the centre of the scene's bounding box, which the drifting 4 km sea
+    moves tens of metres; :meth:`DeckRenderer.render` sets ``deckpose_shadow_centre`` (world,
+    metres: :func:`shadow_frame_m`'s centre under the ship's pose) for the frame.
+    """
+    V, P = type(self)._get_light_cam_matrices(self, scene, light_node, flags)
+    centre = getattr(self, "deckpose_shadow_centre", None)
+    if centre is None or not hasattr(light_node.light, "deckpose_shadow_half_m"):
+        return V, P
+    pose = scene.get_pose(light_node).copy()
+    pose[:3, 3] = np.asarray(centre) + pose[:3, 2] * scene.scale  # toward the sun: the light's +z
+    return np.linalg.inv(pose), P
 
 
 _OFFSCREEN: list[Any] = []
@@ -429,6 +484,7 @@ def _offscreen(pr: Any, width: int, height: int, samples: int = 4) -> Any:
         r._renderer._configure_main_framebuffer = types.MethodType(_configure_framebuffer, r._renderer)
         r._renderer._shadow_mapping_pass = types.MethodType(_shadow_pass_of_casters, r._renderer)
         r._renderer._sorted_mesh_nodes = types.MethodType(_background_last, r._renderer)
+        r._renderer._get_light_cam_matrices = types.MethodType(_shadow_view_over_ship, r._renderer)
         _OFFSCREEN.append(r)
         _OFFSCREEN_THREAD[:] = [threading.get_ident()]
         atexit.register(_delete_offscreen)

@@ -83,7 +83,15 @@ def test_the_shader_ships_with_the_package() -> None:
         assert path.is_file() and path.read_text().startswith("#version 330 core")
 
 
-def test_shadows_on_the_sea_match_ray_casting(egl_renderer_factory) -> None:
+@pytest.mark.parametrize(("ship", "pose"), [
+    # over the lee side of the ship (the sun travels to +x +y)
+    (ShipPose(0.04, -0.03, 0.3, 0.5, -0.4), CameraPose.nadir(60.0, x_m=25.0, y_m=20.0)),
+    # the bow turned to the far corner: its shadow lies 60 m out (a 120 m map around the scene's
+    # centre had missed it)
+    (ShipPose(0.043, -0.019, 2.308, 0.26, 0.62, -0.32), CameraPose.nadir(71.0, x_m=-19.0, y_m=45.0)),
+    (ShipPose(-0.12, 0.1, -1.2, -0.5, 0.3, 0.6), CameraPose.nadir(45.0, x_m=20.0, y_m=-30.0)),
+])
+def test_shadows_on_the_sea_match_ray_casting(egl_renderer_factory, ship: ShipPose, pose: CameraPose) -> None:
     """Independent: a sea pixel is shadowed exactly where the segment from its sea point toward the
     sun crosses the ship (hull, superstructure, deck plate: trimesh geometry, brute-force ray casts)."""
     from deckpose.render.scene import SUN_TRAVEL_WORLD
@@ -96,11 +104,9 @@ def test_shadows_on_the_sea_match_ray_casting(egl_renderer_factory) -> None:
     shaded = tiny_config(scene={"shading": "pbr", "texture_px": 256, "ship": SHIP, "sea": {"waves": 0},
                                 "shadows": True})
     cam = lit.cameras_by_name()["4mp-320x240"]
-    ship = ShipPose(0.04, -0.03, 0.3, 0.5, -0.4)
-    pose = CameraPose.nadir(60.0, x_m=25.0, y_m=20.0)  # over the lee side (the sun travels to +x +y)
     no_shadow = egl_renderer_factory(lit).render(cam, pose, ship, 2.0, Lighting.DAY).astype(int).sum(-1)
     with_shadow = egl_renderer_factory(shaded).render(cam, pose, ship, 2.0, Lighting.DAY).astype(int).sum(-1)
-    shadowed = no_shadow - with_shadow > 10  # the sun's share of the dark sea: 28-72 (sum of R, G, B) here
+    shadowed = no_shadow - with_shadow > 10  # the sun's share of the dark sea: 28-72 (sum of R, G, B)
 
     a, freeboard = lit.deck_half_size_m(), lit.scene.freeboard_m
     plate = trimesh.Trimesh([[-a, -a, 0], [a, -a, 0], [a, a, 0], [-a, a, 0]], [[0, 1, 2], [0, 2, 3]])
@@ -119,5 +125,5 @@ def test_shadows_on_the_sea_match_ray_casting(egl_renderer_factory) -> None:
     sure = seen & (in_shadow.all(0) | ~in_shadow.any(0))
     want = in_shadow[0][sure]
     got = shadowed[vv.ravel(), uu.ravel()][sure]
-    assert want.sum() > 30  # the ship's shadow lies on the sea in view
+    assert want.sum() > 20  # the ship's shadow lies on the sea in view
     np.testing.assert_array_equal(got, want)
