@@ -332,6 +332,7 @@ class DeckRenderer:
             gl = renderer._renderer
             rows = out[r0:r1]
             gl.deckpose_read_into = rows  # read back straight into the frame
+            gl.deckpose_shadow_map_drawn = k > 0  # one shadow pass a frame, not one a tile
             gl.deckpose_shadow_centre = (ship.T_world_from_deck[:3, :3] @ self._shadow_centre_deck_m
                                          + ship.T_world_from_deck[:3, 3])
             own_programs = gl._program_cache
@@ -345,6 +346,7 @@ class DeckRenderer:
                 s.remove_node(node)
                 gl.deckpose_read_into = None
                 gl.deckpose_shadow_centre = None
+                gl.deckpose_shadow_map_drawn = False
                 gl._program_cache = own_programs
             if color is not rows:  # a platform without framebuffers reads through pyrender
                 rows[:] = color[: r1 - r0]
@@ -550,13 +552,19 @@ def _background_last(self: Any, scene: Any) -> list[Any]:
 
 
 def _shadow_pass_of_casters(self: Any, scene: Any, light_node: Any, flags: int) -> None:
-    """pyrender's ``Renderer._shadow_mapping_pass`` without the meshes marked ``deckpose_background``.
+    """pyrender's ``Renderer._shadow_mapping_pass`` without the meshes marked ``deckpose_background``,
+    once a frame.
 
-    The sea fills the whole 120 m shadow map, so drawing its depth was most of the pass's
-    cost, and it shades nothing: its waves are far too gentle to shadow each other under a
-    sun 54 degrees up (slopes of a few degrees). Left out, the map holds the ship and the
-    deck, and a point of the sea outside their shadow reads the cleared (farthest) depth: lit.
+    The sea fills the whole shadow map, so drawing its depth was most of the pass's cost,
+    and it shades nothing: its waves are far too gentle to shadow each other under a sun
+    54 degrees up (slopes of a few degrees). Left out, the map holds the ship and the deck,
+    and a point of the sea outside their shadow reads the cleared (farthest) depth: lit.
+    pyrender draws the map for every draw call; a large frame is drawn in tiles, all with
+    the same scene and sun, so :meth:`DeckRenderer.render` sets ``deckpose_shadow_map_drawn``
+    after the first tile and the map is kept.
     """
+    if getattr(self, "deckpose_shadow_map_drawn", False):
+        return  # drawn for this frame's first tile: the same scene, light and map
     hidden = [m for m in scene.meshes if getattr(m, "deckpose_background", False) and m.is_visible]
     for m in hidden:
         m.is_visible = False

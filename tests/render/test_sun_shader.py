@@ -127,3 +127,26 @@ def test_shadows_on_the_sea_match_ray_casting(egl_renderer_factory, ship: ShipPo
     got = shadowed[vv.ravel(), uu.ravel()][sure]
     assert want.sum() > 20  # the ship's shadow lies on the sea in view
     np.testing.assert_array_equal(got, want)
+
+
+def test_tiled_shadowed_frame_equals_single_pass(egl_renderer_factory, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A frame drawn in 4 tiles draws its shadow map once (for the first tile) and reuses it: the
+    same shadows as one draw."""
+    import deckpose.render.scene as scene_mod
+
+    cfg = tiny_config(scene={"shading": "pbr", "texture_px": 256, "ship": SHIP, "sea": {"waves": 0},
+                             "shadows": True})
+    r = egl_renderer_factory(cfg)
+    cam = cfg.cameras_by_name()["4mp-320x240"]
+    args = (cam, CameraPose.nadir(60.0, x_m=25.0, y_m=20.0), ShipPose(0.04, -0.03, 0.3, 0.5, -0.4), 2.0,
+            Lighting.DAY)
+    whole = r.render(*args).astype(int)
+    passes: list[int] = []
+    own_pass = type(r.offscreen(8, 8)._renderer)._shadow_mapping_pass
+    monkeypatch.setattr(type(r.offscreen(8, 8)._renderer), "_shadow_mapping_pass",
+                        lambda self, *a: (passes.append(1), own_pass(self, *a))[1])
+    monkeypatch.setattr(scene_mod, "MAX_TILE_PX", 320 * 70)  # 4 tiles of 60 rows
+    tiled = r.render(*args).astype(int)
+    assert len(passes) == 1
+    diff = np.abs(whole - tiled)
+    assert diff.mean() < 0.05 and diff.max() <= 3  # as test_scene's unshadowed tiles
