@@ -13,8 +13,9 @@ factors. ``shaders/sun_lit.frag`` draws exactly that: the same Cook-Torrance ter
 output encoding, and one bilinear 4-texel shadow lookup (the shadow's edge is one
 shadow-map texel wide instead of three); ``shaders/sun_lit.vert`` hands it each vertex's
 position in the shadow map's space. Point and spot lights and normal, occlusion and
-emissive textures are not drawn; the deck scene has none. With them a whole ``pbr`` day
-frame of the ship look costs 1.35x (8 MP) to 1.54x (64 MP) a default one
+emissive textures are not drawn; the deck scene has none. With them (and one shadow pass
+a frame, :mod:`deckpose.render.scene`) a whole ``pbr`` day frame of the ship look costs
+1.40x (8 MP) to 1.44x (64 MP) a default one in wall time, 1.57x in CPU
 (``reports/throughput/ship_cost.txt``); its raster about 2x a ``flat`` one.
 
 :func:`sun_program_cache` is a pyrender ``ShaderProgramCache`` that loads these shaders
