@@ -255,8 +255,7 @@ class DeckRenderer:
                 self._nodes[name] = s.add(_solid_mesh(pyrender, m, hull_mat, linear=pbr))
         sun: Any = pyrender.DirectionalLight(color=np.ones(3), intensity=1.0)
         if self.spec.shadows:
-            self._shadow_centre_deck_m, sun.deckpose_shadow_half_m = shadow_frame_m(np.vstack(casters),
-                                                                                     self.spec.freeboard_m)
+            self._shadow_centre_deck_m, sun.deckpose_shadow_half_m = shadow_frame_m(np.vstack(casters))
             sun._get_shadow_camera = types.MethodType(_deck_shadow_camera, sun)
         self._nodes["sun"] = s.add(sun)
         self._scene = s
@@ -329,18 +328,18 @@ class DeckRenderer:
             node = s.add(cam, pose=T_cam)
             s.main_camera_node = node
             renderer = self._renderer(W, tile_h)
-            gl = renderer._renderer
+            gl = renderer._renderer  # OSMesa re-made it in _offscreen if the size changed; render() keeps it
             rows = out[r0:r1]
-            gl.deckpose_read_into = rows  # read back straight into the frame
-            gl.deckpose_shadow_map_drawn = k > 0  # one shadow pass a frame, not one a tile
-            gl.deckpose_shadow_centre = (ship.T_world_from_deck[:3, :3] @ self._shadow_centre_deck_m
-                                         + ship.T_world_from_deck[:3, 3])
             own_programs = gl._program_cache
-            if pbr:  # the sun's lean shader in place of pyrender's mesh.frag (render/sun_shader.py)
-                if getattr(gl, "deckpose_sun_programs", None) is None:
-                    gl.deckpose_sun_programs = sun_program_cache(pr)
-                gl._program_cache = gl.deckpose_sun_programs
             try:
+                gl.deckpose_read_into = rows  # read back straight into the frame
+                gl.deckpose_shadow_map_drawn = k > 0  # one shadow pass a frame, not one a tile
+                gl.deckpose_shadow_centre = (ship.T_world_from_deck[:3, :3] @ self._shadow_centre_deck_m
+                                             + ship.T_world_from_deck[:3, 3])
+                if pbr:  # the sun's lean shaders in place of pyrender's mesh.vert/.frag (render/sun_shader.py)
+                    if getattr(gl, "deckpose_sun_programs", None) is None:
+                        gl.deckpose_sun_programs = sun_program_cache(pr)
+                    gl._program_cache = gl.deckpose_sun_programs
                 color, _ = renderer.render(s, flags=flags)
             finally:
                 s.remove_node(node)
@@ -348,6 +347,7 @@ class DeckRenderer:
                 gl.deckpose_shadow_centre = None
                 gl.deckpose_shadow_map_drawn = False
                 gl._program_cache = own_programs
+                del gl  # keep no Renderer alive into the next tile (OSMesa may re-make it)
             if color is not rows:  # a platform without framebuffers reads through pyrender
                 rows[:] = color[: r1 - r0]
         if self.spec.light_pools_cd > 0 and lighting is not Lighting.DAY:
@@ -406,31 +406,32 @@ def _solid_mesh(pr: Any, mesh: Any, material: Any, *, linear: bool) -> Any:
     return pr.Mesh([prim])
 
 
-def shadow_frame_m(casters_deck_m: NDArray[np.float64], freeboard_m: float) -> tuple[NDArray[np.float64], float]:
+def shadow_frame_m(casters_deck_m: NDArray[np.float64]) -> tuple[NDArray[np.float64], float]:
     """Where the sun's shadow map is centred and how far it reaches, so every shadow is in it.
+
+    The sun's camera is orthographic: a shadow lies on the light's ray through the point
+    that casts it, in that point's cell of the map. So the map needs to hold the casters
+    only, whatever the ship's attitude: a caster's distance from the centre bounds its
+    offset in any projection.
 
     Parameters
     ----------
     casters_deck_m : (N, 3) array of float
         The vertices of everything that casts a shadow (deck plate, hull, superstructure),
         deck frame, metres.
-    freeboard_m : float
-        Height of the deck above the sea, metres (the lowest a shadow falls).
 
     Returns
     -------
     centre_deck_m : (3,) array of float
         The middle of the casters' extent in the deck plane, deck frame, metres.
     half_m : float
-        Half the side of the square the map covers, metres: the casters' farthest reach from
-        the centre, plus the longest shadow (the highest caster's height above the sea times
-        the sun's cotangent of elevation), plus 10 % and 2 m for the deck's roll and pitch.
+        Half the side of the square the map covers, metres: the farthest caster's distance
+        from the centre, plus 5 % and 1 m.
     """
     xy = casters_deck_m[:, :2]
     centre = np.array([*(xy.min(0) + xy.max(0)) / 2.0, 0.0])
-    reach = float(np.max(np.hypot(*(xy - centre[:2]).T)))
-    shadow = (float(casters_deck_m[:, 2].max()) + freeboard_m) * math.hypot(*SUN_TRAVEL_WORLD[:2]) / -SUN_TRAVEL_WORLD[2]
-    return centre, float(1.1 * (reach + shadow) + 2.0)
+    reach = float(np.max(np.linalg.norm(casters_deck_m - centre, axis=1)))
+    return centre, 1.05 * reach + 1.0
 
 
 def _deck_shadow_camera(self: Any, scene_scale: float) -> Any:
@@ -438,11 +439,12 @@ def _deck_shadow_camera(self: Any, scene_scale: float) -> Any:
 
     pyrender puts the camera ``scene_scale`` (the 4 km sea's diagonal) back from the scene's
     centre toward the sun (:func:`_shadow_view_over_ship` moves it over the ship). Its own
-    camera covers that scale, 2 m a shadow texel, and 0.01 to 10 times it in depth (57 km).
-    Its shaders' depth bias (1e-4 to 1e-3 of the depth range) then came to 6-57 m, so
-    nothing within 6 m of its occluder was shadowed: the hull cast no shadow on the sea 6 m
-    below the deck. This one frames the square :func:`shadow_frame_m` gives (130 m for the
-    default ship, 6 cm a texel) and 250 m either side of the centre in depth: a bias of 5-50 cm.
+    camera covers that scale (5.5 m a texel of its 2048-texel map) and 0.01 to 10 times it in
+    depth (57 km). Its shaders' depth bias (1e-4 to 1e-3 of the depth range) then came to
+    6-57 m, so nothing within 6 m of its occluder was shadowed: the hull cast no shadow on
+    the sea 6 m below the deck. This one frames the square :func:`shadow_frame_m` gives (90 m
+    for the default ship, 4.4 cm a texel) and 250 m either side of the centre in depth: a
+    bias of 5-50 cm.
     """
     import pyrender
 
@@ -482,19 +484,31 @@ def _offscreen(pr: Any, width: int, height: int, samples: int = 4) -> Any:
     """
     if not _OFFSCREEN:
         r = pr.OffscreenRenderer(width, height)
-        r._renderer._read_main_framebuffer = types.MethodType(_read_colour_only, r._renderer)
-        r._renderer._configure_main_framebuffer = types.MethodType(_configure_framebuffer, r._renderer)
-        r._renderer._shadow_mapping_pass = types.MethodType(_shadow_pass_of_casters, r._renderer)
-        r._renderer._sorted_mesh_nodes = types.MethodType(_background_last, r._renderer)
-        r._renderer._get_light_cam_matrices = types.MethodType(_shadow_view_over_ship, r._renderer)
+        _patch_renderer(r._renderer)
         _OFFSCREEN.append(r)
         _OFFSCREEN_THREAD[:] = [threading.get_ident()]
         atexit.register(_delete_offscreen)
     r = _OFFSCREEN[0]
     r.viewport_width = width
     r.viewport_height = height
+    if not r._platform.supports_framebuffers() and (
+            (r._platform.viewport_width, r._platform.viewport_height) != (width, height)):
+        # OSMesa draws into the context's own buffer: pyrender re-makes the context and its
+        # Renderer at each new size, inside render(), unpatched. Done here, the new one is patched.
+        r.delete()
+        r._create()
+        _patch_renderer(r._renderer)
     r._renderer.deckpose_samples = samples
     return r
+
+
+def _patch_renderer(gl: Any) -> None:
+    """Put this module's changes on a pyrender ``Renderer`` (see each function)."""
+    gl._read_main_framebuffer = types.MethodType(_read_colour_only, gl)
+    gl._configure_main_framebuffer = types.MethodType(_configure_framebuffer, gl)
+    gl._shadow_mapping_pass = types.MethodType(_shadow_pass_of_casters, gl)
+    gl._sorted_mesh_nodes = types.MethodType(_background_last, gl)
+    gl._get_light_cam_matrices = types.MethodType(_shadow_view_over_ship, gl)
 
 
 def _configure_framebuffer(self: Any) -> None:
@@ -548,7 +562,9 @@ def _background_last(self: Any, scene: Any) -> list[Any]:
     """
     nodes = type(self)._sorted_mesh_nodes(self, scene)
     back = [n for n in nodes if getattr(n.mesh, "deckpose_background", False) and not n.mesh.is_transparent]
-    return [n for n in nodes if all(n is not b for b in back)] + back
+    rest = [n for n in nodes if all(n is not b for b in back)]
+    solid = [n for n in rest if not n.mesh.is_transparent]
+    return solid + back + [n for n in rest if n.mesh.is_transparent]  # transparent ones after all solids
 
 
 def _shadow_pass_of_casters(self: Any, scene: Any, light_node: Any, flags: int) -> None:

@@ -12,8 +12,9 @@ factors. ``shaders/sun_lit.frag`` draws exactly that: the same Cook-Torrance ter
 (Schlick's Fresnel, Smith-Schlick geometry, GGX distribution), the same ambient and
 output encoding, and one bilinear 4-texel shadow lookup (the shadow's edge is one
 shadow-map texel wide instead of three); ``shaders/sun_lit.vert`` hands it each vertex's
-position in the shadow map's space. Point and spot lights and normal, occlusion and
-emissive textures are not drawn; the deck scene has none. With them (and one shadow pass
+position in the shadow map's space. Point and spot lights, directional lights after the
+first, normal, occlusion, emissive and metallic-roughness textures and glossy materials
+are not drawn; the deck scene has none. With them (and one shadow pass
 a frame, :mod:`deckpose.render.scene`) a whole ``pbr`` day frame of the ship look costs
 1.40x (8 MP) to 1.44x (64 MP) a default one in wall time, 1.57x in CPU
 (``reports/throughput/ship_cost.txt``); its raster about 2x a ``flat`` one.

@@ -2,8 +2,9 @@
 // deckpose's lean metallic-roughness shader (render/sun_shader.py): the scene's one directional
 // light (the sun) and its ambient light, with pyrender's Cook-Torrance terms (pyrender/shaders/
 // mesh.frag), and a 4-texel bilinear shadow test in place of pyrender's 36-texel PCF
-// that calls a point beyond the shadow map lit (pyrender's compares it with the map's edge). Point and
-// spot lights, normal, occlusion and emissive textures are not drawn (the deck scene has none).
+// that calls a point beyond the shadow map lit (pyrender's wraps around the map, REPEAT). Point and
+// spot lights, directional lights after the first, normal, occlusion, emissive and metallic-roughness
+// textures and glossy materials are not drawn (the deck scene has none).
 struct DirectionalLight {
     vec3 color;
     float intensity;
@@ -57,7 +58,7 @@ float lit_fraction(sampler2D shadow_map, float nl)
     vec4 p = light_position;
     vec3 c = p.xyz / p.w * 0.5 + 0.5;
     if (c.z > 1.0 || any(lessThan(c.xy, vec2(0.0))) || any(greaterThan(c.xy, vec2(1.0)))) {
-        return 1.0;  // beyond the shadow map (render/scene.py frames 120 m around the ship): lit
+        return 1.0;  // beyond the shadow map (render/scene.py frames the ship, shadow_frame_m): lit
     }
     float compare = c.z - max(0.001 * (1.0 - nl), 0.0001) / p.w;
     vec2 size = vec2(textureSize(shadow_map, 0));
