@@ -495,6 +495,10 @@ def _offscreen(pr: Any, width: int, height: int, samples: int = 4) -> Any:
             (r._platform.viewport_width, r._platform.viewport_height) != (width, height)):
         # OSMesa draws into the context's own buffer: pyrender re-makes the context and its
         # Renderer at each new size, inside render(), unpatched. Done here, the new one is patched.
+        sun_programs = getattr(r._renderer, "deckpose_sun_programs", None)
+        if sun_programs is not None:  # freed in their own context, not later in the new one
+            r._platform.make_current()
+            sun_programs.clear()
         r.delete()
         r._create()
         _patch_renderer(r._renderer)
