@@ -164,13 +164,16 @@ def _child(args: argparse.Namespace) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--sizes", nargs="+", default=["8mp", "64mp"])
-    ap.add_argument("--frames", type=int, default=3)
-    ap.add_argument("--naive-frames", type=int, default=2)
+    ap.add_argument("--sizes", nargs="+", default=["8mp", "64mp"], metavar="PRESET",
+                    help="camera presets to time, e.g. 8mp 64mp (default: %(default)s)")
+    ap.add_argument("--frames", type=int, default=3, help="timed frames per case, after one warm-up frame")
+    ap.add_argument("--naive-frames", type=int, default=2, help="frames of the naive pyrender loop")
     ap.add_argument("--backend", default="egl", choices=["egl", "osmesa"])
-    ap.add_argument("--skip-naive", action="store_true")
+    ap.add_argument("--skip-naive", action="store_true", help="leave out the naive pyrender loop (slow)")
     ap.add_argument("--realism", action="store_true", help="also time the hard rung's realism effects")
-    ap.add_argument("--ship", action="store_true", help="also time configs/realistic_ship.yaml's scene (ship look)")
+    ap.add_argument("--ship", action="store_true",
+                    help="also time configs/realistic_ship.yaml's scene (ship look, flat, night) and that scene "
+                         "under pbr by day (sun light, shadows, glitter) against the default scene by day")
     ap.add_argument("--repeat", type=int, default=3, help="interleaved runs of ours and real/ship")
     ap.add_argument("--case", help=argparse.SUPPRESS)
     ap.add_argument("--size", help=argparse.SUPPRESS)
@@ -185,8 +188,11 @@ def main() -> None:
     def run(case: str, size: str, n: int) -> dict[str, float]:
         cmd = [sys.executable, __file__, "--case", case, "--size", size, "--frames", str(n),
                "--backend", args.backend]
-        out = subprocess.run(cmd, capture_output=True, text=True, check=True).stdout.strip().splitlines()[-1]
-        r = json.loads(out)
+        done = subprocess.run(cmd, capture_output=True, text=True, check=False)
+        if done.returncode != 0:  # the case's own last line, not a CalledProcessError traceback
+            lines = done.stderr.strip().splitlines() or ["no message"]
+            sys.exit(f"bench_render: {case} at {size} failed: {lines[-1]}")
+        r = json.loads(done.stdout.strip().splitlines()[-1])
         print(f"{size:>6} {case:>8} {r['per_frame_s']:8.2f} {r['min_s']:7.2f} {r['first_s']:8.2f} "
               f"{r['peak_rss_gib']:9.2f} {r.get('cpu_s', float('nan')):7.2f}", flush=True)
         return r

@@ -71,24 +71,40 @@ def contact_sheet(presets: tuple[str, ...] = PRESETS, *, tile_w: int = 480, heig
     return np.vstack(rows)
 
 
-def main() -> None:
+def main(argv: list[str] | None = None) -> int:
+    """The command line; returns the exit status (2 and one line on stderr for bad input)."""
+    import sys
+
+    from deckpose.camera import preset_names
+    from deckpose.cli import exit_codes
+    from deckpose.errors import DeckposeError
+
     ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
-    ap.add_argument("out", type=Path, nargs="?", default=Path("reports/contact_sheet.png"))
-    ap.add_argument("--presets", nargs="+", default=list(PRESETS))
-    ap.add_argument("--height-m", type=float, default=30.0, help="camera height above the deck, metres")
+    ap.add_argument("out", type=Path, nargs="?", default=Path("reports/contact_sheet.png"),
+                    help="the PNG to write (default: %(default)s, the committed sheet: give another path "
+                         "to keep it); put it before --presets, which takes every word after it")
+    ap.add_argument("--presets", nargs="+", default=list(PRESETS), metavar="PRESET",
+                    help=f"camera presets, one row each (default: %(default)s; any of {', '.join(preset_names())})")
+    ap.add_argument("--height-m", type=float, default=30.0,
+                    help="camera height above the deck, metres (default: %(default)s; the committed sheet: 50)")
     ap.add_argument("--config", type=Path, default=None,
                     help="a render config whose scene section (ship, sea, light pools, bloom) the sheet uses")
-    args = ap.parse_args()
-    scene = None
-    if args.config is not None:
-        from deckpose.render.config import config_to_dict
+    args = ap.parse_args(argv)
+    try:
+        scene = None
+        if args.config is not None:
+            from deckpose.render.config import config_to_dict
 
-        scene = config_to_dict(load_config(args.config))["scene"]
-    sheet = contact_sheet(tuple(args.presets), height_m=args.height_m, scene=scene)
-    with atomic_path(args.out) as tmp:
-        cv2.imwrite(str(tmp), sheet)
+            scene = config_to_dict(load_config(args.config))["scene"]
+        sheet = contact_sheet(tuple(args.presets), height_m=args.height_m, scene=scene)
+        with atomic_path(args.out) as tmp:
+            cv2.imwrite(str(tmp), sheet)
+    except (DeckposeError, OSError) as exc:
+        print(f"contact_sheet: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        return exit_codes.USAGE
     print(f"wrote {args.out} ({sheet.shape[1]}x{sheet.shape[0]})")
+    return exit_codes.OK
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())
