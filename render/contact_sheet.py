@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
+import sys
 from pathlib import Path
 from typing import Any
 
@@ -24,6 +25,8 @@ from deckpose.render.scene import DeckRenderer
 from deckpose.render.scene_config import Lighting, Shading
 
 from deckpose.atomic_io import atomic_path
+from deckpose.camera import preset_names
+from deckpose.errors import DeckposeError
 from deckpose.pose import ShipPose
 
 PRESETS = ("4mp", "8mp", "16mp", "64mp")
@@ -73,11 +76,7 @@ def contact_sheet(presets: tuple[str, ...] = PRESETS, *, tile_w: int = 480, heig
 
 def main(argv: list[str] | None = None) -> int:
     """The command line; returns the exit status (2 and one line on stderr for bad input)."""
-    import sys
-
-    from deckpose.camera import preset_names
-    from deckpose.cli import exit_codes
-    from deckpose.errors import DeckposeError
+    from deckpose.cli import exit_codes  # the command line's package: not imported with the module
 
     ap = argparse.ArgumentParser(description=(__doc__ or "").split("\n")[0])
     ap.add_argument("out", type=Path, nargs="?", default=Path("reports/contact_sheet.png"),

@@ -23,18 +23,18 @@ samples ``x_w = col + 0.5`` and ``y_w = H - row - 0.5``. So a frame matches
 GL context
 ----------
 :class:`DeckRenderer` creates its context on the first :meth:`~DeckRenderer.render`
-call, in the process that renders (a worker), never in a parent. Large frames are
+call, in the process that renders (a worker), never in a parent; the process has one
+(:mod:`deckpose.render.gl_context`, which also holds what we change on pyrender's
+renderer). Large frames are
 drawn in horizontal tiles (a shifted principal point per tile) so the multisampled
 framebuffer stays small: a 64 MP frame needs four 16 MP tiles.
 """
 
 from __future__ import annotations
 
-import atexit
 import math
 import os
 import sys
-import threading
 import types
 from dataclasses import dataclass
 from typing import Any
@@ -42,6 +42,7 @@ from typing import Any
 import cv2
 import numpy as np
 from deckpose.render.config import Backend
+from deckpose.render.gl_context import offscreen
 from deckpose.render.lens import MAX_SIDE_PX
 from deckpose.render.light_pools import AMBIENT_LUX, apply_light_pools, pool_gain
 from deckpose.render.scene_config import DEFAULT_TEXTURE_SEED, Lighting, SceneSpec, Shading
@@ -262,7 +263,7 @@ class DeckRenderer:
         return s
 
     def _renderer(self, width: int, height: int) -> Any:
-        return _offscreen(self._pr, width, height, self.spec.antialias_samples)
+        return offscreen(self._pr, width, height, self.spec.antialias_samples)
 
     def offscreen(self, width: int, height: int) -> Any:
         """This renderer's pyrender OffscreenRenderer, sized ``width x height``.
@@ -320,6 +321,7 @@ class DeckRenderer:
         tile_h = math.ceil(H / n_tiles)
         out = np.empty((H, W, 3), np.uint8)
         T_cam = gl_camera_pose(camera_pose)
+        shadow_centre = ship.T_world_from_deck[:3, :3] @ self._shadow_centre_deck_m + ship.T_world_from_deck[:3, 3]
         far = 2.5 * self.spec.sea_half_size_m
         for k in range(n_tiles):
             r0 = k * tile_h
@@ -328,14 +330,13 @@ class DeckRenderer:
             node = s.add(cam, pose=T_cam)
             s.main_camera_node = node
             renderer = self._renderer(W, tile_h)
-            gl = renderer._renderer  # OSMesa re-made it in _offscreen if the size changed; render() keeps it
+            gl = renderer._renderer  # OSMesa re-made it in offscreen() if the size changed; render() keeps it
             rows = out[r0:r1]
             own_programs = gl._program_cache
             try:
                 gl.deckpose_read_into = rows  # read back straight into the frame
                 gl.deckpose_shadow_map_drawn = k > 0  # one shadow pass a frame, not one a tile
-                gl.deckpose_shadow_centre = (ship.T_world_from_deck[:3, :3] @ self._shadow_centre_deck_m
-                                             + ship.T_world_from_deck[:3, 3])
+                gl.deckpose_shadow_centre = shadow_centre
                 if pbr:  # the sun's lean shaders in place of pyrender's mesh.vert/.frag (render/sun_shader.py)
                     if getattr(gl, "deckpose_sun_programs", None) is None:
                         gl.deckpose_sun_programs = sun_program_cache(pr)
@@ -438,7 +439,8 @@ def _deck_shadow_camera(self: Any, scene_scale: float) -> Any:
     """A directional light's shadow camera over the ship (:func:`shadow_frame_m`, 500 m deep).
 
     pyrender puts the camera ``scene_scale`` (the 4 km sea's diagonal) back from the scene's
-    centre toward the sun (:func:`_shadow_view_over_ship` moves it over the ship). Its own
+    centre toward the sun (:func:`deckpose.render.gl_context._shadow_view_over_ship` moves it over
+    the ship). Its own
     camera covers that scale (5.5 m a texel of its 2048-texel map) and 0.01 to 10 times it in
     depth (57 km). Its shaders' depth bias (1e-4 to 1e-3 of the depth range) then came to
     6-57 m, so nothing within 6 m of its occluder was shadowed: the hull cast no shadow on
@@ -451,203 +453,6 @@ def _deck_shadow_camera(self: Any, scene_scale: float) -> Any:
     half_m = float(self.deckpose_shadow_half_m)
     return pyrender.OrthographicCamera(xmag=half_m, ymag=half_m, znear=max(scene_scale - 250.0, 0.01 * scene_scale),
                                        zfar=scene_scale + 250.0)
-
-
-def _shadow_view_over_ship(self: Any, scene: Any, light_node: Any, flags: int) -> tuple[Any, Any]:
-    """pyrender's ``Renderer._get_light_cam_matrices``, a directional light's camera over the ship.
-
-    pyrender aims it at the centre of the scene's bounding box, which the drifting 4 km sea
-    moves tens of metres; :meth:`DeckRenderer.render` sets ``deckpose_shadow_centre`` (world,
-    metres: :func:`shadow_frame_m`'s centre under the ship's pose) for the frame.
-    """
-    V, P = type(self)._get_light_cam_matrices(self, scene, light_node, flags)
-    centre = getattr(self, "deckpose_shadow_centre", None)
-    if centre is None or not hasattr(light_node.light, "deckpose_shadow_half_m"):
-        return V, P
-    pose = scene.get_pose(light_node).copy()
-    pose[:3, 3] = np.asarray(centre) + pose[:3, 2] * scene.scale  # toward the sun: the light's +z
-    return np.linalg.inv(pose), P
-
-
-_OFFSCREEN: list[Any] = []
-#: The thread that made the GL context (it is current there).
-_OFFSCREEN_THREAD: list[int] = []
-
-
-def _offscreen(pr: Any, width: int, height: int, samples: int = 4) -> Any:
-    """The process's single OffscreenRenderer, resized to ``width x height``, ``samples`` MSAA.
-
-    One GL context per process: pyrender's EGL platform terminates the shared
-    display when any renderer is deleted, so two contexts in one process break each
-    other. Scenes share the context; the framebuffer is re-made when the size or the
-    sample count changes.
-    """
-    if not _OFFSCREEN:
-        r = pr.OffscreenRenderer(width, height)
-        _patch_renderer(r._renderer)
-        _OFFSCREEN.append(r)
-        _OFFSCREEN_THREAD[:] = [threading.get_ident()]
-        atexit.register(_delete_offscreen)
-    r = _OFFSCREEN[0]
-    r.viewport_width = width
-    r.viewport_height = height
-    if not r._platform.supports_framebuffers() and (
-            (r._platform.viewport_width, r._platform.viewport_height) != (width, height)):
-        # OSMesa draws into the context's own buffer: pyrender re-makes the context and its
-        # Renderer at each new size, inside render(), unpatched. Done here, the new one is patched.
-        sun_programs = getattr(r._renderer, "deckpose_sun_programs", None)
-        if sun_programs is not None:  # freed in their own context, not later in the new one
-            r._platform.make_current()
-            sun_programs.clear()
-        r.delete()
-        r._create()
-        _patch_renderer(r._renderer)
-    r._renderer.deckpose_samples = samples
-    return r
-
-
-def _patch_renderer(gl: Any) -> None:
-    """Put this module's changes on a pyrender ``Renderer`` (see each function)."""
-    gl._read_main_framebuffer = types.MethodType(_read_colour_only, gl)
-    gl._configure_main_framebuffer = types.MethodType(_configure_framebuffer, gl)
-    gl._shadow_mapping_pass = types.MethodType(_shadow_pass_of_casters, gl)
-    gl._sorted_mesh_nodes = types.MethodType(_background_last, gl)
-    gl._get_light_cam_matrices = types.MethodType(_shadow_view_over_ship, gl)
-
-
-def _configure_framebuffer(self: Any) -> None:
-    """pyrender's ``Renderer._configure_main_framebuffer`` with ``self.deckpose_samples`` samples.
-
-    pyrender draws into a 4-sample buffer and resolves it into a plain one; the count is
-    fixed there. Here it is the scene's ``antialias_samples`` (0: a single-sample draw
-    buffer, resolved by a plain copy). The buffers are re-made when the size or the count
-    changes.
-    """
-    from OpenGL import GL
-
-    samples = int(getattr(self, "deckpose_samples", 4))
-    w, h = self.viewport_width, self.viewport_height
-    if self._main_fb is not None and (self._main_fb_dims != (w, h)
-                                      or getattr(self, "_deckpose_fb_samples", 4) != samples):
-        self._delete_main_framebuffer()
-    if self._main_fb is not None:
-        return
-    self._main_cb, self._main_db = GL.glGenRenderbuffers(2)
-    GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, self._main_cb)
-    GL.glRenderbufferStorage(GL.GL_RENDERBUFFER, GL.GL_RGBA, w, h)
-    GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, self._main_db)
-    GL.glRenderbufferStorage(GL.GL_RENDERBUFFER, GL.GL_DEPTH_COMPONENT24, w, h)
-    self._main_fb = GL.glGenFramebuffers(1)
-    GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
-    GL.glFramebufferRenderbuffer(GL.GL_DRAW_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER, self._main_cb)
-    GL.glFramebufferRenderbuffer(GL.GL_DRAW_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER, self._main_db)
-    self._main_cb_ms, self._main_db_ms = GL.glGenRenderbuffers(2)
-    GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, self._main_cb_ms)
-    GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, samples, GL.GL_RGBA, w, h)
-    GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, self._main_db_ms)
-    GL.glRenderbufferStorageMultisample(GL.GL_RENDERBUFFER, samples, GL.GL_DEPTH_COMPONENT24, w, h)
-    self._main_fb_ms = GL.glGenFramebuffers(1)
-    GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb_ms)
-    GL.glFramebufferRenderbuffer(GL.GL_DRAW_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0, GL.GL_RENDERBUFFER,
-                                 self._main_cb_ms)
-    GL.glFramebufferRenderbuffer(GL.GL_DRAW_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT, GL.GL_RENDERBUFFER,
-                                 self._main_db_ms)
-    self._main_fb_dims = (w, h)
-    self._deckpose_fb_samples = samples
-
-
-def _background_last(self: Any, scene: Any) -> list[Any]:
-    """pyrender's ``Renderer._sorted_mesh_nodes`` with the meshes marked ``deckpose_background`` last.
-
-    pyrender draws solid meshes farthest origin first, which put the sea (its origin 6 m
-    below the deck's) under the ship first: every pixel of the ship was shaded twice. Drawn
-    last, the sea's hidden fragments fail the depth test before they are shaded. The depth
-    test picks the same surface in either order, so the frame is the same.
-    """
-    nodes = type(self)._sorted_mesh_nodes(self, scene)
-    back = [n for n in nodes if getattr(n.mesh, "deckpose_background", False) and not n.mesh.is_transparent]
-    rest = [n for n in nodes if all(n is not b for b in back)]
-    solid = [n for n in rest if not n.mesh.is_transparent]
-    return solid + back + [n for n in rest if n.mesh.is_transparent]  # transparent ones after all solids
-
-
-def _shadow_pass_of_casters(self: Any, scene: Any, light_node: Any, flags: int) -> None:
-    """pyrender's ``Renderer._shadow_mapping_pass`` without the meshes marked ``deckpose_background``,
-    once a frame.
-
-    The sea fills the whole shadow map, so drawing its depth was most of the pass's cost,
-    and it shades nothing: its waves are far too gentle to shadow each other under a sun
-    54 degrees up (slopes of a few degrees). Left out, the map holds the ship and the deck,
-    and a point of the sea outside their shadow reads the cleared (farthest) depth: lit.
-    pyrender draws the map for every draw call; a large frame is drawn in tiles, all with
-    the same scene and sun, so :meth:`DeckRenderer.render` sets ``deckpose_shadow_map_drawn``
-    after the first tile and the map is kept.
-    """
-    if getattr(self, "deckpose_shadow_map_drawn", False):
-        return  # drawn for this frame's first tile: the same scene, light and map
-    hidden = [m for m in scene.meshes if getattr(m, "deckpose_background", False) and m.is_visible]
-    for m in hidden:
-        m.is_visible = False
-    try:
-        type(self)._shadow_mapping_pass(self, scene, light_node, flags)
-    finally:
-        for m in hidden:
-            m.is_visible = True
-
-
-def _read_colour_only(self: Any, scene: Any, flags: int) -> tuple[np.ndarray, None]:
-    """pyrender's framebuffer read without the depth buffer (we never use it).
-
-    Replaces ``Renderer._read_main_framebuffer`` on our one renderer: resolves the
-    multisampled colour buffer and reads RGB bytes only, skipping pyrender's
-    float depth read-back and linearisation (a third of the time of a 64 MP frame).
-
-    Where ``self.deckpose_read_into`` is a C-contiguous ``(h, width, 3)`` uint8 array (rows
-    of the frame being drawn, ``h`` at most the framebuffer's height), the top ``h`` image
-    rows are read straight into it and flipped there (OpenGL's rows run bottom-up): no
-    frame-sized array is allocated and none is copied. Otherwise a new array is returned.
-    """
-    from OpenGL import GL
-
-    width, height = self._main_fb_dims[0], self._main_fb_dims[1]
-    GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
-    # a single-sample draw buffer needs no resolve: it is read where it was drawn (the copy
-    # into the plain buffer cost 0.5-0.9 s of CPU per 64 MP frame on llvmpipe)
-    if getattr(self, "_deckpose_fb_samples", 4) != 0:
-        GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
-        GL.glBlitFramebuffer(0, 0, width, height, 0, 0, width, height, GL.GL_COLOR_BUFFER_BIT, GL.GL_LINEAR)
-        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
-    GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-    target = getattr(self, "deckpose_read_into", None)
-    if target is not None:
-        h = target.shape[0]
-        if target.shape != (h, width, 3) or target.dtype != np.uint8 or not target.flags.c_contiguous \
-                or h > height:
-            raise ValueError(f"read-back target {target.shape} {target.dtype} does not fit a {width}x{height} "
-                             "RGB framebuffer")
-        # the image's top h rows are the framebuffer's last h rows (bottom-up)
-        GL.glReadPixels(0, height - h, width, h, GL.GL_RGB, GL.GL_UNSIGNED_BYTE, target)
-        cv2.flip(target, 0, dst=target)  # in place: rows swapped pairwise
-        return target, None
-    # bytes, or an array: PyOpenGL has no types, and pyright's guess from its source adds int
-    buf: Any = GL.glReadPixels(0, 0, width, height, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
-    colour = np.frombuffer(buf, dtype=np.uint8).reshape((height, width, 3))
-    return colour[::-1], None
-
-
-def _delete_offscreen() -> None:
-    """Release the GL context at exit, from the thread it is current in.
-
-    A Dask worker renders in a task thread, while ``atexit`` runs in the main one: EGL
-    refuses to make the context current there (EGL_BAD_ACCESS, printed as an ignored
-    exception at every worker's exit). The process is ending, so the context is then
-    left to the driver's teardown.
-    """
-    while _OFFSCREEN:
-        r = _OFFSCREEN.pop()
-        if _OFFSCREEN_THREAD and _OFFSCREEN_THREAD[0] != threading.get_ident():
-            continue
-        r.delete()
 
 
 def radiance_scale(lighting: Lighting, shading: Shading) -> NDArray[np.float32]:

@@ -231,17 +231,19 @@ def test_the_gl_context_is_released_only_from_the_thread_it_is_current_in(monkey
 
     deleted = []
 
+    from deckpose.render import gl_context
+
     class FakeRenderer:
         def delete(self):
             deleted.append(threading.get_ident())
 
-    monkeypatch.setattr(scene_mod, "_OFFSCREEN", [FakeRenderer()])
-    monkeypatch.setattr(scene_mod, "_OFFSCREEN_THREAD", [threading.get_ident() + 1])
-    scene_mod._delete_offscreen()
-    assert deleted == [] and scene_mod._OFFSCREEN == []
-    monkeypatch.setattr(scene_mod, "_OFFSCREEN", [FakeRenderer()])
-    monkeypatch.setattr(scene_mod, "_OFFSCREEN_THREAD", [threading.get_ident()])
-    scene_mod._delete_offscreen()
+    monkeypatch.setattr(gl_context, "_OFFSCREEN", [FakeRenderer()])
+    monkeypatch.setattr(gl_context, "_OFFSCREEN_THREAD", [threading.get_ident() + 1])
+    gl_context._delete_offscreen()
+    assert deleted == [] and gl_context._OFFSCREEN == []
+    monkeypatch.setattr(gl_context, "_OFFSCREEN", [FakeRenderer()])
+    monkeypatch.setattr(gl_context, "_OFFSCREEN_THREAD", [threading.get_ident()])
+    gl_context._delete_offscreen()
     assert deleted == [threading.get_ident()]
 
 

@@ -23,6 +23,12 @@ from .conftest import tiny_config
 SHIP = {"hull": True, "superstructure": True}
 
 
+def _pbr_config(*, shadows: bool, waves: int):
+    """The tiny config with the ship, under ``pbr``, with or without sun shadows."""
+    return tiny_config(scene={"shading": "pbr", "texture_px": 256, "ship": SHIP, "sea": {"waves": waves},
+                              "shadows": shadows})
+
+
 def _both(renderer: DeckRenderer, cfg, lighting: Lighting, pose: CameraPose) -> tuple[np.ndarray, np.ndarray]:
     """(ours, pyrender's) raster of one frame of the deck and the ship."""
     import pyrender
@@ -42,8 +48,7 @@ def _both(renderer: DeckRenderer, cfg, lighting: Lighting, pose: CameraPose) -> 
 
 @pytest.mark.parametrize("lighting", [Lighting.DAY, Lighting.DUSK, Lighting.NIGHT])
 def test_unshadowed_pbr_frames_match_pyrenders_shader(egl_renderer_factory, lighting: Lighting) -> None:
-    cfg = tiny_config(scene={"shading": "pbr", "texture_px": 256, "ship": SHIP, "sea": {"waves": 4},
-                             "shadows": False})
+    cfg = _pbr_config(shadows=False, waves=4)
     ours, theirs = _both(egl_renderer_factory(cfg), cfg, lighting, CameraPose.nadir(30.0))
     diff = np.abs(ours.astype(int) - theirs.astype(int))
     assert theirs.std() > 5  # a scene, not a blank
@@ -53,10 +58,8 @@ def test_unshadowed_pbr_frames_match_pyrenders_shader(egl_renderer_factory, ligh
 
 @pytest.mark.parametrize("waves", [0, 4])  # the flat sea, and the wave grid re-made each frame
 def test_shadows_fall_where_pyrenders_do(egl_renderer_factory, waves: int) -> None:
-    lit = tiny_config(scene={"shading": "pbr", "texture_px": 256, "ship": SHIP, "sea": {"waves": waves},
-                             "shadows": False})
-    shaded = tiny_config(scene={"shading": "pbr", "texture_px": 256, "ship": SHIP, "sea": {"waves": waves},
-                                "shadows": True})
+    lit = _pbr_config(shadows=False, waves=waves)
+    shaded = _pbr_config(shadows=True, waves=waves)
     # over the lee side (the sun travels to +x +y): the ship's shadow on the sea in view, and the
     # whole view inside the shadow map (render/scene.py frames the ship, shadow_frame_m; beyond
     # the map pyrender's shader wraps around it and can shade the sea with a ghost of the ship's
@@ -101,10 +104,8 @@ def test_shadows_on_the_sea_match_ray_casting(egl_renderer_factory, ship: ShipPo
 
     from .test_ship_scene import _hits
 
-    lit = tiny_config(scene={"shading": "pbr", "texture_px": 256, "ship": SHIP, "sea": {"waves": 0},
-                             "shadows": False})
-    shaded = tiny_config(scene={"shading": "pbr", "texture_px": 256, "ship": SHIP, "sea": {"waves": 0},
-                                "shadows": True})
+    lit = _pbr_config(shadows=False, waves=0)
+    shaded = _pbr_config(shadows=True, waves=0)
     cam = lit.cameras_by_name()["4mp-320x240"]
     no_shadow = egl_renderer_factory(lit).render(cam, pose, ship, 2.0, Lighting.DAY).astype(int).sum(-1)
     with_shadow = egl_renderer_factory(shaded).render(cam, pose, ship, 2.0, Lighting.DAY).astype(int).sum(-1)
@@ -136,8 +137,7 @@ def test_tiled_shadowed_frame_equals_single_pass(egl_renderer_factory, monkeypat
     same shadows as one draw."""
     import deckpose.render.scene as scene_mod
 
-    cfg = tiny_config(scene={"shading": "pbr", "texture_px": 256, "ship": SHIP, "sea": {"waves": 0},
-                             "shadows": True})
+    cfg = _pbr_config(shadows=True, waves=0)
     r = egl_renderer_factory(cfg)
     cam = cfg.cameras_by_name()["4mp-320x240"]
     args = (cam, CameraPose.nadir(60.0, x_m=25.0, y_m=20.0), ShipPose(0.04, -0.03, 0.3, 0.5, -0.4), 2.0,
