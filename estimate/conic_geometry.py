@@ -163,7 +163,8 @@ def fit_ellipses(points: FloatArray) -> tuple[FloatArray, BoolArray]:
     Returns
     -------
     C : (F, 3, 3) array of float
-        Conic matrices scaled to unit Frobenius norm (NaN where not ok).
+        Conic matrices scaled to unit Frobenius norm, signed so that their upper-left
+        2 x 2 block (the quadratic part) is positive definite (NaN where not ok).
     ok : (F,) array of bool
         Where the points admit an ellipse (finite, not collinear or degenerate).
     """
@@ -197,6 +198,10 @@ def fit_ellipses(points: FloatArray) -> tuple[FloatArray, BoolArray]:
     ok &= good.any(axis=1)
     k = np.where(good, np.abs(w), np.inf).argmin(axis=1)
     a1 = V[np.arange(F), :, k]
+    # an eigenvector's sign is LAPACK's choice, which a stacked call and a lone one (or two
+    # machines) can make differently: fixed here so that A + C > 0 (an ellipse's A and C share
+    # their sign, as 4 A C > B^2); the scaling to C's norm below keeps it
+    a1 = a1 * np.where(a1[:, 0] + a1[:, 2] < 0, -1.0, 1.0)[:, None]
     coef = np.empty((F, 6))
     coef[:, :3] = a1
     coef[:, 3:] = np.einsum("fij,fj->fi", T, a1)

@@ -195,3 +195,27 @@ def test_stacked_frames_answer_as_each_alone():
             n1, X1, _ = circle_planes(C[f:f + 1], layout.radius_m)
             np.testing.assert_allclose(n1[0], n[f], rtol=1e-12, atol=1e-15)
             np.testing.assert_allclose(X1[0], X[f], rtol=1e-12, atol=1e-12)
+
+
+def test_ellipse_conics_carry_one_sign_whatever_the_eigen_solver_returns():
+    """The fitted conic's sign is fixed (quadratic part positive definite), so a frame's conic
+    is the same alone or stacked, on any LAPACK (an eigenvector's sign is the solver's choice)."""
+    rng = np.random.default_rng(3)
+    t = np.linspace(0, 2 * np.pi, 12, endpoint=False)
+    frames = []
+    for _ in range(50):
+        a, b = rng.uniform(0.05, 0.5, 2)
+        phi, cx, cy = rng.uniform(-np.pi, np.pi), *rng.uniform(-0.5, 0.5, 2)
+        x, y = a * np.cos(t), b * np.sin(t)
+        frames.append(np.column_stack([cx + x * np.cos(phi) - y * np.sin(phi),
+                                       cy + x * np.sin(phi) + y * np.cos(phi)]))
+    xy = np.stack(frames)
+    C, ok = fit_ellipses(xy)
+    assert ok.all()
+    assert (np.linalg.eigvalsh(C[:, :2, :2]) > 0).all()
+    # each conic still passes through its points (the sign change keeps the curve)
+    h = np.concatenate([xy, np.ones(xy.shape[:2] + (1,))], axis=2)
+    residual = np.einsum("fni,fij,fnj->fn", h, C, h)
+    assert np.abs(residual).max() < 1e-9
+    for f in (0, 17, 49):
+        np.testing.assert_allclose(fit_ellipses(xy[f:f + 1])[0][0], C[f], rtol=1e-12, atol=1e-15)
