@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import time
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +15,17 @@ from deckpose.cli.common_options import (
     workers,
 )
 from deckpose.cli.console import say, wrote
+from deckpose.counted import counted
+
+
+def _duration(seconds: float) -> str:
+    """``12.3 s``, ``4 min 05 s`` or ``2 h 03 min``: a wall time for a person."""
+    if round(seconds, 1) < 60:
+        return f"{seconds:.1f} s"
+    minutes, s = divmod(round(seconds), 60)
+    if minutes < 60:
+        return f"{minutes} min {s:02d} s"
+    return f"{minutes // 60} h {minutes % 60:02d} min"
 
 
 def _config_keys() -> list[str]:
@@ -83,19 +95,24 @@ def run(args: argparse.Namespace) -> int:
         # checked before the output folder is claimed (created), as a config is
         detection = resolve_detection(RenderDetection(detectors=names, keep_images=not args.no_images),
                                       sensor_block(cfg))
+    import pyarrow.parquet as pq
+
     from deckpose.output_folder import claim_output
+    from deckpose.run_folder import RunPaths
 
     n_workers = workers(args)  # a bad count is refused before the output folder is claimed (created)
 
     # room for at least the largest frame (uncompressed), checked before anything is written
     biggest = max(c.width_px * c.height_px for c in cfg.cameras_by_name().values())
     claim_output(out, need_bytes=biggest * 3 * (2 if cfg.sensor.bit_depth > 8 else 1), what="render")
+    t0 = time.perf_counter()
     path = render_dataset(cfg, out, workers=n_workers, resume=args.resume, scheduler=args.scheduler,
                           progress=not args.no_progress, detection=detection)
-    wrote(args, path, f"dataset written to {path}")
+    n_frames = pq.read_metadata(RunPaths(path).frames).num_rows
+    took = _duration(time.perf_counter() - t0)
+    wrote(args, path, f"dataset of {counted(n_frames, 'frame')} written to {path} in {took}"
+                      + (" (resumed: only the frames not yet written were rendered)" if args.resume else ""))
     if detection is not None and detection.detectors:
-        from deckpose.run_folder import RunPaths
-
         for name in detection.detectors:
             say(args, f"detections at render time: {RunPaths(path).detections(name)}")
     return 0
