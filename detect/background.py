@@ -77,18 +77,63 @@ def mono(pixels: np.ndarray) -> np.ndarray:
     return a.astype(np.float64)
 
 
+#: Shortest rows that :func:`row_median` counts rather than sorts (below it a sort is as fast).
+COUNTED_MEDIAN_MIN = 4096
+
+
 def row_median(a: np.ndarray) -> np.ndarray:
     """Median of each row of a finite (n, m) array, (n,): ``np.median(a, axis=1)``, exactly.
 
     By a sort of the rows (the mean of the two middle values for even ``m``, as
     ``np.median`` takes it): for short rows 5-10x faster than ``np.median``'s partition
-    (and a 1-D median of a few hundred values, ``row_median(a[None])[0]``, 5x).
+    (and a 1-D median of a few hundred values, ``row_median(a[None])[0]``, 5x). Long
+    float rows of whole or half DN (a frame's pixel differences, block sums and their
+    deviations from a median) are counted instead (:func:`_counted_row_median`), the
+    same values 5-10x faster than a sort.
     """
     m = a.shape[1]
+    if m >= COUNTED_MEDIAN_MIN and a.dtype == np.float64:
+        counted = _counted_row_median(a)
+        if counted is not None:
+            return counted
     s = np.sort(a, axis=1)
     if m % 2:
         return s[:, m // 2]
     return (s[:, m // 2 - 1] + s[:, m // 2]) / 2
+
+
+def _counted_row_median(a: np.ndarray) -> np.ndarray | None:
+    """:func:`row_median` of float64 rows whose values are all multiples of 1/2 within a
+    range of a few times the row length, by counting them (``np.bincount``); else None.
+
+    Twice a value is then an exact small integer, so the two middle ranks' values are
+    read off the cumulative counts exactly, and their mean is the sort's.
+    """
+    n, m = a.shape
+    lo = a.min(axis=1)
+    span = 2.0 * (a.max(axis=1) - lo)
+    if not (np.isfinite(span).all() and span.max() <= 8 * m and (2.0 * lo == np.rint(2.0 * lo)).all()):
+        return None
+    # two temporaries of the row's size, no more: each new one costs its page faults
+    offsets = np.subtract(a, lo[:, None])
+    offsets *= 2.0  # exact: a power of two
+    idx = offsets.astype(np.int64)
+    offsets -= idx
+    if offsets.any():  # not every value a multiple of 1/2
+        return None
+    bins = int(span.max()) + 1
+    if n > 1:
+        idx += (np.arange(n) * bins)[:, None]
+    counts = np.bincount(idx.ravel(), minlength=n * bins)
+    below = np.cumsum(counts.reshape(n, bins), axis=1)
+    lo = 2.0 * lo
+    # the value of 0-based rank r is the first bin whose cumulative count exceeds r
+    hi = (below <= m // 2).sum(axis=1)
+    upper = (hi + lo) / 2.0
+    if m % 2:
+        return upper
+    lower = ((below <= m // 2 - 1).sum(axis=1) + lo) / 2.0
+    return (lower + upper) / 2
 
 
 def median(values: np.ndarray) -> float:

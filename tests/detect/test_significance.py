@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from deckpose.detect.background import row_median
+from deckpose.detect.background import COUNTED_MEDIAN_MIN, _counted_row_median, row_median
 from deckpose.detect.block_sums import block_sum
 from deckpose.detect.significance import box_means, ring_samples
 from deckpose.detect.tile_texture import TEXTURE_TILE_PX, texture_noise, tiles_of
@@ -24,6 +24,26 @@ def test_row_median_is_numpys_median(m: int) -> None:
         assert got.dtype == want.dtype
         np.testing.assert_array_equal(got, want)  # the same two middle values, the same mean
 
+
+
+@pytest.mark.parametrize("m", [COUNTED_MEDIAN_MIN, COUNTED_MEDIAN_MIN + 1, 30_001, 60_000])
+def test_long_rows_of_whole_and_half_dn_are_counted_to_numpys_median(m: int) -> None:
+    """Long rows of whole or half DN take the counting path, which must give np.median's
+    values bit for bit; rows it cannot count (other fractions, a wide range) fall back."""
+    rng = np.random.default_rng(m)
+    counted = [rng.poisson(3.0, (2, m)) - rng.poisson(3.0, (2, m)) + 0.0,   # differences of counts
+               np.abs(rng.integers(-40, 40, (3, m)) - 0.5),                 # |d - median|: half DN
+               rng.integers(0, 2, (1, m)) + 1e9,                            # ties, far from 0
+               np.full((1, m), -7.5)]
+    for a in counted:
+        assert _counted_row_median(a) is not None
+        np.testing.assert_array_equal(row_median(a), np.median(a, axis=1))
+    left = [rng.normal(size=(2, m)),                                        # not multiples of 1/2
+            rng.integers(0, 40, (1, m)) + 0.25,
+            rng.integers(0, 100 * m, (1, m)) + 0.0]                          # a range of 100 x m
+    for a in left:
+        assert _counted_row_median(a) is None
+        np.testing.assert_array_equal(row_median(a), np.median(a, axis=1))
 
 def _texture_reference(G: np.ndarray, step: int, tile_row: int, tile_col: int) -> float:
     """The documented rule, written out for one tile: differences of pixels ``step`` apart
