@@ -10,6 +10,7 @@ the bow).
 
 from __future__ import annotations
 
+import math
 import os
 
 import numpy as np
@@ -161,6 +162,43 @@ BOW_COLUMN = "is_bow"
 COLOUR_COLUMNS = ("flux_r", "flux_g", "flux_b")
 
 
+#: How an ``is_bow`` cell written as text reads (case and spaces aside); a blank cell is false.
+_BOW_TEXT = {"1": True, "true": True, "yes": True, "y": True, "t": True,
+             "0": False, "false": False, "no": False, "n": False, "f": False, "": False}
+
+
+def bow_flags(column: pd.Series) -> np.ndarray:
+    """An ``is_bow`` column as booleans, (n,): bools, numbers (non-zero is true) or text.
+
+    Text is read by :data:`_BOW_TEXT` whatever pandas made of the column (``object`` or
+    its ``str`` dtype, mixed with numbers or bools); a blank or missing cell is false.
+
+    Raises
+    ------
+    InputDataError
+        A cell that reads as neither true nor false (named, with its row).
+    """
+    if pd.api.types.is_bool_dtype(column.dtype) and not column.isna().any():
+        return column.to_numpy(bool)
+    if pd.api.types.is_numeric_dtype(column.dtype) and not pd.api.types.is_bool_dtype(column.dtype):
+        values = column.to_numpy(float)
+        return np.isfinite(values) & (values != 0)
+    out = np.zeros(len(column), bool)
+    for i, cell in enumerate(column.tolist()):
+        if cell is None or (isinstance(cell, float) and math.isnan(cell)) or cell is pd.NA:
+            continue
+        key = str(cell).strip().lower()
+        if isinstance(cell, (bool, np.bool_)):
+            key = "true" if cell else "false"
+        elif isinstance(cell, (int, float, np.integer, np.floating)):
+            key = "false" if cell == 0 else "true"
+        if key not in _BOW_TEXT:
+            raise InputDataError(f"detections: is_bow on row {i + 1} is {short_repr(cell)}, which reads as neither true nor "
+                              "false; write true/false, yes/no or 1/0 (blank: false)")
+        out[i] = _BOW_TEXT[key]
+    return out
+
+
 def identify_unassigned(
     df: pd.DataFrame, frames: dict[int, Detections], layout: DeckLayout, camera: CameraModel
 ) -> tuple[dict[int, Detections], dict[int, str]]:
@@ -184,12 +222,7 @@ def identify_unassigned(
     frame_col = integer_column(df, "frame_id", "detections")
     has_bow = BOW_COLUMN in df.columns
     has_rgb = all(c in df.columns for c in COLOUR_COLUMNS)
-    bow_v = None
-    if has_bow:
-        bow = df[BOW_COLUMN]
-        if bow.dtype == object:
-            bow = bow.map(lambda x: str(x).strip().lower() in ("1", "true", "yes"))
-        bow_v = bow.fillna(False).to_numpy(bool)
+    bow_v = bow_flags(df[BOW_COLUMN]) if has_bow else None
     rgb_v = df[list(COLOUR_COLUMNS)].to_numpy(float) if has_rgb else None
     out = dict(frames)
     notes: dict[int, str] = {}
@@ -198,9 +231,9 @@ def identify_unassigned(
             continue
         rows = np.flatnonzero(frame_col == f)  # the frame's rows, in the order Detections kept
         rgb = None
-        if rgb_v is not None:
+        if rgb_v is not None and np.isfinite(rgb_v[rows]).all():
             rgb = rgb_v[rows]
-        elif bow_v is not None:
+        elif bow_v is not None and bow_v[rows].any():  # also where a frame's flux cells are blank
             rgb = np.where(bow_v[rows][:, None], [[1.0, 0.0, 0.0]], [[1.0, 1.0, 1.0]])
         try:
             ident = identify_beacons(d.points_px, layout, camera, rgb_flux=rgb)
@@ -211,8 +244,14 @@ def identify_unassigned(
             out[f] = Detections(d.points_px, ident.beacon_ids, d.covariance_px2, d.score,
                                 frame_id=f)
         else:
-            need = "" if (has_bow or has_rgb) else (
-                "; the table has no is_bow column (true on the bow's row) nor flux_r, flux_g, "
-                "flux_b to tell the bow by")
+            if not (has_bow or has_rgb):
+                need = ("; the table has no is_bow column (true on the bow's row) nor flux_r, flux_g, "
+                        "flux_b to tell the bow by (add one; a frame deckpose detect could not identify "
+                        "in its image keeps its reason in detect_frames.parquet)")
+            elif rgb is None:
+                need = ("; nothing tells this frame's bow: no row has is_bow true and its flux_r, "
+                        "flux_g, flux_b cells are not all filled")
+            else:
+                need = ""
             notes[f] = f"unidentified detections (beacon_id -1): {ident.reason}{need}"
     return out, notes

@@ -234,7 +234,8 @@ def test_help_of_every_subcommand(capsys):
         assert "usage: deckpose " + name in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("bow_column", ["is_bow", "flux", None])
+@pytest.mark.parametrize("bow_column", ["is_bow", "flux", None, "is_bow yes/no", "is_bow mixed",
+                                        "is_bow, flux blank"])
 def test_unidentified_detections_are_identified_or_the_reason_says_what_is_needed(
         setup, capsys, bow_column):
     # The README says beacon_id -1 = unidentified; estimate used to fail every such frame
@@ -245,6 +246,13 @@ def test_unidentified_detections_are_identified_or_the_reason_says_what_is_neede
     bow = d.beacon_id == DeckLayout().bow_id
     if bow_column == "is_bow":
         d["is_bow"] = bow
+    elif bow_column == "is_bow yes/no":  # text, as a spreadsheet writes it ("no" is not true)
+        d["is_bow"] = np.where(bow, "yes", "no")
+    elif bow_column == "is_bow mixed":  # one column of 1, True and blanks (blank: false)
+        d["is_bow"] = np.where(bow, "1", np.where(np.arange(len(d)) % 2, "", "False"))
+    elif bow_column == "is_bow, flux blank":  # flux columns present but empty: is_bow tells
+        d["is_bow"] = bow
+        d["flux_r"] = d["flux_g"] = d["flux_b"] = np.nan
     elif bow_column == "flux":
         d["flux_r"] = 100.0
         d["flux_g"] = np.where(bow, 8.0, 100.0)
@@ -262,6 +270,7 @@ def test_unidentified_detections_are_identified_or_the_reason_says_what_is_neede
         return
     assert res["ok"].all(), res["reason"].tolist()
     for (pose, D), (_, row) in zip(truth, res.iterrows()):
+        assert row.yaw_deg == pytest.approx(np.degrees(pose.yaw_rad), abs=1e-6)  # the bow was the right one
         assert row.roll_deg == pytest.approx(np.degrees(pose.roll_rad), abs=1e-6)
         assert row.pitch_deg == pytest.approx(np.degrees(pose.pitch_rad), abs=1e-6)
         assert row.yaw_deg == pytest.approx(np.degrees(pose.yaw_rad), abs=1e-6)
@@ -420,3 +429,17 @@ def test_a_header_without_rows_is_refused(setup, capsys):
     tmp, cam_path, df, _ = setup
     err = _run_bad(tmp, cam_path, df.iloc[:0], capsys)
     assert "holds no detections" in err and err.count("\n") == 1
+
+
+def test_is_bow_cells_read_as_a_person_wrote_them():
+    from deckpose.detections_io import bow_flags
+    from deckpose.errors import InputDataError
+
+    assert bow_flags(pd.Series([True, False])).tolist() == [True, False]
+    assert bow_flags(pd.Series([1, 0, np.nan, 2.0])).tolist() == [True, False, False, True]
+    text = pd.Series(["yes", "no", " TRUE ", "false", "1", "0", "", None, "y", "n"])
+    assert bow_flags(text).tolist() == [True, False, True, False, True, False, False, False, True, False]
+    assert bow_flags(text.astype("string")).tolist() == bow_flags(text).tolist()
+    assert bow_flags(pd.Series([True, "no", 1, None], dtype=object)).tolist() == [True, False, True, False]
+    with pytest.raises(InputDataError, match=r"row 2 is 'maybe'.*true/false"):
+        bow_flags(pd.Series(["no", "maybe"]))
