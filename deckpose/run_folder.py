@@ -53,6 +53,8 @@ DETECTIONS_FORMAT = "deckpose-detections/1"
 #: The record ``deckpose detect -o DIR`` writes beside its tables: DIR is a detections folder
 #: (``detections.parquet``, ``detect_frames.parquet``, ``cameras/``), not a run folder.
 DETECT_RECORD = "detect_run.json"
+#: Where ``deckpose estimate FOLDER`` writes a detections folder's estimates (unless ``-o``).
+FOLDER_ESTIMATES = "estimates.parquet"
 #: Between the detector and the method in an estimates file name (``cog--pnp.parquet``).
 SEPARATOR = "--"
 #: The painted ring's edge detector (``deckpose painted-ring``): its detections table is one row

@@ -36,7 +36,13 @@ from deckpose.counted import counted
 from deckpose.errors import ConfigError, InputDataError
 from deckpose.layout import DeckLayout, layout_to_dict
 from deckpose.records import Frame
-from deckpose.run_folder import DETECT_RECORD, DETECTIONS_FORMAT, RunPaths, detections_folder_record
+from deckpose.run_folder import (
+    DETECT_RECORD,
+    DETECTIONS_FORMAT,
+    FOLDER_ESTIMATES,
+    RunPaths,
+    detections_folder_record,
+)
 from deckpose.shell_command import deckpose_command
 
 log = logging.getLogger(__name__)
@@ -386,6 +392,12 @@ def write_run(
         base = Path(out_dir)
         det_path, frames_path = base / "detections.parquet", base / "detect_frames.parquet"
         meta_path, cam_dir = base / DETECT_RECORD, base / "cameras"
+        stale = base / FOLDER_ESTIMATES
+        if stale.is_file() and meta_path.is_file():
+            # estimated from the detections this run replaces: its frame ids would name other frames
+            stale.unlink()
+            log.warning("removed %s: it was estimated from the detections this run replaces "
+                        "(deckpose estimate %s makes it again)", stale, base)
     write_tables(det_path, frames_path, detections, frames)
     cams = {}
     for name, cam in frameset.cameras.items():

@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
     from deckpose.estimate.run import EstimateRunResult, estimate_table
     from deckpose.layout import DeckLayout, read_layout
     from deckpose.output_folder import ensure_writable
-    from deckpose.run_folder import check_folder_camera, read_detections_folder
+    from deckpose.run_folder import FOLDER_ESTIMATES, check_folder_camera, read_detections_folder
     from deckpose.sequence_run import estimate_run_with_prior
     from deckpose.tables import read_table, write_table
 
@@ -120,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
             detections = folder.detections
             if camera_file is None:  # the folder's camera (check_folder_camera refuses several)
                 camera_file = next(iter(folder.camera_files.values()), None)
-            output = folder.root / "estimates.parquet" if output is None else output
+            output = folder.root / FOLDER_ESTIMATES if output is None else output
         elif detections is not None:  # a table beside a folder's record
             folder = read_detections_folder(detections.parent)
         if detections is None or camera_file is None or output is None:
@@ -144,6 +144,9 @@ def run(args: argparse.Namespace) -> int:
         if folder is not None:
             check_folder_camera(folder, camera, detections)
         out = Path(output)
+        if out.exists() and out.resolve() == Path(detections).resolve():
+            raise ConfigError(f"-o {out} is the detections table itself: the estimates would replace the "
+                              "detections; give another output file")
         ensure_writable(out.parent)  # before the work, not after it
         table = read_table(detections, "detections")
         if table.empty:

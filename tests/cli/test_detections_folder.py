@@ -184,3 +184,23 @@ def test_detect_names_a_detections_folder_and_refuses_a_dataset_as_output(
     err = capsys.readouterr().err
     assert "is a rendered dataset" in err and "without -o" in err
     assert sorted(p.name for p in dataset.iterdir()) == before
+
+
+def test_detecting_again_into_a_folder_removes_its_estimates_of_the_old_detections(
+        detections_folder: tuple[Path, Path], tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """The folder's estimates.parquet was made from its old detections; after a new detect its frame
+    ids would name other frames, so it goes (and the log says so); a file of the user's stays."""
+    import shutil
+
+    dataset, out = detections_folder
+    folder = tmp_path / "again"
+    shutil.copytree(out, folder)
+    assert main(["estimate", str(folder), "--no-progress"]) == exit_codes.OK
+    (folder / "notes.txt").write_text("mine")
+    assert (folder / "estimates.parquet").is_file()
+    with caplog.at_level("WARNING"):
+        assert main(["detect", str(dataset), "-o", str(folder), "--no-progress", "--workers", "0",
+                     "--detector", "gauss"]) == exit_codes.OK
+    assert not (folder / "estimates.parquet").exists()
+    assert "estimates.parquet" in caplog.text and "replaces" in caplog.text
+    assert (folder / "notes.txt").read_text() == "mine"

@@ -443,3 +443,16 @@ def test_is_bow_cells_read_as_a_person_wrote_them():
     assert bow_flags(pd.Series([True, "no", 1, None], dtype=object)).tolist() == [True, False, True, False]
     with pytest.raises(InputDataError, match=r"row 2 is 'maybe'.*true/false"):
         bow_flags(pd.Series(["no", "maybe"]))
+
+
+def test_output_that_is_the_detections_table_is_refused_and_the_table_kept(setup, capsys):
+    tmp, cam_path, df, _truth = setup
+    det = tmp / "same.csv"
+    df.to_csv(det, index=False)
+    before = det.read_bytes()
+    # the same file, also reached by another path to it
+    for out in (det, tmp / "." / "same.csv"):
+        assert main(["estimate", str(det), "--camera", str(cam_path), "-o", str(out)]) == 2
+        err = capsys.readouterr().err
+        assert "is the detections table itself" in err and err.count("\n") == 1
+    assert det.read_bytes() == before
