@@ -204,9 +204,11 @@ def point_defects(image: np.ndarray, centres_px: np.ndarray, search_px: int = 2,
     # by the share of noise in it, 24 var_own / tt: the slopes are corrected by it, and only
     # a template at least TEMPLATE_SIGNAL signal is judged (a faint or broad spot's flat,
     # noisy profile is not).
-    signal = 1.0 - 24.0 * var_own / np.maximum(tt, 1e-300)
+    # (a flat template, a clipped plateau's, has tt = 0: its signal is -inf, never judged)
+    with np.errstate(over="ignore"):
+        signal = 1.0 - 24.0 * var_own / np.maximum(tt, 1e-300)
+        sigma_share = np.sqrt(var_others / np.maximum(tt, 1e-300)) / np.maximum(signal, 1e-12)
     others = others / np.maximum(signal, 1e-12)
-    sigma_share = np.sqrt(var_others / np.maximum(tt, 1e-300)) / np.maximum(signal, 1e-12)
     least = np.asarray(LEAST_SHARE)[strongest]
     one_colour = (signal >= TEMPLATE_SIGNAL) & (others + COLOUR_SIGMAS * sigma_share < least)
     return sharp | one_colour

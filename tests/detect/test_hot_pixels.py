@@ -312,3 +312,15 @@ def test_a_faint_spot_on_a_quantised_background_is_no_defect():
         img[29:32, 69:72, 1] = np.array([[40, 80, 40], [80, 160, 80], [40, 80, 40]], np.uint8)
         called.append(point_defects(img, np.array([[30.0, 32.0], [70.0, 30.0]])).tolist())
     assert all(c == [False, True] for c in called), called
+
+
+def test_a_clipped_plateau_is_a_spot_and_judging_it_warns_of_nothing() -> None:
+    """A beacon clipped flat in every channel (16-bit RGB) leaves the colour test a flat template
+    (no profile at all): it is no defect, and no overflow warning may reach the user's terminal
+    (pytest turns warnings into errors here)."""
+    img = np.full((64, 64, 3), 800, np.uint16)
+    yy, xx = np.mgrid[:64, :64]
+    spot = 60000.0 * np.exp(-((xx - 32.2) ** 2 + (yy - 31.7) ** 2) / (2 * 3.0**2))
+    img += np.clip(spot, 0, 65535 - 800).astype(np.uint16)[..., None]
+    img[28:36, 28:36] = 65535  # the clipped core, flat in all three channels
+    assert not point_defects(img, np.array([[32.0, 32.0]]), search_px=2).any()
