@@ -71,7 +71,7 @@ class DeckLayout:
         if int(self.n_ring) < 3:
             raise ConfigError(f"layout needs at least 3 ring beacons, got n_ring={self.n_ring}")
         if not (math.isfinite(self.radius_m) and self.radius_m > 0):
-            raise ConfigError(f"layout radius_m must be positive, got {self.radius_m}")
+            raise ConfigError(f"layout radius_m must be a finite positive number of metres, got {self.radius_m}")
         if int(self.bow_id) != 0:
             raise ConfigError(
                 f"bow_id must be 0 (ring ids start at the bow beacon), got {self.bow_id}; "

@@ -36,6 +36,7 @@ from deckpose.camera import CameraModel
 from deckpose.camera_info import camera_to_dict, read_camera_info
 from deckpose.errors import CameraFileError, InputDataError
 from deckpose.layout import DeckLayout, layout_from_dict
+from deckpose.output_folder import held_by_another
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.shell_command import deckpose_command
 from deckpose.table_schemas import (
@@ -232,12 +233,37 @@ def _require(path: Path, command: str) -> None:
         raise InputDataError(f"{path} is missing; make it with: {command}")
 
 
+def unfinished_render(run: RunPaths) -> str | None:
+    """Why ``run``'s dataset cannot be read yet: a render still writing it, or one that
+    stopped before its last frame (with the command that finishes it); None when its
+    manifest says it is complete, or there is no manifest to say."""
+    try:
+        manifest = json.loads(run.manifest.read_text())
+    except (OSError, ValueError):
+        return None
+    if not isinstance(manifest, dict) or manifest.get("complete") is not False:
+        return None
+    parts = run.root / ".parts"
+    done = len(list(parts.glob("*.json"))) if parts.is_dir() else 0
+    total = manifest.get("n_frames", "?")
+    writer = held_by_another(run.root)
+    if writer is not None:
+        return (f"{run.root} is still being rendered by another deckpose job ({writer}; {done} of "
+                f"{total} frames so far); wait for it to finish")
+    return (f"{run.root} is an unfinished dataset ({done} of {total} frames rendered); finish it "
+            f"with: {deckpose_command('render', 'CONFIG.yaml', run.root, '--resume')}")
+
+
 def require_dataset(run: RunPaths) -> None:
     """Raise unless the render stage's outputs are present.
 
     A detections folder (``deckpose detect -o DIR``) is named as such, with what to run
-    instead, rather than as a run folder that lacks its frames.
+    instead, rather than as a run folder that lacks its frames; a file, as a file; an
+    interrupted render, with the command that finishes it.
     """
+    if run.root.is_file():
+        raise InputDataError(f"{run.root} is a file, not a run folder; give the folder that "
+                             f"deckpose render (or deckpose pipeline) wrote")
     if not run.root.is_dir():
         raise InputDataError(f"run folder {run.root} does not exist; make it with: "
                              f"{deckpose_command('render', 'CONFIG.yaml', run.root)}")
@@ -245,6 +271,9 @@ def require_dataset(run: RunPaths) -> None:
         record = detections_folder_record(run.root)
         if record is not None:
             raise InputDataError(detections_folder_message(run.root, record))
+    unfinished = unfinished_render(run)
+    if unfinished is not None:
+        raise InputDataError(unfinished)
     for p in (run.manifest, run.frames, run.beacons):
         _require(p, deckpose_command("render", "CONFIG.yaml", run.root))
 

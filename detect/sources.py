@@ -27,9 +27,8 @@ from deckpose.camera_info import read_camera_info
 from deckpose.errors import InputDataError
 from deckpose.image_store import decode_image
 from deckpose.layout import DeckLayout, layout_from_dict, read_layout
-from deckpose.output_folder import held_by_another
 from deckpose.records import Frame
-from deckpose.run_folder import DATASET_FORMAT, RunPaths
+from deckpose.run_folder import DATASET_FORMAT, RunPaths, unfinished_render
 from deckpose.shell_command import deckpose_command
 
 IMAGE_SUFFIXES = (".png", ".tif", ".tiff", ".jpg", ".jpeg", ".bmp", ".pgm", ".ppm", ".webp", ".zst")
@@ -123,17 +122,9 @@ def open_dataset(path: str | os.PathLike[str]) -> FrameSet:
         raise InputDataError(
             f"{root}/manifest.json: format is {fmt!r}, expected {DATASET_FORMAT!r}"
         )
-    if manifest.get("complete") is False:
-        done = len(list((root / ".parts").glob("*.json"))) if (root / ".parts").is_dir() else 0
-        writer = held_by_another(root)
-        if writer is not None:
-            raise InputDataError(
-                f"{root} is still being rendered by another deckpose job ({writer}; {done} of "
-                f"{manifest.get('n_frames', '?')} frames so far); wait for it to finish")
-        raise InputDataError(
-            f"{root} is an unfinished dataset ({done} of {manifest.get('n_frames', '?')} frames "
-            f"rendered); finish it with: {deckpose_command('render', 'CONFIG.yaml', root, '--resume')}"
-        )
+    unfinished = unfinished_render(run)
+    if unfinished is not None:
+        raise InputDataError(unfinished)
     layout = layout_from_dict(manifest.get("layout"), f"{root}/manifest.json: layout")
     if not run.frames.exists():  # the frames' parts are kept: a resumed render rebuilds the tables
         raise InputDataError(f"{run.frames} is missing; make it again with: "

@@ -204,7 +204,8 @@ def config_from_dict(doc: object, source: str = "config") -> RenderConfig:
         if key not in doc:
             # a mistyped key names the typo, not only the key it left missing
             top = {f.name for f in fields(RenderConfig)}
-            typo = did_you_mean([k for k in doc if k not in top], [key])
+            near = [k for k in doc if k not in top and did_you_mean([k], [key])]
+            typo = f" (the config has {near[0]!r} instead: a typo?)" if near else ""
             raise ConfigError(f"{source}: {key!r} is missing{typo}: "
                               + ("a list of cameras (e.g. [{preset: 8mp}])" if key == "cameras"
                                  else "a list of camera heights, metres"))

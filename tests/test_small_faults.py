@@ -6,6 +6,7 @@ import json
 
 import numpy as np
 import pandas as pd
+import pytest
 from deckpose.detect import registry
 from deckpose.detect.registry import DetectorOptions
 
@@ -34,15 +35,29 @@ def test_a_dark_frame_names_its_brightest_pixel_not_a_sample():
     assert len(b) == 0 and "brightest pixel 3 DN" in b.reason, b.reason
 
 
-def test_detect_on_an_unfinished_dataset_says_so(tmp_path, capsys):
+@pytest.mark.parametrize("argv", [["detect"], ["estimate", "--run"], ["evaluate"], ["report"], ["track"]])
+def test_a_stage_on_an_unfinished_dataset_says_so(tmp_path, capsys, argv):
+    # estimate, evaluate and report had said "frames.parquet is missing; make it with: deckpose
+    # render CONFIG.yaml RUN", which a render into the same folder refuses
     root = tmp_path / "ds"
     (root / ".parts").mkdir(parents=True)
     (root / ".parts" / "000000.json").write_text("{}")
     (root / "manifest.json").write_text(json.dumps(
         {"format": "deckpose-dataset/1", "complete": False, "n_frames": 12}))
-    assert main(["detect", str(root), "--no-progress"]) == 2
+    assert main([*argv, str(root), "--no-progress"] if argv[0] in ("detect", "estimate")
+                else [*argv, str(root)]) == 2
     err = capsys.readouterr().err
-    assert "unfinished dataset (1 of 12 frames rendered)" in err and "--resume" in err
+    assert "unfinished dataset (1 of 12 frames rendered)" in err and "--resume" in err, err
+    assert err.count("\n") == 1
+
+
+@pytest.mark.parametrize("command", ["evaluate", "report", "track"])
+def test_a_file_given_as_the_run_folder_is_called_a_file(tmp_path, capsys, command):
+    log = tmp_path / "foreign.mcap"
+    log.write_bytes(b"\x89MCAP0\r\n")
+    assert main([command, str(log)]) == 2
+    err = capsys.readouterr().err
+    assert f"{log} is a file, not a run folder" in err and "does not exist" not in err, err
 
 
 def test_a_huge_cell_gives_a_short_message(tmp_path, capsys):

@@ -195,7 +195,7 @@ def test_a_mistyped_key_is_named_with_the_key_it_was_meant_for():
     # a required key mistyped: the message names the typo, not only the missing key
     doc = copy.deepcopy(DEFAULT_CONFIG)
     doc["height_m"] = doc.pop("heights_m")
-    with pytest.raises(ConfigError, match=r"'heights_m' is missing \(did you mean 'heights_m' instead of 'height_m'\?\)"):
+    with pytest.raises(ConfigError, match=r"'heights_m' is missing \(the config has 'height_m' instead: a typo\?\)"):
         config_from_dict(doc, "job.yaml")
     # an optional key mistyped inside a section
     doc = copy.deepcopy(DEFAULT_CONFIG)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -133,8 +134,8 @@ def run(args: argparse.Namespace) -> int:
         else:
             layout = DeckLayout()
         if args.radius is not None:
-            if not args.radius > 0:
-                raise ConfigError(f"--radius must be positive, got {args.radius}")
+            if not (math.isfinite(args.radius) and args.radius > 0):
+                raise ConfigError(f"--radius must be a finite positive number of metres, got {args.radius}")
             if not args.radius > layout.beacon_radius_m:
                 raise ConfigError(
                     f"--radius {args.radius:g} m is not larger than a beacon ({layout.beacon_radius_m:g} m); "

@@ -456,3 +456,14 @@ def test_output_that_is_the_detections_table_is_refused_and_the_table_kept(setup
         err = capsys.readouterr().err
         assert "is the detections table itself" in err and err.count("\n") == 1
     assert det.read_bytes() == before
+
+
+@pytest.mark.parametrize("radius", ["inf", "nan", "-3", "0"])
+def test_a_radius_that_is_no_length_is_named_as_such(setup, capsys, radius):
+    tmp, cam_path, df, _truth = setup
+    det = tmp / "r.csv"
+    df.to_csv(det, index=False)
+    code = main(["estimate", str(det), "--camera", str(cam_path), "-o", str(tmp / "r_out.csv"),
+                 f"--radius={radius}"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--radius must be a finite positive number of metres" in err and err.count("\n") == 1
