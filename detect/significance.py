@@ -44,6 +44,7 @@ from deckpose.detect.defects import point_defects
 from deckpose.detect.search_noise import (
     SPARSE_MAX_FRACTION,
     clipped_difference_noise,
+    codec_block_step,
     count_threshold,
     gaussian_norm,
     noise_skewness,
@@ -75,6 +76,10 @@ MAX_RING_ASYMMETRY = 0.5
 PREFILTER_FRACTION = 0.8
 #: Samples per ring (about) of the ring test's first, cheap pass.
 PASS0_SAMPLES = 8
+#: On a frame whose fluctuations are a lossy codec's block steps
+#: (:func:`~deckpose.detect.search_noise.codec_block_step`), a spot rises at least this many
+#: steps above its surroundings: one raised block rises one, two coinciding quanta two.
+CODEC_STEPS = 2.0
 #: More local maxima above the prefilter than this fail the frame (a flat noise field).
 MAX_PEAKS = 200_000
 
@@ -148,6 +153,11 @@ def significant_spots(
     """
     f = search_factor(image.shape[:2])
     S, noise_S, sparse_rate = _search_image(image, f)
+    # a lossy codec's block steps (JPEG's 8-bit frames), where they are the frame's fluctuations:
+    # a spot must rise CODEC_STEPS such steps above its surroundings (a block raised by one
+    # quantum rises one step, which the smoothing barely lowers: it covers whole coarse
+    # pixels); 0 elsewhere (codec_block_step)
+    codec_G = CODEC_STEPS * codec_block_step(S, f) if image.dtype.type is np.uint8 else 0.0
     skew_S = noise_skewness(S, noise_S) if sparse_rate is None else 0.0
     pts_all: list[np.ndarray] = []
     rad_all: list[float] = []
@@ -162,6 +172,8 @@ def significant_spots(
             log_tail = float(log_ndtr(-significance_sigma))
             level = count_threshold(sparse_rate, sigma_c, log_tail) + sparse_rate
             noise_scale = level / (k_sigma * gaussian_norm(sigma_c)[1])
+        if codec_G > 0:  # the threshold, k_sigma of the smoothed noise, at least codec_G
+            noise_scale = max(noise_scale, codec_G / (k_sigma * gaussian_norm(sigma_c)[1]))
         found = _spots_at_scale(S, sigma_c, noise_scale, k_sigma, RING_RADII[n_scale:], screen=screen)
         if isinstance(found, str):
             return np.zeros((0, 2)), np.zeros(0), found, ""
