@@ -39,8 +39,12 @@ from deckpose.atomic_io import atomic_open
 from deckpose.errors import InputDataError, check_shape
 from deckpose.run_folder import RunPaths
 
-__all__ = ["DECK_OBJ_ID", "BopExport", "bop_camera_entry", "bop_gt_entries", "models_info",
+__all__ = ["DECK_OBJ_ID", "TARGETS_NAME", "BopExport", "bop_camera_entry", "bop_gt_entries", "models_info",
            "write_bop"]
+
+
+#: The file every BOP export writes at its top level (how an earlier export is told).
+TARGETS_NAME = "test_targets_bop19.json"
 
 #: The deck's object id.
 DECK_OBJ_ID = 1
@@ -205,7 +209,7 @@ def write_bop(run: RunPaths, out: str | os.PathLike[str], *, images: ImageMode =
         _write_json(root / SPLIT / f"{sid:06d}" / "scene_gt.json", scene_gt[sid])
     targets_list = [{"im_id": fid, "inst_count": 1, "obj_id": DECK_OBJ_ID, "scene_id": scene_of[c]}
                     for fid, c in zip(frames.frame_id.tolist(), frames.camera, strict=True)]
-    _write_json(root / "test_targets_bop19.json", targets_list)
+    _write_json(root / TARGETS_NAME, targets_list)
     with atomic_open(root / "dataset_info.md", "w") as fh:
         fh.write(_info_text(run, frames, scenes, images, folder))
     return BopExport(root, scenes, frames.n_frames, model)

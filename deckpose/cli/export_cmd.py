@@ -37,7 +37,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("run", type=Path, help="run folder (made by deckpose render)")
     p.add_argument("--format", required=True, choices=FORMATS, dest="format",
                    help="bop (BOP scene-wise dataset) or coco (COCO keypoints)")
-    add_output(p, "dataset folder to write (created; files of an earlier export are replaced)",
+    add_output(p, "dataset folder to write: new or empty, or an earlier export of the same format "
+                  "(whose files are replaced)",
                required=True, metavar="DIR")
     p.add_argument("--copy-images", action="store_true",
                    help="copy the images instead of linking them (a self-contained folder to move "
@@ -53,6 +54,8 @@ def run_export(args: argparse.Namespace) -> int:
 
     run = run_paths(args.run)
     require_dataset(run)  # not a run folder: one line before the output folder is made
+    if args.output.resolve() != run.root.resolve():  # (the run itself: its images are refused by name)
+        _refuse_foreign_folder(args.output, args.format)
     out = claim_output(args.output, what="export")
     images = ImageMode.COPY if args.copy_images else ImageMode.SYMLINK
     with frame_bar(f"export ({args.format})", enabled=not args.no_progress) as bar:
@@ -70,3 +73,19 @@ def run_export(args: argparse.Namespace) -> int:
             wrote(args, coco.annotations, f"COCO keypoints of {coco.n_images} images ({coco.n_annotations} "
                   f"annotations) written to {coco.annotations}")
     return 0
+
+
+def _refuse_foreign_folder(out: Path, fmt: str) -> None:
+    """Refuse a folder that holds files but no earlier export of ``fmt`` (whose files may be replaced)."""
+    from deckpose.errors import ConfigError
+    from deckpose.evaluate.export_bop import TARGETS_NAME
+    from deckpose.evaluate.export_coco import ANNOTATIONS_NAME
+
+    if not out.is_dir():
+        return
+    held = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
+    mark = ANNOTATIONS_NAME if fmt == "coco" else TARGETS_NAME
+    if held and mark not in held:
+        raise ConfigError(f"-o {out} holds files no {fmt} export wrote ({', '.join(held[:3])}"
+                          f"{', ...' if len(held) > 3 else ''}), which the export could replace; "
+                          "give a new or empty folder")

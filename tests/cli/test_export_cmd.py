@@ -136,3 +136,21 @@ def test_a_rendered_run_exports_exactly(tmp_path: Path) -> None:
         np.testing.assert_array_equal(kp[:, 2] > 0, b.in_image.to_numpy())
         on = kp[:, 2] > 0
         np.testing.assert_allclose(kp[on, :2] - 0.5, b[["u_px", "v_px"]].to_numpy()[on], atol=ROUNDOFF * 1e3)
+
+
+def test_a_folder_of_other_files_is_refused_and_an_earlier_export_replaced(
+        fake_run: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    # --copy-images wrote over a user's own images/000000.png in a folder no export had made
+    out = tmp_path / "mine"
+    (out / "images").mkdir(parents=True)
+    (out / "images" / "000000.png").write_text("mine")
+    assert main(["export", str(fake_run), "--format", "coco", "-o", str(out), "--copy-images",
+                 "--no-progress"]) == 2
+    _one_line_error(capsys, "holds files no coco export wrote", "new or empty folder")
+    assert (out / "images" / "000000.png").read_text() == "mine"
+    # an earlier export of the same format is replaced; one of the other format is not
+    coco = tmp_path / "coco"
+    for _ in range(2):
+        assert main(["export", str(fake_run), "--format", "coco", "-o", str(coco), "--no-progress"]) == 0
+    assert main(["export", str(fake_run), "--format", "bop", "-o", str(coco), "--no-progress"]) == 2
+    _one_line_error(capsys, "holds files no bop export wrote")
