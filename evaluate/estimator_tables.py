@@ -30,6 +30,7 @@ from deckpose.evaluate.thesis_sim import (
 from deckpose.evaluate.thesis_tables import HEIGHTS, HEIGHTS_8MP_8PX, NOISE_PX, RESOLUTIONS
 
 from deckpose.atomic_io import atomic_open
+from deckpose.shell_command import deckpose_command
 from deckpose.tables import write_table
 
 START = "<!-- estimator-thesis-tables:start -->"
@@ -72,7 +73,8 @@ def _fmt(v: float, d: int = 3) -> str:
     return "fail" if not np.isfinite(v) else f"{v:.{d}f}"
 
 
-def estimator_markdown(df: pd.DataFrame, methods: Sequence[str], repetitions: int, seed: int, seconds: float) -> str:
+def estimator_markdown(df: pd.DataFrame, methods: Sequence[str], repetitions: int, seed: int, seconds: float,
+                       out_dir: str = "reports") -> str:
     piv = df.pivot_table(index=["resolution", "noise_px", "height", "quantity"], columns="method", values="value")
     ok = df.groupby("method")[["n_ok", "n_images"]].sum()
     lines = [START, "", "## The thesis's tables for every estimator", "",
@@ -82,8 +84,8 @@ def estimator_markdown(df: pd.DataFrame, methods: Sequence[str], repetitions: in
              + " / ".join(methods) + "**; angles in the thesis's convention, degrees; height in units. "
              "Maxima grow with the number of images, so at fewer images than the thesis compare the columns "
              "among themselves; the full-scale thesis estimator is in `thesis_tables.md`. "
-             "Regenerate: `deckpose estimator-tables --methods " + " ".join(methods)
-             + f" --repetitions {repetitions} --seed {seed}`.", "",
+             "Regenerate: `" + deckpose_command("estimator-tables", "--method", ",".join(methods), "--repetitions",
+                                                str(repetitions), "--seed", str(seed), "-o", out_dir) + "`.", "",
              "Frames estimated ok: " + ", ".join(f"{m} {ok['n_ok'].loc[m] / ok['n_images'].loc[m]:.2%}" for m in methods) + ".", ""]
     # How much each beats the published numbers, as one line per method.
     mx = df[df.quantity.isin([f"max_{q}" for q in ("roll", "pitch", "height")])]
@@ -123,7 +125,7 @@ def write_estimator_tables(out_dir: Path, methods: Sequence[str], repetitions: i
     """Run the comparison and splice it into ``out_dir/estimators.md``; also write a CSV."""
     t0 = time.perf_counter()
     df = run_estimator_cells(methods, repetitions, seed, workers, progress)
-    section = estimator_markdown(df, methods, repetitions, seed, time.perf_counter() - t0)
+    section = estimator_markdown(df, methods, repetitions, seed, time.perf_counter() - t0, os.fspath(out_dir))
     out_dir.mkdir(parents=True, exist_ok=True)
     write_table(df, out_dir / "estimators_thesis_tables.csv", "estimator tables")
     md = out_dir / "estimators.md"

@@ -33,7 +33,8 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
     p.add_argument("--repetitions", type=int, default=20, help="passes over the 495-sample series per cell")
     p.add_argument("--seed", type=int, default=20221, help="seed of the noise draws (recorded with the tables)")
     add_workers(p, "Monte Carlo")
-    add_output(p, "output folder", default=Path("reports"))
+    add_output(p, "output folder; its estimators.md gets (or has replaced) the tables' section "
+                  "(the committed report: -o reports)", default=Path("runs/estimator_tables"))
     add_progress(p)
     p.set_defaults(func=run)
 

@@ -53,6 +53,15 @@ def test_estimator_tables_takes_the_comma_list_as_pipeline_does(tmp_path):
     assert old.methods == ["thesis", "pnp"]
 
 
+def test_table_commands_write_under_runs_unless_told():
+    # estimator-tables wrote ./reports by default: run from the checkout, it rewrote the committed
+    # reports/estimators.md; both table commands now write under runs/ (-o reports for the report)
+    from pathlib import Path
+
+    assert PARSER.parse_args(["estimator-tables"]).output == Path("runs/estimator_tables")
+    assert PARSER.parse_args(["thesis-tables"]).output.parts[0] == "runs"
+
+
 def test_verbosity_after_the_command(tmp_path, capsys):
     args = PARSER.parse_args(["detect", "--list", "-v"])
     assert args.verbose == 1
