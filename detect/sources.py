@@ -156,11 +156,16 @@ def open_image_folder(
     camera_info: str | os.PathLike[str],
     layout_file: str | os.PathLike[str] | None = None,
 ) -> FrameSet:
-    """A folder of images taken with one camera (frame ids in file-name order)."""
+    """A folder of images taken with one camera (frame ids in file-name order).
+
+    Hidden files (``.name.png``: an editor's or a copy's temporary, macOS's ``._`` files) and
+    subfolders are no frames.
+    """
     root = Path(path)
     if not root.is_dir():
         raise InputDataError(f"{root} is not a folder of images")
-    images = sorted(p for p in root.iterdir() if p.suffix.lower() in IMAGE_SUFFIXES)
+    images = sorted(p for p in root.iterdir()
+                    if p.suffix.lower() in IMAGE_SUFFIXES and not p.name.startswith(".") and p.is_file())
     if not images:
         raise InputDataError(f"{root}: no images ({', '.join(IMAGE_SUFFIXES)}) found")
     camera = read_camera_info(camera_info)

@@ -156,7 +156,9 @@ def register(sub: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
                    help="after estimating, track each estimates table over time (deckpose track's default "
                         "tracker); needs frames in time: a motion series or an approach")
     add_progress(p)
-    p.set_defaults(func=run, resume_hint="finished frames are kept whole; run the same command again: it renders only the rest")
+    p.set_defaults(func=run, resume_hint="rendered frames are kept whole; run the same command again: the "
+                        "render resumes and the later stages run again (add --from-stage STAGE to "
+                        "skip the finished ones)")
 
 
 def run(args: argparse.Namespace) -> int:

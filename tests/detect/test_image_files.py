@@ -112,3 +112,20 @@ def test_a_grey_image_stored_as_colour_says_it_is_grey(frame, tmp_path: Path) ->
 
 def test_webp_is_among_the_image_suffixes() -> None:
     assert ".webp" in IMAGE_SUFFIXES
+
+
+def test_hidden_files_and_subfolders_are_no_frames(frame, tmp_path: Path) -> None:
+    # a '.x.png' (an editor's or a copy's temporary, macOS's '._' files) had been read as a frame
+    rgb8, _, cam = frame
+
+    def write(folder: Path) -> None:
+        PIL.fromarray(rgb8).save(folder / "a.png")
+        (folder / ".a.png").write_bytes(b"\0\0")  # not an image at all
+        (folder / "._b.png").write_bytes(b"Mac OS X resource fork")
+        (folder / "sub.png").mkdir()
+
+    folder = _save(tmp_path, "hidden", write)
+    out = tmp_path / "out_hidden"
+    assert main(["detect", str(folder), "--camera", str(cam), "-o", str(out), "--no-progress", "-q"]) == 0
+    frames = pd.read_parquet(out / "detect_frames.parquet")
+    assert len(frames) == 1 and bool(frames["ok"].iloc[0])
