@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -96,9 +97,24 @@ def read_table(path: str | os.PathLike[str], what: str = "table") -> pd.DataFram
         hint = f"; read {p / inner[0]}" if inner else ""
         raise InputDataError(f"{p} is a folder, not a {what} file{hint}")
     try:
-        return pd.read_csv(p) if ext == ".csv" else pd.read_parquet(p)
+        if ext != ".csv":
+            return pd.read_parquet(p)
+        # a spreadsheet's CSV: "frame_id, beacon_id" (spaces after the commas) or, where the
+        # decimal mark is a comma, fields split by ";" (pandas' sniffer, only then)
+        df = pd.read_csv(p, skipinitialspace=True)
+        if df.shape[1] == 1 and ";" in str(df.columns[0]):
+            df = pd.read_csv(p, sep=";", skipinitialspace=True, decimal="," if _comma_decimals(p) else ".")
+        df.columns = [str(c).strip() for c in df.columns]
+        return df
     except Exception as exc:  # pandas/pyarrow raise many exception types on corrupt files
         raise InputDataError(f"{p}: cannot read {what} ({type(exc).__name__}: {exc})") from exc
+
+
+def _comma_decimals(path: Path) -> bool:
+    """Whether a ";"-separated file writes its decimals with a comma (``12,5``), by its first rows."""
+    with open(path, encoding="utf-8", errors="replace") as fh:
+        rows = [fh.readline() for _ in range(6)][1:]
+    return any(re.search(r"(^|;)\s*-?\d+,\d+\s*(;|$)", row) for row in rows)
 
 
 def write_table(df: pd.DataFrame, path: str | os.PathLike[str], what: str = "table") -> None:

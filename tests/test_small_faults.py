@@ -108,3 +108,19 @@ def test_a_run_that_keeps_no_frame_has_no_images_folder(tmp_path):
     render_dataset(config_from_dict(doc), out, workers=0, progress=False,
                    detection=RenderDetection(detectors=("cog",), keep_images=False))
     assert not (out / "images").exists() and (out / "detections" / "cog.parquet").exists()
+
+
+@pytest.mark.parametrize("text", [
+    "frame_id, beacon_id, u_px, v_px\n0, 0, 960.25, 190.5\n0, 1, 785.0, 237.75\n",  # spaces after commas
+    "frame_id;beacon_id;u_px;v_px\n0;0;960,25;190,5\n0;1;785;237,75\n",  # a comma-decimal spreadsheet's
+    "frame_id;beacon_id;u_px;v_px\n0;0;960.25;190.5\n0;1;785.0;237.75\n",  # ";" with decimal points
+])
+def test_spreadsheet_csv_forms_read_as_the_plain_one(tmp_path, text):
+    from deckpose.tables import read_table
+
+    path = tmp_path / "d.csv"
+    path.write_text(text)
+    df = read_table(path, "detections")
+    assert df.columns.tolist() == ["frame_id", "beacon_id", "u_px", "v_px"]
+    assert df["frame_id"].tolist() == [0, 0] and df["beacon_id"].tolist() == [0, 1]
+    assert df["u_px"].tolist() == [960.25, 785.0] and df["v_px"].tolist() == [190.5, 237.75]
