@@ -89,7 +89,7 @@ def row_median(a: np.ndarray) -> np.ndarray:
     (and a 1-D median of a few hundred values, ``row_median(a[None])[0]``, 5x). Long
     float rows of whole or half DN (a frame's pixel differences, block sums and their
     deviations from a median) are counted instead (:func:`_counted_row_median`), the
-    same values 5-10x faster than a sort.
+    same values in 0.2-0.6 ms where a sort of 60,000 takes 1.2 ms.
     """
     m = a.shape[1]
     if m >= COUNTED_MEDIAN_MIN and a.dtype == np.float64:
@@ -106,30 +106,32 @@ def _counted_row_median(a: np.ndarray) -> np.ndarray | None:
     """:func:`row_median` of float64 rows whose values are all multiples of 1/2 within a
     range of a few times the row length, by counting them (``np.bincount``); else None.
 
-    Twice a value is then an exact small integer, so the two middle ranks' values are
-    read off the cumulative counts exactly, and their mean is the sort's.
+    Twice a value is then an exact integer (checked on the values themselves, each of
+    magnitude below 2^50, so that doubling and the differences below are exact), the two
+    middle ranks' values are read off the cumulative counts exactly, and their mean is the
+    sort's. Besides the counts (``n x (8 m + 1)`` at most), two temporaries of the rows'
+    size are made: each new one costs its page faults.
     """
     n, m = a.shape
-    lo = a.min(axis=1)
-    span = 2.0 * (a.max(axis=1) - lo)
-    if not (np.isfinite(span).all() and span.max() <= 8 * m and (2.0 * lo == np.rint(2.0 * lo)).all()):
+    if n == 0:
         return None
-    # two temporaries of the row's size, no more: each new one costs its page faults
-    offsets = np.subtract(a, lo[:, None])
-    offsets *= 2.0  # exact: a power of two
-    idx = offsets.astype(np.int64)
-    offsets -= idx
-    if offsets.any():  # not every value a multiple of 1/2
+    lo, hi = a.min(axis=1), a.max(axis=1)
+    if not (max(-lo.min(), hi.max()) < 2.0**50 and 2.0 * (hi - lo).max() <= 8 * m):  # (NaN fails it)
         return None
-    bins = int(span.max()) + 1
+    doubled = a * 2.0  # exact: a power of two
+    idx = doubled.astype(np.int64)  # exact where doubled is whole (below 2^51)
+    doubled -= idx
+    if doubled.any():  # a value not a multiple of 1/2
+        return None
+    lo = 2.0 * lo  # whole now, as every doubled value
+    idx -= lo.astype(np.int64)[:, None]
+    bins = int((2.0 * hi - lo).max()) + 1
     if n > 1:
         idx += (np.arange(n) * bins)[:, None]
     counts = np.bincount(idx.ravel(), minlength=n * bins)
     below = np.cumsum(counts.reshape(n, bins), axis=1)
-    lo = 2.0 * lo
     # the value of 0-based rank r is the first bin whose cumulative count exceeds r
-    hi = (below <= m // 2).sum(axis=1)
-    upper = (hi + lo) / 2.0
+    upper = ((below <= m // 2).sum(axis=1) + lo) / 2.0
     if m % 2:
         return upper
     lower = ((below <= m // 2 - 1).sum(axis=1) + lo) / 2.0

@@ -41,9 +41,13 @@ def test_long_rows_of_whole_and_half_dn_are_counted_to_numpys_median(m: int) -> 
     left = [rng.normal(size=(2, m)),                                        # not multiples of 1/2
             rng.integers(0, 40, (1, m)) + 0.25,
             rng.integers(0, 100 * m, (1, m)) + 0.0]                          # a range of 100 x m
+    tiny = np.full((1, m), -1000.5)
+    tiny[0, m // 2:] = 1e-20  # below half an ulp of 1000.5: a difference from it would round
+    left.append(tiny)
     for a in left:
         assert _counted_row_median(a) is None
         np.testing.assert_array_equal(row_median(a), np.median(a, axis=1))
+    assert row_median(np.zeros((0, m))).shape == (0,)  # no rows: none to count
 
 def _texture_reference(G: np.ndarray, step: int, tile_row: int, tile_col: int) -> float:
     """The documented rule, written out for one tile: differences of pixels ``step`` apart
