@@ -206,6 +206,9 @@ CODEC_MIN_STEPS = 30
 #: 2- or 4-pixel pattern (a Bayer mosaic's) also 1, as its pairs at the edges' phase
 #: (``bk + 3 | bk + 4`` and ``bk + 7 | bk + 8`` are the same phase of it) differ as often.
 CODEC_EDGE_RATIO = 1.6
+#: Fewest distinct block edges (grid lines across the sampled direction) whose steps count:
+#: a codec's raised blocks lie all over the frame, a panel lying on the grid has two edges.
+CODEC_MIN_EDGES = 8
 #: Where more than this fraction of the sampled pairs differ, the noise was not flattened (a
 #: flattened frame's: under 5 %); the frame is not judged further.
 CODEC_MAX_INNER_FRACTION = 0.25
@@ -223,15 +226,16 @@ def codec_block_step(S: np.ndarray, factor: int, max_rows: int = 300) -> float:
     pixel noise a flattened frame shows), and the significance search took them for spots
     (24-160 on a 2 MP frame at qualities 50-80, and identification failed). The sign of
     such a frame: neighbours across a block's edge differ far more often than those at any
-    one phase inside the blocks (:data:`CODEC_EDGE_RATIO`), which neither noise nor a
-    Bayer mosaic's or any 2- or 4-pixel pattern can make. There, the median size of the edge
-    steps is a step the codec makes out of nothing: a spot must stand out of it as out of
-    noise.
+    one phase inside the blocks (:data:`CODEC_EDGE_RATIO`), along the rows and along the
+    columns alike, which noise, a Bayer mosaic's or any 2- or 4-pixel pattern cannot make,
+    nor a scene's edge that happens to lie on the grid (it lies along one axis). There, the
+    median size of the edge steps is a step the codec makes out of nothing: a spot must
+    stand out of it as out of noise.
 
     Judged on the search's image (channel sums in ``factor x factor`` blocks, whose grid
     the codec's 8 px blocks fit for ``factor`` 1, 2 and 4), one row in each row of blocks
-    (every block row, so that even a few raised blocks in a frame are seen; at most
-    ``max_rows`` rows, evenly spaced in whole block rows).
+    and one column in each column of blocks (all of them, so that even a few raised blocks
+    in a frame are seen; at most ``max_rows`` of each, evenly spaced in whole blocks).
 
     Parameters
     ----------
@@ -243,27 +247,39 @@ def codec_block_step(S: np.ndarray, factor: int, max_rows: int = 300) -> float:
     Returns
     -------
     float
-        The median absolute step across the codec's block edges, in ``S``'s DN, where the
-        edges differ at least :data:`CODEC_MIN_STEPS` times and :data:`CODEC_EDGE_RATIO` times
-        as often as the pairs at any inner phase; else 0.
+        The median absolute step across the codec's block edges, in ``S``'s DN, where on
+        both axes the edges differ at least :data:`CODEC_MIN_STEPS` times and
+        :data:`CODEC_EDGE_RATIO` times as often as the pairs at any inner phase; else 0.
     """
     if factor < 1 or CODEC_BLOCK_PX % factor or CODEC_BLOCK_PX // factor < 2:
         return 0.0
     b = CODEC_BLOCK_PX // factor  # the codec's block in S's pixels
+    across = _edge_steps(np.asarray(S), b, max_rows)  # pairs along the rows: columns' edges
+    if across is None:
+        return 0.0
+    down = _edge_steps(np.asarray(S).T, b, max_rows)  # and along the columns: rows' edges
+    if down is None:  # (a vertical step edge in a clean frame shows on one axis only)
+        return 0.0
+    return median(np.concatenate([across, down]))
+
+
+def _edge_steps(S: np.ndarray, b: int, max_rows: int) -> np.ndarray | None:
+    """The absolute steps across the block edges of ``b`` px along ``S``'s rows, where those
+    edges stand out as a codec's do (:func:`codec_block_step`); else None."""
     h, w = S.shape
     n_blocks = (w - 1) // b  # blocks with a right neighbour
     block_rows = h // b
     if n_blocks < 1 or block_rows < 1:
-        return 0.0
+        return None
     every = -(-block_rows // max_rows)  # whole block rows between two sampled rows
     rows = np.arange(block_rows)[::every] * b + b // 2
     d = np.diff(S[rows, : b * n_blocks + 1], axis=1).ravel()  # pair (bk+p, bk+p+1) at p = index % b
     lit = d != 0
     if np.count_nonzero(lit) > CODEC_MAX_INNER_FRACTION * d.size:
-        return 0.0  # the noise differs inside the blocks: the codec did not flatten it
+        return None  # the noise differs inside the blocks: the codec did not flatten it
     at = np.flatnonzero(lit)
     if at.size < CODEC_MIN_STEPS:
-        return 0.0
+        return None
     step = np.abs(d[at])
     block = at // b
     # blocks a spot or an edge crosses (a step far above the typical one) are left out: their
@@ -272,5 +288,10 @@ def codec_block_step(S: np.ndarray, factor: int, max_rows: int = 300) -> float:
     differing = np.bincount(at[calm] % b, minlength=b)  # (b,) differing pairs at each phase
     n_edge = int(differing[b - 1])
     if n_edge < CODEC_MIN_STEPS or n_edge < CODEC_EDGE_RATIO * max(int(differing[: b - 1].max()), 1):
-        return 0.0
-    return median(step[calm & (at % b == b - 1)])
+        return None
+    on_edge = calm & (at % b == b - 1)
+    # scattered over the frame, as a codec's blocks are: not the few edges of one panel or band
+    # lying on the grid
+    if np.unique(block[on_edge] % n_blocks).size < CODEC_MIN_EDGES:
+        return None
+    return step[on_edge]
