@@ -100,21 +100,25 @@ def read_table(path: str | os.PathLike[str], what: str = "table") -> pd.DataFram
         if ext != ".csv":
             return pd.read_parquet(p)
         # a spreadsheet's CSV: "frame_id, beacon_id" (spaces after the commas) or, where the
-        # decimal mark is a comma, fields split by ";" (pandas' sniffer, only then)
-        df = pd.read_csv(p, skipinitialspace=True)
-        if df.shape[1] == 1 and ";" in str(df.columns[0]):
-            df = pd.read_csv(p, sep=";", skipinitialspace=True, decimal="," if _comma_decimals(p) else ".")
+        # decimal mark is a comma, fields split by ";" (told by the header line)
+        sep, decimal = _csv_dialect(p)
+        df = pd.read_csv(p, sep=sep, decimal=decimal, skipinitialspace=True)
         df.columns = [str(c).strip() for c in df.columns]
         return df
     except Exception as exc:  # pandas/pyarrow raise many exception types on corrupt files
         raise InputDataError(f"{p}: cannot read {what} ({type(exc).__name__}: {exc})") from exc
 
 
-def _comma_decimals(path: Path) -> bool:
-    """Whether a ";"-separated file writes its decimals with a comma (``12,5``), by its first rows."""
+def _csv_dialect(path: Path) -> tuple[str, str]:
+    """``(separator, decimal mark)`` of a CSV: ``";"`` where its header line has ``;`` and no
+    ``,``, and then ``","`` decimals where some field holds one (``785,5``) and none a point."""
     with open(path, encoding="utf-8", errors="replace") as fh:
-        rows = [fh.readline() for _ in range(6)][1:]
-    return any(re.search(r"(^|;)\s*-?\d+,\d+\s*(;|$)", row) for row in rows)
+        header = fh.readline()
+        if ";" not in header or "," in header:
+            return ",", "."
+        body = fh.read()
+    comma = re.search(r"\d,\d", body) is not None and re.search(r"\d\.\d", body) is None
+    return ";", "," if comma else "."
 
 
 def write_table(df: pd.DataFrame, path: str | os.PathLike[str], what: str = "table") -> None:
