@@ -39,12 +39,21 @@ from deckpose.atomic_io import atomic_open
 from deckpose.errors import InputDataError, check_shape
 from deckpose.run_folder import RunPaths
 
-__all__ = ["DECK_OBJ_ID", "TARGETS_NAME", "BopExport", "bop_camera_entry", "bop_gt_entries", "models_info",
-           "write_bop"]
+__all__ = [
+    "DECK_OBJ_ID",
+    "BopExport",
+    "bop_camera_entry",
+    "bop_gt_entries",
+    "is_bop_export",
+    "models_info",
+    "write_bop",
+]
 
 
-#: The file every BOP export writes at its top level (how an earlier export is told).
-TARGETS_NAME = "test_targets_bop19.json"
+#: The notes every BOP export of ours writes at its top level, and their first line: how an
+#: earlier export is told (``test_targets_bop19.json`` is in every BOP dataset, ours or not).
+INFO_NAME = "dataset_info.md"
+INFO_TITLE = "# deck (deckpose export)"
 
 #: The deck's object id.
 DECK_OBJ_ID = 1
@@ -140,7 +149,7 @@ def _info_text(run: RunPaths, frames: ExportFrames, scenes: dict[int, str], imag
                folder: str) -> str:
     link = "symbolic links into the run" if images is ImageMode.SYMLINK else "copies"
     lines = [
-        "# deck (deckpose export)", "",
+        INFO_TITLE, "",
         (f"BOP dataset of the deckpose run `{run.root.resolve()}` ({frames.n_frames} frames), "
          "written by `deckpose export --format bop`."), "",
         ("* object 1: the ship deck (`models/obj_000001.ply`, mm, deck frame: x bow, y port, z up, "
@@ -156,6 +165,15 @@ def _info_text(run: RunPaths, frames: ExportFrames, scenes: dict[int, str], imag
         cam = frames.cameras[name]
         lines.append(f"| {sid:06d} | {name} | {cam.width_px} | {cam.height_px} |")
     return "\n".join(lines) + "\n"
+
+
+def is_bop_export(folder: Path) -> bool:
+    """Whether ``folder`` holds a BOP export of ours (its notes' first line says so)."""
+    try:
+        with open(folder / INFO_NAME, encoding="utf-8") as fh:
+            return fh.readline().rstrip("\n") == INFO_TITLE
+    except (OSError, UnicodeDecodeError):
+        return False
 
 
 def write_bop(run: RunPaths, out: str | os.PathLike[str], *, images: ImageMode = ImageMode.SYMLINK,
@@ -209,7 +227,7 @@ def write_bop(run: RunPaths, out: str | os.PathLike[str], *, images: ImageMode =
         _write_json(root / SPLIT / f"{sid:06d}" / "scene_gt.json", scene_gt[sid])
     targets_list = [{"im_id": fid, "inst_count": 1, "obj_id": DECK_OBJ_ID, "scene_id": scene_of[c]}
                     for fid, c in zip(frames.frame_id.tolist(), frames.camera, strict=True)]
-    _write_json(root / TARGETS_NAME, targets_list)
-    with atomic_open(root / "dataset_info.md", "w") as fh:
+    _write_json(root / "test_targets_bop19.json", targets_list)
+    with atomic_open(root / INFO_NAME, "w") as fh:
         fh.write(_info_text(run, frames, scenes, images, folder))
     return BopExport(root, scenes, frames.n_frames, model)

@@ -45,7 +45,7 @@ from deckpose.layout import DeckLayout
 from deckpose.run_folder import RunPaths
 
 __all__ = ["ANNOTATIONS_NAME", "COCO_FROM_OPENCV_PX", "DECK_CATEGORY_ID", "CocoExport",
-           "coco_keypoints", "deck_category", "keypoint_names", "skeleton", "write_coco"]
+           "coco_keypoints", "deck_category", "is_coco_export", "keypoint_names", "skeleton", "write_coco"]
 
 #: The annotation file's name in the output folder.
 ANNOTATIONS_NAME = "deck_keypoints.json"
@@ -127,6 +127,11 @@ def _annotation(kp: np.ndarray, image_id: int, width: int, height: int) -> dict[
     return {"id": image_id + 1, "image_id": image_id, "category_id": DECK_CATEGORY_ID,
             "keypoints": flat, "num_keypoints": int(labelled.sum()), "bbox": [float(x0), float(y0), w, h],
             "area": w * h, "iscrowd": 0}
+
+
+def is_coco_export(folder: Path) -> bool:
+    """Whether ``folder`` holds a COCO export of ours (its annotation file, by our name for it)."""
+    return (folder / ANNOTATIONS_NAME).is_file()
 
 
 def write_coco(run: RunPaths, out: str | os.PathLike[str], *, images: ImageMode = ImageMode.SYMLINK,

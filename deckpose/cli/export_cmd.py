@@ -54,8 +54,7 @@ def run_export(args: argparse.Namespace) -> int:
 
     run = run_paths(args.run)
     require_dataset(run)  # not a run folder: one line before the output folder is made
-    if args.output.resolve() != run.root.resolve():  # (the run itself: its images are refused by name)
-        _refuse_foreign_folder(args.output, args.format)
+    _refuse_foreign_folder(args.output, args.format)
     out = claim_output(args.output, what="export")
     images = ImageMode.COPY if args.copy_images else ImageMode.SYMLINK
     with frame_bar(f"export ({args.format})", enabled=not args.no_progress) as bar:
@@ -76,16 +75,16 @@ def run_export(args: argparse.Namespace) -> int:
 
 
 def _refuse_foreign_folder(out: Path, fmt: str) -> None:
-    """Refuse a folder that holds files but no earlier export of ``fmt`` (whose files may be replaced)."""
+    """Refuse a folder that holds files but no earlier export of ``fmt`` of ours (whose files may be replaced)."""
     from deckpose.errors import ConfigError
-    from deckpose.evaluate.export_bop import TARGETS_NAME
-    from deckpose.evaluate.export_coco import ANNOTATIONS_NAME
+    from deckpose.evaluate.export_bop import is_bop_export
+    from deckpose.evaluate.export_coco import is_coco_export
 
     if not out.is_dir():
         return
     held = sorted(p.name for p in out.iterdir() if not p.name.startswith("."))
-    mark = ANNOTATIONS_NAME if fmt == "coco" else TARGETS_NAME
-    if held and mark not in held:
-        raise ConfigError(f"-o {out} holds files no {fmt} export wrote ({', '.join(held[:3])}"
-                          f"{', ...' if len(held) > 3 else ''}), which the export could replace; "
-                          "give a new or empty folder")
+    earlier = is_coco_export(out) if fmt == "coco" else is_bop_export(out)
+    if held and not earlier:
+        raise ConfigError(f"-o {out} holds files no deckpose {fmt} export wrote ({', '.join(held[:3])}"
+                          f"{', ...' if len(held) > 3 else ''}), which the export could replace; give a new "
+                          "or empty folder (or remove this one, if an interrupted export left it)")

@@ -98,7 +98,10 @@ def test_output_inside_the_runs_images_is_refused(fake_run: Path, tmp_path: Path
     shutil.copytree(fake_run, run)
     before = (run / "images" / "000000.png").read_bytes()
     assert main(["export", str(run), "--format", "coco", "-o", str(run)]) == 2
-    _one_line_error(capsys, "is the run's own image")
+    _one_line_error(capsys, "holds files no deckpose coco export wrote")
+    for fmt in ("coco", "bop"):  # the run's own images, either way
+        assert main(["export", str(run), "--format", fmt, "-o", str(run / "images")]) == 2
+        _one_line_error(capsys, f"holds files no deckpose {fmt} export wrote")
     assert (run / "images" / "000000.png").read_bytes() == before
 
 
@@ -146,11 +149,20 @@ def test_a_folder_of_other_files_is_refused_and_an_earlier_export_replaced(
     (out / "images" / "000000.png").write_text("mine")
     assert main(["export", str(fake_run), "--format", "coco", "-o", str(out), "--copy-images",
                  "--no-progress"]) == 2
-    _one_line_error(capsys, "holds files no coco export wrote", "new or empty folder")
+    _one_line_error(capsys, "holds files no deckpose coco export wrote", "new or empty folder")
     assert (out / "images" / "000000.png").read_text() == "mine"
     # an earlier export of the same format is replaced; one of the other format is not
     coco = tmp_path / "coco"
     for _ in range(2):
         assert main(["export", str(fake_run), "--format", "coco", "-o", str(coco), "--no-progress"]) == 0
     assert main(["export", str(fake_run), "--format", "bop", "-o", str(coco), "--no-progress"]) == 2
-    _one_line_error(capsys, "holds files no bop export wrote")
+    _one_line_error(capsys, "holds files no deckpose bop export wrote")
+    bop = tmp_path / "bop"
+    for _ in range(2):
+        assert main(["export", str(fake_run), "--format", "bop", "-o", str(bop), "--no-progress"]) == 0
+    # a BOP dataset of others (its standard files, none of our notes) is not ours to write over
+    other = tmp_path / "their_bop"
+    (other / "test").mkdir(parents=True)
+    (other / "test_targets_bop19.json").write_text("[]")
+    assert main(["export", str(fake_run), "--format", "bop", "-o", str(other), "--no-progress"]) == 2
+    _one_line_error(capsys, "holds files no deckpose bop export wrote")
