@@ -182,7 +182,7 @@ def bow_flags(column: pd.Series) -> np.ndarray:
         return column.to_numpy(bool)
     if pd.api.types.is_numeric_dtype(column.dtype) and not pd.api.types.is_bool_dtype(column.dtype):
         values = column.to_numpy(float)
-        return np.isfinite(values) & (values != 0)
+        return ~np.isnan(values) & (values != 0)
     out = np.zeros(len(column), bool)
     for i, cell in enumerate(column.tolist()):
         if cell is None or (isinstance(cell, float) and math.isnan(cell)) or cell is pd.NA:
@@ -192,6 +192,11 @@ def bow_flags(column: pd.Series) -> np.ndarray:
             key = "true" if cell else "false"
         elif isinstance(cell, (int, float, np.integer, np.floating)):
             key = "false" if cell == 0 else "true"
+        if key not in _BOW_TEXT:
+            try:  # a number written as text ("1.0", "0.0")
+                key = "false" if float(key) == 0 else "true"
+            except ValueError:
+                pass
         if key not in _BOW_TEXT:
             raise InputDataError(f"detections: is_bow on row {i + 1} is {short_repr(cell)}, which reads as neither true nor "
                               "false; write true/false, yes/no or 1/0 (blank: false)")
@@ -249,8 +254,9 @@ def identify_unassigned(
                         "flux_b to tell the bow by (add one; a frame deckpose detect could not identify "
                         "in its image keeps its reason in detect_frames.parquet)")
             elif rgb is None:
-                need = ("; nothing tells this frame's bow: no row has is_bow true and its flux_r, "
-                        "flux_g, flux_b cells are not all filled")
+                said = [w for w, has in (("no row of it has is_bow true", has_bow),
+                                         ("its flux_r, flux_g, flux_b cells are not all filled", has_rgb)) if has]
+                need = f"; nothing in the table tells this frame's bow: {' and '.join(said)}"
             else:
                 need = ""
             notes[f] = f"unidentified detections (beacon_id -1): {ident.reason}{need}"
