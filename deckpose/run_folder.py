@@ -161,6 +161,12 @@ class RunPaths:
     def tracks_dir(self) -> Path:
         return self.root / "tracks"
 
+    def made_from_detections(self, detector: str) -> list[Path]:
+        """The files estimated or tracked from ``detector``'s detections (``estimates/cog--*``,
+        ``tracks/cog--*``): stale once those detections are made again."""
+        return sorted(p for d in (self.estimates_dir, self.tracks_dir) if d.is_dir()
+                      for p in d.glob(f"{detector}{SEPARATOR}*") if p.is_file())
+
     def _track_stem(self, detector: str, method: str, tracker: str) -> str:
         return f"{detector}{SEPARATOR}{method}{SEPARATOR}{tracker}"
 

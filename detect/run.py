@@ -388,6 +388,13 @@ def write_run(
         base = run.detections_dir
         det_path, frames_path = run.detections(detector), run.detect_frames(detector)
         meta_path, cam_dir = run.detect_run_record(detector), None
+        stale = run.made_from_detections(detector) if det_path.is_file() else []
+        for p in stale:  # estimated or tracked from the detections this run replaces
+            p.unlink()
+        if stale:
+            log.warning("removed %d file(s) made from the %s detections this run replaces (%s%s); "
+                        "deckpose estimate makes them again", len(stale), detector,
+                        ", ".join(p.name for p in stale[:3]), ", ..." if len(stale) > 3 else "")
     else:
         base = Path(out_dir)
         det_path, frames_path = base / "detections.parquet", base / "detect_frames.parquet"

@@ -204,3 +204,24 @@ def test_detecting_again_into_a_folder_removes_its_estimates_of_the_old_detectio
     assert not (folder / "estimates.parquet").exists()
     assert "estimates.parquet" in caplog.text and "replaces" in caplog.text
     assert (folder / "notes.txt").read_text() == "mine"
+
+
+def test_detecting_a_dataset_again_removes_what_was_made_from_its_old_detections(
+        detections_folder: tuple[Path, Path], tmp_path: Path, caplog: pytest.LogCaptureFixture) -> None:
+    """estimates/cog--*.parquet (and tracks) were made from detections/cog.parquet; a new detect of
+    cog replaces it, so they go (the log says so); another detector's stay."""
+    import shutil
+
+    dataset, _ = detections_folder
+    run = tmp_path / "run"
+    shutil.copytree(dataset, run)
+    for det in ("cog", "gauss"):
+        assert main(["detect", str(run), "--detector", det, "--no-progress", "--workers", "0"]) == exit_codes.OK
+        assert main(["estimate", "--run", str(run), "--detector", det, "--method", "pnp",
+                     "--no-progress"]) == exit_codes.OK
+    assert (run / "estimates" / "cog--pnp.parquet").is_file()
+    with caplog.at_level("WARNING"):
+        assert main(["detect", str(run), "--detector", "cog", "--no-progress", "--workers", "0"]) == exit_codes.OK
+    assert not (run / "estimates" / "cog--pnp.parquet").exists()
+    assert (run / "estimates" / "gauss--pnp.parquet").is_file()
+    assert "cog--pnp.parquet" in caplog.text and "replaces" in caplog.text
