@@ -112,9 +112,9 @@ def test_a_run_that_keeps_no_frame_has_no_images_folder(tmp_path):
 
 @pytest.mark.parametrize("text", [
     "frame_id, beacon_id, u_px, v_px\n0, 0, 960.25, 190.5\n0, 1, 785.0, 237.75\n",  # spaces after commas
-    "frame_id;beacon_id;u_px;v_px\n0;0;960,25;190,5\n0;1;785;237,75\n",  # a comma-decimal spreadsheet's
+    "frame_id;beacon_id;u_px;v_px\n0;0;960,25;190,5\n0;1;785;237,75\n",  # a comma-decimal spreadsheet's (785: a whole number)
     "frame_id;beacon_id;u_px;v_px\n0;0;960.25;190.5\n0;1;785.0;237.75\n",  # ";" with decimal points
-    "frame_id;beacon_id;u_px;v_px\n0;0;960,25;190,5\n0;1;785;237,75\n",  # whole numbers as a spreadsheet writes them
+    "frame_id;beacon_id;u_px;v_px\n0;0;960,25;190,5\n0;1;785;237,75\n\n",  # a blank last line
     "frame_id; beacon_id; u_px; v_px\n0; 0; 960,25; 190,5\n0; 1; 785; 237,75\n",
 ])
 def test_spreadsheet_csv_forms_read_as_the_plain_one(tmp_path, text):
