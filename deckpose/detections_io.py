@@ -187,13 +187,9 @@ def bow_flags(column: pd.Series) -> np.ndarray:
     for i, cell in enumerate(column.tolist()):
         if cell is None or (isinstance(cell, float) and math.isnan(cell)) or cell is pd.NA:
             continue
-        key = str(cell).strip().lower()
-        if isinstance(cell, (bool, np.bool_)):
-            key = "true" if cell else "false"
-        elif isinstance(cell, (int, float, np.integer, np.floating)):
-            key = "false" if cell == 0 else "true"
+        key = str(cell).strip().lower()  # (a bool reads "true"/"false", a number as below)
         if key not in _BOW_TEXT:
-            try:  # a number written as text ("1.0", "0.0")
+            try:  # a number, or one written as text ("1.0", "0.0", "inf")
                 key = "false" if float(key) == 0 else "true"
             except ValueError:
                 pass

@@ -389,22 +389,16 @@ def write_run(
         det_path, frames_path = run.detections(detector), run.detect_frames(detector)
         meta_path, cam_dir = run.detect_run_record(detector), None
         stale = run.made_from_detections(detector) if det_path.is_file() else []
-        for p in stale:  # estimated or tracked from the detections this run replaces
-            p.unlink()
-        if stale:
-            log.warning("removed %d file(s) made from the %s detections this run replaces (%s%s); "
-                        "deckpose estimate makes them again", len(stale), detector,
-                        ", ".join(p.name for p in stale[:3]), ", ..." if len(stale) > 3 else "")
     else:
         base = Path(out_dir)
         det_path, frames_path = base / "detections.parquet", base / "detect_frames.parquet"
         meta_path, cam_dir = base / DETECT_RECORD, base / "cameras"
-        stale = base / FOLDER_ESTIMATES
-        if stale.is_file() and meta_path.is_file():
-            # estimated from the detections this run replaces: its frame ids would name other frames
-            stale.unlink()
-            log.warning("removed %s: it was estimated from the detections this run replaces "
-                        "(deckpose estimate %s makes it again)", stale, base)
+        stale = [base / FOLDER_ESTIMATES] if meta_path.is_file() and (base / FOLDER_ESTIMATES).is_file() else []
+    for p in stale:  # estimated or tracked from the detections this run replaces: stale
+        p.unlink()
+    if stale:
+        log.warning("removed %s, made from the %s detections this run replaces (deckpose estimate makes "
+                    "it again)", ", ".join(str(p) for p in stale), detector)
     write_tables(det_path, frames_path, detections, frames)
     cams = {}
     for name, cam in frameset.cameras.items():

@@ -95,10 +95,8 @@ def run(args: argparse.Namespace) -> int:
         # checked before the output folder is claimed (created), as a config is
         detection = resolve_detection(RenderDetection(detectors=names, keep_images=not args.no_images),
                                       sensor_block(cfg))
-    import pyarrow.parquet as pq
-
     from deckpose.output_folder import claim_output
-    from deckpose.run_folder import RunPaths
+    from deckpose.run_folder import RunPaths, read_frames
 
     n_workers = workers(args)  # a bad count is refused before the output folder is claimed (created)
 
@@ -108,7 +106,7 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     path = render_dataset(cfg, out, workers=n_workers, resume=args.resume, scheduler=args.scheduler,
                           progress=not args.no_progress, detection=detection)
-    n_frames = pq.read_metadata(RunPaths(path).frames).num_rows
+    n_frames = len(read_frames(RunPaths(path)))
     took = _duration(time.perf_counter() - t0)
     wrote(args, path, f"dataset of {counted(n_frames, 'frame')} written to {path} in {took}"
                       + (" (resumed: only the frames not yet written were rendered)" if args.resume else ""))
