@@ -173,7 +173,7 @@ BEACON_COLUMNS: tuple[Column, ...] = (
 LIGHT_COLUMNS: tuple[Column, ...] = (
     _C("frame_id", "int64", "", "frame id", nullable=False),
     _C("light_id", "int64", "", "the light's index in the frame", nullable=False),
-    _C("kind", "string", "", "port, starboard, masthead, stern, floodlight or glint", nullable=False),
+    _C("kind", "string", "", "port, starboard, masthead, stern, floodlight, glint (sea) or deck_glint (wet deck)", nullable=False),
     _C("u_px", "float64", "px", "projected centre at mid-exposure, distorted image column (null: behind the camera)"),
     _C("v_px", "float64", "px", "projected centre at mid-exposure, distorted image row"),
     _C("in_image", "bool", "", "in front of the camera and inside the image", nullable=False),

@@ -50,7 +50,7 @@ from deckpose.render.painted_ring import (
 )
 from deckpose.render.plan import FrameSpec
 from deckpose.render.rolling_shutter import ShutterFrame, rolling_shutter_beacons
-from deckpose.render.scene import DeckRenderer, radiance_scale
+from deckpose.render.scene import SUN_TRAVEL_WORLD, DeckRenderer, radiance_scale
 from deckpose.render.sensor import SpotRecord, expose, splat_electrons, spot_record
 from deckpose.render.sensor_config import BayerPattern
 from deckpose.render.ship_lights import (
@@ -117,7 +117,8 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
               if shutter is None else shutter.splats)
     splats, occlusion = occlude(splats, cfg.occlusion, cfg.layout.n_beacons, _stream(spec.seed, OCCLUSION_STREAM))
     lights = ship_lights(cfg.ship_lights, cfg.deck_half_size_m(), cfg.scene.freeboard_m,
-                         _stream(spec.seed, GLINT_STREAM))
+                         _stream(spec.seed, GLINT_STREAM), spec.ship, cam_pose, camera, -SUN_TRAVEL_WORLD,
+                         cfg.scene.ship)
     extra, lights_px, lights_in = light_splats(lights, poses, cam_pose, camera, cfg.sensor, cfg.leds, cfg.layout)
     proj = project_layout(cfg.layout, spec.ship, cam_pose, camera) if shutter is None else shutter.projection
     scale = radiance_scale(spec.lighting, cfg.scene.shading)

@@ -9,9 +9,13 @@ deck frame (x bow, y port, z up; the deck plate's half side ``h``, its freeboard
   ``(h + 8, +-(h - 2), 4)`` m; the white ``masthead`` light ``(h + 14, 0, 12)`` m;
   the white ``stern`` light at the transom, ``(-h - 0.5, 0, -1)`` m;
 * ``floodlight`` (warm white) on poles ``1.5`` m high, evenly spaced along the deck's edge;
-* ``glint`` (white): the sun or moon on the sea, points on the sea plane (world
-  ``z = -f``) at random positions ``1.5 h`` to ``4 h`` from the ship, drawn per frame
-  from the frame's seed.
+* ``glint`` (white): the sun or moon mirrored by a facet of the sea (world-fixed, on the
+  sea's mean plane ``z = -f``), and ``deck_glint`` (white): mirrored by the water film of a
+  wet deck (on the plate, moving with the deck); each drawn per frame from the frame's seed
+  as :mod:`deckpose.render.glints` places them: facets of random slope, each where it
+  mirrors the light into the camera, so they gather around the mirror point of the sea or
+  the deck, as sun glitter does, and only those in the image are kept. The light is the
+  scene's sun (:data:`deckpose.render.scene.SUN_TRAVEL_WORLD`), at night read as the moon.
 
 Each is a point source of isotropic intensity ``intensity`` (``glint_intensity``) times
 that of an on-axis beacon (:func:`deckpose.render.light.point_light_gain`), through the
@@ -26,11 +30,15 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+import trimesh
 from deckpose.render.beacons import Splat, spot_splat
+from deckpose.render.glints import cox_munk_slope_sigma, glint_points
 from deckpose.render.leds_config import LedSpec
 from deckpose.render.light import point_light_gain, transmission
+from deckpose.render.scene_config import ShipModelSpec
 from deckpose.render.sensor_config import SensorSpec
 from deckpose.render.ship_lights_config import ShipLightsSpec
+from deckpose.render.ship_model import hull_mesh, superstructure_mesh
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -53,9 +61,9 @@ class ShipLight:
     Attributes
     ----------
     kind : str
-        ``port``, ``starboard``, ``masthead``, ``stern``, ``floodlight`` or ``glint``.
+        ``port``, ``starboard``, ``masthead``, ``stern``, ``floodlight``, ``glint`` or ``deck_glint``.
     position_m : (3,) array of float
-        Position in the deck frame (``on_deck``) or the world frame (glints), metres.
+        Position in the deck frame (``on_deck``) or the world frame (sea glints), metres.
     on_deck : bool
         Whether it moves with the deck.
     rgb : (3,) floats
@@ -71,7 +79,9 @@ class ShipLight:
 
 
 def ship_lights(spec: ShipLightsSpec, deck_half_size_m: float, freeboard_m: float,
-                rng: np.random.Generator) -> list[ShipLight]:
+                rng: np.random.Generator, ship: ShipPose, camera_pose: CameraPose, camera: CameraModel,
+                to_light_world: NDArray[np.float64], ship_model: ShipModelSpec = ShipModelSpec()
+                ) -> list[ShipLight]:
     """The frame's non-beacon lights, light id = list index.
 
     Parameters
@@ -83,6 +93,16 @@ def ship_lights(spec: ShipLightsSpec, deck_half_size_m: float, freeboard_m: floa
         Height of the deck above the sea, metres.
     rng : numpy.random.Generator
         The frame's glint stream (unused without glints).
+    ship : ShipPose
+        The deck's pose at mid-exposure (where the wet deck mirrors the light).
+    camera_pose : CameraPose
+    camera : CameraModel
+        Where the glints must be seen from, and in which image.
+    to_light_world : (3,) array of float
+        Unit direction toward the sun or moon that the water mirrors.
+    ship_model : ShipModelSpec
+        The hull and superstructure in the scene, which hide glints behind them (the deck
+        plate always does).
     """
     h, k = deck_half_size_m, spec.intensity
     out: list[ShipLight] = []
@@ -96,13 +116,32 @@ def ship_lights(spec: ShipLightsSpec, deck_half_size_m: float, freeboard_m: floa
         side, a = int(t // 2), (t % 2) - 1.0
         x, y = [(h, a * h), (-a * h, h), (-h, -a * h), (a * h, -h)][side]
         out.append(ShipLight("floodlight", np.array([x, y, 1.5]), True, _WARM, k))
-    if spec.glints:
-        r = rng.uniform(1.5 * h, 4.0 * h, spec.glints)
-        phi = rng.uniform(0.0, 2.0 * math.pi, spec.glints)
-        for rr, pp in zip(r, phi):
-            out.append(ShipLight("glint", np.array([rr * math.cos(pp), rr * math.sin(pp), -freeboard_m]),
-                                 False, _WHITE, spec.glint_intensity))
+    if not (spec.glints or spec.deck_glints):
+        return out
+    R, t_deck = ship.R_world_from_deck, ship.t_world_from_deck
+    blocker = ship_occluder(h, freeboard_m, ship_model)
+    blocker.apply_transform(ship.T_world_from_deck)
+    sea = glint_points(spec.glints, cox_munk_slope_sigma(spec.wind_m_per_s), np.eye(3),
+                       np.array([0.0, 0.0, -freeboard_m]), to_light_world, camera_pose, camera, rng,
+                       occluder_world=blocker)
+    out += [ShipLight("glint", p, False, _WHITE, spec.glint_intensity) for p in sea]
+    deck = glint_points(spec.deck_glints, math.tan(math.radians(spec.deck_slope_deg)), R, t_deck,
+                        to_light_world, camera_pose, camera, rng, half_extent_m=h, occluder_world=blocker)
+    out += [ShipLight("deck_glint", (p - t_deck) @ R, True, _WHITE, spec.glint_intensity) for p in deck]
     return out
+
+
+def ship_occluder(deck_half_size_m: float, freeboard_m: float, ship_model: ShipModelSpec) -> trimesh.Trimesh:
+    """What hides a glint: the deck plate, and the hull and superstructure where drawn (deck frame, metres)."""
+    a = deck_half_size_m
+    plate = trimesh.Trimesh(np.array([[-a, -a, 0.0], [a, -a, 0.0], [a, a, 0.0], [-a, a, 0.0]]),
+                            np.array([[0, 1, 2], [0, 2, 3]]), process=False)
+    parts = [plate]
+    if ship_model.hull:
+        parts.append(hull_mesh(a, freeboard_m))
+    if ship_model.superstructure:
+        parts.append(superstructure_mesh(a))
+    return trimesh.util.concatenate(parts)
 
 
 def _to_cam(light: ShipLight, ship: ShipPose, camera_pose: CameraPose) -> NDArray[np.float64]:
