@@ -57,6 +57,7 @@ from deckpose.render.blooming import bloom_splats
 from deckpose.render.optics_config import OpticsSpec
 from deckpose.render.psf_kernels import (
     AIRY_TRUNCATION,
+    GAUSSIAN_TRUNCATION,
     GLARE_TRUNCATION,
     KERNEL_OVERSAMPLE,
     SPIKE_TRUNCATION,
@@ -73,6 +74,7 @@ from deckpose.render.psf_kernels import (
     mix_kernels,
     pad_kernel,
     shift_kernel,
+    spike_angles_rad,
     spike_kernel,
 )
 from deckpose.render.sensor import SpotRecord, spot_record
@@ -375,8 +377,10 @@ def optics_block(optics: OpticsSpec, cameras: dict[str, CameraModel]) -> dict[st
 
     Per camera the focal length, aperture and hyperfocal distance (circle of confusion one
     pixel); the Airy kernels per channel (arrays, when diffraction is on), the glare and
-    spike kernels' sizes and truncations. The per-light kernels (defocus diameter, field
-    blur, vignetting, channel centres) are in ``beacons.parquet``.
+    spike kernels' sizes and truncations, the spikes' width and line angles (degrees from
+    +u towards +v), the field blur Gaussian's truncation. With the ``optics`` keys of the
+    config they rebuild each kernel. The per-light kernels' parameters (defocus diameter,
+    field blur, vignetting, channel centres) are in ``beacons.parquet``.
     """
     p_m = optics.pixel_pitch_um * 1e-6
     cams = {}
@@ -388,6 +392,7 @@ def optics_block(optics: OpticsSpec, cameras: dict[str, CameraModel]) -> dict[st
         "enabled": optics.enabled(), "kernel_oversample": KERNEL_OVERSAMPLE, "cameras": cams,
         "airy_truncation_first_zeros": AIRY_TRUNCATION, "glare_truncation_radii": GLARE_TRUNCATION,
         "spike_truncation_lengths": SPIKE_TRUNCATION, "spike_width_px": SPIKE_WIDTH_PX,
+        "gaussian_truncation_sigmas": GAUSSIAN_TRUNCATION,
     }
     if optics.diffraction:
         block["airy_first_zero_px"] = [airy_first_zero_px(w, optics) for w in optics.wavelength_nm]
@@ -396,6 +401,7 @@ def optics_block(optics: OpticsSpec, cameras: dict[str, CameraModel]) -> dict[st
         block["glare_kernel_size_px"] = glare_kernel(optics).shape[0]
     if optics.spike_fraction > 0:
         block["spike_kernel_size_px"] = spike_kernel(optics).shape[0]
+        block["spike_angles_deg"] = [math.degrees(t) for t in spike_angles_rad(optics.spike_blades)]
     return block
 
 

@@ -20,9 +20,10 @@ from numpy.typing import NDArray
 from scipy.special import erf, j1
 
 __all__ = [
-    "AIRY_TRUNCATION", "GLARE_TRUNCATION", "KERNEL_OVERSAMPLE", "SPIKE_TRUNCATION", "SPIKE_WIDTH_PX", "Kernel",
-    "airy_first_zero_px", "airy_kernel", "convolve_kernels", "disk_kernel", "full_convolution", "gaussian_kernel",
-    "glare_kernel", "kernel_covariance", "mix_kernels", "pad_kernel", "shift_kernel", "spike_kernel",
+    "AIRY_TRUNCATION", "GAUSSIAN_TRUNCATION", "GLARE_TRUNCATION", "KERNEL_OVERSAMPLE", "SPIKE_TRUNCATION",
+    "SPIKE_WIDTH_PX", "Kernel", "airy_first_zero_px", "airy_kernel", "convolve_kernels", "disk_kernel",
+    "full_convolution", "gaussian_kernel", "glare_kernel", "kernel_covariance", "mix_kernels", "pad_kernel",
+    "shift_kernel", "spike_angles_rad", "spike_kernel",
 ]
 
 #: Sub-samples per pixel side when a kernel is integrated over pixels (odd: one falls on the centre).
@@ -33,8 +34,10 @@ AIRY_TRUNCATION = 4.0
 GLARE_TRUNCATION = 8.0
 #: A spike's length in ``spike_length_px`` (its 1/e length): exp(-4) = 2 % left at the end.
 SPIKE_TRUNCATION = 4.0
-#: A spike's Gaussian half-width across its line, pixels (an assumption: about the Airy core's).
+#: A spike's Gaussian sigma across its line, pixels (an assumption: about the Airy core's half-width).
 SPIKE_WIDTH_PX = 0.5
+#: The field blur's Gaussian radius in sigmas (:func:`gaussian_kernel`): 1.3e-4 of its light beyond.
+GAUSSIAN_TRUNCATION = 4.0
 
 Kernel = NDArray[np.float64]
 
@@ -88,17 +91,25 @@ def glare_kernel(optics: OpticsSpec) -> Kernel:
                        math.ceil(GLARE_TRUNCATION * a))
 
 
+def spike_angles_rad(blades: int) -> tuple[float, ...]:
+    """The angle of each line of spikes from the +u axis towards +v, radians: ``pi j / lines``.
+
+    A line holds two opposite spikes: an aperture of ``n`` blades has ``n / 2`` lines (``n``
+    spikes) for even ``n``, ``n`` lines (``2n`` spikes) for odd ``n``; the first runs along +u.
+    """
+    lines = blades if blades % 2 else blades // 2
+    return tuple(math.pi * j / lines for j in range(lines))
+
+
 @functools.lru_cache(maxsize=32)
 def spike_kernel(optics: OpticsSpec) -> Kernel:
-    """Diffraction spikes of a ``spike_blades``-blade aperture, integrated over pixels."""
-    n = optics.spike_blades
-    lines = n if n % 2 else n // 2  # 2n spikes (odd n) or n spikes (even n), in opposite pairs
+    """Diffraction spikes of a ``spike_blades``-blade aperture (:func:`spike_angles_rad`), integrated over pixels."""
+    angles = spike_angles_rad(optics.spike_blades)
     L = optics.spike_length_px
 
     def profile(dx: NDArray[np.float64], dy: NDArray[np.float64]) -> NDArray[np.float64]:
         out = np.zeros(np.broadcast_shapes(dx.shape, dy.shape))
-        for j in range(lines):
-            th = math.pi * j / lines
+        for th in angles:
             t = dx * math.cos(th) + dy * math.sin(th)
             p = -dx * math.sin(th) + dy * math.cos(th)
             out = out + np.exp(-np.abs(t) / L - 0.5 * (p / SPIKE_WIDTH_PX) ** 2)
@@ -108,10 +119,13 @@ def spike_kernel(optics: OpticsSpec) -> Kernel:
 
 
 def gaussian_kernel(sigma_px: float) -> Kernel:
-    """A circular Gaussian of ``sigma_px`` integrated over pixels (erf), ((1, 1) at sigma 0)."""
+    """A circular Gaussian of ``sigma_px`` integrated over pixels (erf), ((1, 1) at sigma 0).
+
+    Cut at :data:`GAUSSIAN_TRUNCATION` sigmas (rounded up to whole pixels) and renormalised.
+    """
     if sigma_px <= 0:
         return np.ones((1, 1))
-    r = math.ceil(4.0 * sigma_px)
+    r = math.ceil(GAUSSIAN_TRUNCATION * sigma_px)
     x = np.arange(-r, r + 1, dtype=float)
     e = 0.5 * (erf((x + 0.5) / (math.sqrt(2) * sigma_px)) - erf((x - 0.5) / (math.sqrt(2) * sigma_px)))
     k = np.outer(e, e)
