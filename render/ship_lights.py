@@ -141,7 +141,9 @@ def ship_occluder(deck_half_size_m: float, freeboard_m: float, ship_model: ShipM
         parts.append(hull_mesh(a, freeboard_m))
     if ship_model.superstructure:
         parts.append(superstructure_mesh(a))
-    return trimesh.util.concatenate(parts)
+    offsets = np.cumsum([0] + [len(m.vertices) for m in parts[:-1]])
+    return trimesh.Trimesh(np.vstack([m.vertices for m in parts]),
+                           np.vstack([m.faces + o for m, o in zip(parts, offsets, strict=True)]), process=False)
 
 
 def _to_cam(light: ShipLight, ship: ShipPose, camera_pose: CameraPose) -> NDArray[np.float64]:
