@@ -19,7 +19,8 @@ engine, detection + identification on one thread) with its report in
 ``OUT/report.md`` (``--only`` redoes some datasets and keeps the others' rows): recall, recall of cut beacons, precision, false detections per
 frame, the share of recorded non-beacon lights that drew one, identification
 accuracy, frames fully identified, the pooled RMS/CRB of the uncut spots with a 95 %
-bootstrap interval (frames resampled), CPU time per frame, and a ranking per dataset.
+bootstrap interval (frames resampled), CPU time per frame, and a ranking per dataset (all of
+them ``deckpose.detect.bench_ranking.pool_by_detector``'s, as in each dataset's report).
 
 Usage (the committed report)::
 
@@ -31,7 +32,6 @@ from __future__ import annotations
 import argparse
 import copy
 import json
-import math
 import os
 import platform
 import subprocess
@@ -45,7 +45,8 @@ import numpy as np
 import pandas as pd
 import yaml
 from deckpose.detect import registry
-from deckpose.detect.bench_report import run_benchmark, write_report
+from deckpose.detect.bench_ranking import pool_by_detector
+from deckpose.detect.bench_report import ranking_markdown, run_benchmark, write_report
 from deckpose.detect.registry import DetectorOptions
 from deckpose.detect.sources import declared_gain, open_dataset
 from deckpose.render.config import config_from_dict
@@ -92,75 +93,11 @@ def datasets() -> dict[str, tuple[dict, str]]:
     return out
 
 
-def _scored(m: pd.DataFrame) -> pd.DataFrame:
-    """The matched uncut spots with a bound: the rows RMS/CRB pools."""
-    return m[m["matched"] & ~m["occluded"].astype(bool) & np.isfinite(m["crb_var_px2"])]
-
-
-def geometric_rms_over_crb(m: pd.DataFrame) -> float:
-    """Pooled RMS/CRB against the geometric (green) centre instead of the light's: what the lens costs."""
-    m = _scored(m)
-    if m.empty or "du_geo_px" not in m:
-        return math.nan
-    e2 = ((m["du_geo_px"] ** 2 + m["dv_geo_px"] ** 2) / 2).to_numpy(float)
-    return math.sqrt(float(e2.sum()) / float(m["crb_var_px2"].to_numpy(float).sum()))
-
-
-def bootstrap_rms_over_crb(m: pd.DataFrame, rng: np.random.Generator, n: int = 1000) -> tuple[float, float, float]:
-    """Pooled ``sqrt(mean(e^2)) / sqrt(mean(crb))`` of matched uncut spots, and its 95 % interval (frames resampled).
-
-    ``e`` is the error against the light's centroid in the channel sum (``du_px, dv_px``).
-    """
-    m = _scored(m)
-    if m.empty:
-        return math.nan, math.nan, math.nan
-    e2 = ((m["du_px"] ** 2 + m["dv_px"] ** 2) / 2).to_numpy(float)
-    crb = m["crb_var_px2"].to_numpy(float)
-    codes, fids = pd.factorize(m["frame_id"])
-    se = np.bincount(codes, e2, len(fids))
-    sc = np.bincount(codes, crb, len(fids))
-    point = math.sqrt(se.sum() / sc.sum())
-    pick = rng.integers(0, len(fids), (n, len(fids)))
-    boot = np.sqrt(se[pick].sum(axis=1) / sc[pick].sum(axis=1))
-    lo, hi = np.percentile(boot, [2.5, 97.5])
-    return point, float(lo), float(hi)
-
-
 def pooled(name: str, summary: pd.DataFrame, matches: pd.DataFrame, rng: np.random.Generator) -> pd.DataFrame:
-    """One row per detector: the dataset's cells pooled (sums over cells, medians of times)."""
-    rows = []
-    for det, s in summary.groupby("detector", sort=True):
-        m = matches[matches["detector"] == det]
-        occ = m[m["occluded"].astype(bool)]
-        found = m[m["matched"]]
-        n_det = int(s["detections"].sum())
-        point, lo, hi = bootstrap_rms_over_crb(m, rng)
-        fl = s["false_per_frame"] * s["frames"]
-        rows.append({
-            "dataset": name, "detector": det, "frames": int(s["frames"].sum()), "beacons": len(m),
-            "recall": float(m["matched"].mean()),
-            "recall_occluded": float(occ["matched"].mean()) if len(occ) else math.nan,
-            "precision": len(found) / n_det if n_det else math.nan,
-            "false_per_frame": float(fl.sum() / s["frames"].sum()),
-            "lights_found": float(np.nansum(s["lights_found"] * s["frames"]) / s["frames"].sum())
-            if s["lights_found"].notna().any() else math.nan,
-            "id_accuracy": float((found["det_beacon_id"] == found["beacon_id"]).mean()) if len(found) else math.nan,
-            "frames_ok": float(s["frames_ok"].sum() / s["frames"].sum()),
-            "rms_over_crb": point, "rms_over_crb_lo": lo, "rms_over_crb_hi": hi,
-            "rms_geometric_over_crb": geometric_rms_over_crb(m),
-            "cpu_ms_per_frame": float(np.median(s["cpu_ms_per_frame"])),
-        })
-    df = pd.DataFrame(rows)
-    # rank: frames fully identified, then recall, then precision, then RMS/CRB (lower is better)
-    key = df[["frames_ok", "recall", "precision"]].fillna(0.0).to_numpy()
-    order = np.lexsort((df["rms_over_crb"].fillna(np.inf).to_numpy(), -key[:, 2], -key[:, 1], -key[:, 0]))
-    df["rank"] = 0
-    df.loc[df.index[order], "rank"] = np.arange(1, len(df) + 1)
-    return df.sort_values("rank")
-
-
-def _f(x: float, nd: int = 3) -> str:
-    return "—" if not np.isfinite(x) else f"{x:.{nd}f}"
+    """One row per detector, the dataset's cells pooled and ranked (:func:`pool_by_detector`), named ``name``."""
+    df = pool_by_detector(summary, matches, rng=rng)
+    df.insert(0, "dataset", name)
+    return df
 
 
 def markdown(results: pd.DataFrame, what: dict[str, str], meta: dict) -> str:
@@ -187,18 +124,7 @@ def markdown(results: pd.DataFrame, what: dict[str, str], meta: dict) -> str:
              "benchmarked before the column); "
              "CPU ms per frame, median; rank: frames ok, then recall, then precision, then RMS/CRB."), ""]
     for name, g in results.groupby("dataset", sort=False):
-        lines += [f"## {name}: {what[name]}", "",
-                  ("| rank | detector | recall | cut | precision | false/fr | lights | id | frames ok "
-                  "| RMS/CRB [95 %] | geom. | CPU ms |"), "|" + "|".join(["---"] * 12) + "|"]
-        for r in g.to_dict("records"):
-            lines.append(
-                f"| {r['rank']} | {r['detector']} | {_f(r['recall'])} | {_f(r['recall_occluded'])} | "
-                f"{_f(r['precision'])} | {_f(r['false_per_frame'], 2)} | {_f(r['lights_found'], 2)} | "
-                f"{_f(r['id_accuracy'])} | {_f(r['frames_ok'])} | {_f(r['rms_over_crb'], 2)} "
-                f"[{_f(r['rms_over_crb_lo'], 2)}, {_f(r['rms_over_crb_hi'], 2)}] | "
-                f"{_f(r.get('rms_geometric_over_crb', math.nan), 2)} | "
-                f"{_f(r['cpu_ms_per_frame'], 0)} |")
-        lines.append("")
+        lines += [f"## {name}: {what[name]}", "", *ranking_markdown(g), ""]
     lines += ["![frames identified per dataset](frames_ok.png)", ""]
     return "\n".join(lines)
 
@@ -266,10 +192,10 @@ def main(argv: list[str] | None = None) -> int:
         manifest = open_dataset(ds).manifest
         options = DetectorOptions(gain_dn_per_e=declared_gain(manifest))
         print(f"[{name}] bench {','.join(names)}", flush=True)
-        summary, matches = run_benchmark(ds, names, options=options, progress=True)
-        write_report(out / name, summary, matches, dataset=str(ds), manifest=manifest, options=options,
-                     note=f"Ladder dataset '{name}' ({todo[name][1]}).")
-        tables.append(pooled(name, summary, matches, rng))
+        bench = run_benchmark(ds, names, options=options, progress=True)
+        write_report(out / name, bench, dataset=str(ds), manifest=manifest, options=options,
+                     note=f"Ladder dataset '{name}' ({todo[name][1]}).", seed=args.seed)
+        tables.append(pooled(name, bench.summary, bench.matches, rng))
         res = pd.concat(tables, ignore_index=True)
         with atomic_path(out / "results.csv") as tmp:
             res.to_csv(tmp, index=False, float_format="%.6g")

@@ -26,7 +26,8 @@
 * :mod:`~deckpose.detect.synthetic`, :mod:`~deckpose.detect.crb`,
   :mod:`~deckpose.detect.synthetic_dataset` — analytic spots, the centroid
   Cramér–Rao bound and a synthetic dataset for tests and benchmarks;
-* :mod:`~deckpose.detect.benchmark`, :mod:`~deckpose.detect.bench_report` —
+* :mod:`~deckpose.detect.benchmark`, :mod:`~deckpose.detect.bench_ranking`,
+  :mod:`~deckpose.detect.bench_report` —
   ``deckpose bench-detectors``.
 """
 

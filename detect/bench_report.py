@@ -1,7 +1,10 @@
 """``deckpose bench-detectors``: run detectors on a dataset and write the benchmark report.
 
-Writes into the output folder: ``bench_detectors.md`` (Markdown table and
-notes), ``bench_detectors.csv`` (the same numbers), ``error_vs_height.png``
+Writes into the output folder: ``bench_detectors.md`` (Markdown tables and
+notes), ``bench_detectors.csv`` (the same numbers per detector x camera x height, with
+the RMS/CRB's bootstrap interval and the rank of the detectors in each cell),
+``bench_detectors_ranking.csv`` (the detectors pooled over the dataset and ranked,
+:func:`~deckpose.detect.bench_ranking.pool_by_detector`), ``error_vs_height.png``
 (per-axis RMS error vs camera height, one panel per resolution, with the CRB)
 and ``error_vs_size.png`` (RMS error vs apparent beacon radius).
 """
@@ -16,6 +19,12 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from deckpose.detect.bench_ranking import (
+    N_RESAMPLES,
+    RANK_RULE,
+    pool_by_detector,
+    with_interval_and_rank,
+)
 from deckpose.detect.benchmark import (
     centroid_by_lighting,
     crb_per_beacon,
@@ -35,6 +44,26 @@ from deckpose.errors import InputDataError
 from deckpose.run_folder import RunPaths, read_lights, require_dataset
 
 log = logging.getLogger(__name__)
+
+
+@dataclasses.dataclass(frozen=True)
+class BenchmarkTables:
+    """What :func:`run_benchmark` measured on a dataset.
+
+    Attributes
+    ----------
+    summary : DataFrame
+        One row per detector x camera x height (:func:`~deckpose.detect.benchmark.summarise`).
+    matches : DataFrame
+        Per-beacon rows of every detector (``detector``, ``crb_var_px2`` px^2, ``saturated``).
+    summary_by_lighting : DataFrame
+        The summary's rows split by lighting too (a ``lighting`` column); empty unless the
+        dataset has several lightings.
+    """
+
+    summary: pd.DataFrame
+    matches: pd.DataFrame
+    summary_by_lighting: pd.DataFrame
 
 
 def dataset_sensor(frameset: FrameSet) -> SensorModel | None:
@@ -93,8 +122,8 @@ def run_benchmark(
     *,
     options: DetectorOptions = DetectorOptions(),
     progress: bool = False,
-) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Summary table (one row per detector x camera x height) and per-beacon matches.
+) -> BenchmarkTables:
+    """Summary tables (per detector x camera x height, and x lighting) and per-beacon matches.
 
     Raises
     ------
@@ -111,7 +140,7 @@ def run_benchmark(
     frames = pd.read_parquet(run.frames)
     lights = read_lights(run) if run.manifest.exists() else None
     sensor = dataset_sensor(fs)
-    summaries, matches = [], []
+    summaries, matches, by_lighting = [], [], []
     crb_cache: pd.Series | None = None
     runs = detect_frames_with(
         fs, detectors, options=options, identify_options=IdentifyOptions(), progress=progress
@@ -142,8 +171,15 @@ def run_benchmark(
         m["detector"] = name
         false = false_detections(dets, m, lights, [int(i) for i in frames["frame_id"]])
         summaries.append(summarise(name, m, dets, fout, frames, false))
+        if "lighting" in m and m["lighting"].nunique() > 1:  # the cells' frames of each lighting
+            by_lighting += [summarise(name, g, dets, fout, frames, false).assign(lighting=str(light))
+                            for light, g in m.groupby("lighting", sort=True)]
         matches.append(m)
-    return pd.concat(summaries, ignore_index=True), pd.concat(matches, ignore_index=True)
+    return BenchmarkTables(
+        pd.concat(summaries, ignore_index=True),
+        pd.concat(matches, ignore_index=True),
+        pd.concat(by_lighting, ignore_index=True) if by_lighting else pd.DataFrame(),
+    )
 
 
 def unreadable_frames(frames_table: pd.DataFrame) -> dict[int, str]:
@@ -168,38 +204,84 @@ def _fmt(x: float, nd: int = 3) -> str:
     return "—" if not np.isfinite(x) else f"{x:.{nd}f}"
 
 
-def markdown_table(summary: pd.DataFrame) -> str:
-    """The summary as a Markdown table."""
-    head = (
-        "| detector | camera | height m | radius px | sat. | RMS px | CRB px | RMS/CRB | RMS geom. px | bias px "
-        "| p95 px | recall | precision | id acc. | false/frame | lights hit | ms/frame | CPU ms |"
-    )
-    lines = [head, "|" + "|".join(["---"] * 18) + "|"]
-    for r in summary.sort_values(["camera", "height_m", "detector"]).to_dict("records"):
+def _interval(r: dict) -> str:
+    """A row's RMS/CRB and its 95 % interval: ``1.02 [0.95, 1.10]``."""
+    return (f"{_fmt(r['rms_over_crb'], 2)} "
+            f"[{_fmt(r['rms_over_crb_lo'], 2)}, {_fmt(r['rms_over_crb_hi'], 2)}]")
+
+
+def ranking_markdown(pooled: pd.DataFrame) -> list[str]:
+    """Markdown lines (head and rows) of :func:`~deckpose.detect.bench_ranking.pool_by_detector`'s table.
+
+    Rows in the table's order; ``rms_geometric_over_crb`` may be missing ('—').
+    """
+    lines = [("| rank | detector | recall | cut | precision | false/fr | lights | id | frames ok "
+              "| RMS/CRB [95 %] | geom. | CPU ms |"), "|" + "|".join(["---"] * 12) + "|"]
+    for r in pooled.to_dict("records"):
         lines.append(
-            f"| {r['detector']} | {r['camera']} | {r['height_m']:g} | {r['radius_px']:.2f} | "
+            f"| {r['rank']} | {r['detector']} | {_fmt(r['recall'])} | {_fmt(r['recall_occluded'])} | "
+            f"{_fmt(r['precision'])} | {_fmt(r['false_per_frame'], 2)} | {_fmt(r['lights_found'], 2)} | "
+            f"{_fmt(r['id_accuracy'])} | {_fmt(r['frames_ok'])} | {_interval(r)} | "
+            f"{_fmt(r.get('rms_geometric_over_crb', math.nan), 2)} | "
+            f"{_fmt(r['cpu_ms_per_frame'], 0)} |")
+    return lines
+
+
+def markdown_table(summary: pd.DataFrame) -> str:
+    """The summary (with :func:`~deckpose.detect.bench_ranking.with_interval_and_rank`'s columns) as Markdown."""
+    head = (
+        "| rank | detector | camera | height m | radius px | sat. | RMS px | CRB px | RMS/CRB [95 %] "
+        "| RMS geom. px | bias px | p95 px | recall | precision | id acc. | false/frame | lights hit "
+        "| frames ok | ms/frame | CPU ms |"
+    )
+    lines = [head, "|" + "|".join(["---"] * 20) + "|"]
+    for r in summary.sort_values(["camera", "height_m", "rank"]).to_dict("records"):
+        lines.append(
+            f"| {r['rank']} | {r['detector']} | {r['camera']} | {r['height_m']:g} | {r['radius_px']:.2f} | "
             f"{_fmt(r.get('saturated', math.nan), 2)} | {_fmt(r['rms_px'], 4)} | "
-            f"{_fmt(r['crb_px'], 4)} | {_fmt(r['rms_over_crb'], 2)} | "
+            f"{_fmt(r['crb_px'], 4)} | {_interval(r)} | "
             f"{_fmt(r.get('rms_geometric_px', math.nan), 4)} | {_fmt(r['bias_px'], 4)} | {_fmt(r['p95_px'], 4)} | {_fmt(r['recall'], 3)} | "
             f"{_fmt(r['precision'], 3)} | {_fmt(r['id_accuracy'], 3)} | "
             f"{_fmt(r.get('false_per_frame', math.nan), 2)} | {_fmt(r.get('lights_found', math.nan), 2)} | "
-            f"{_fmt(r['ms_per_frame'], 1)} | "
+            f"{r['frames_ok']}/{r['frames']} | {_fmt(r['ms_per_frame'], 1)} | "
             f"{_fmt(r.get('cpu_ms_per_frame', math.nan), 1)} |"
         )
     return "\n".join(lines)
 
 
+def lighting_table(tables: BenchmarkTables, *, rng: np.random.Generator) -> pd.DataFrame:
+    """The centroid error per detector x camera x height x lighting, with interval and rank.
+
+    :func:`~deckpose.detect.benchmark.centroid_by_lighting`'s rows with the
+    ``frames_ok`` (of ``frames``), ``recall`` and ``precision`` of the same frames
+    (``tables.summary_by_lighting``) and
+    :func:`~deckpose.detect.bench_ranking.with_interval_and_rank`'s columns, the
+    detectors ranked within each camera x height x lighting. Empty with one lighting.
+    """
+    by_light = centroid_by_lighting(tables.matches)
+    if by_light.empty:
+        return by_light
+    keys = ["detector", "camera", "height_m", "lighting"]
+    split = tables.summary_by_lighting[[*keys, "frames", "frames_ok", "recall", "precision"]]
+    by_light = by_light.merge(split, on=keys, how="left")
+    return with_interval_and_rank(by_light, tables.matches, within=keys[1:], rng=rng)
+
+
 def lighting_section(by_light: pd.DataFrame) -> list[str]:
-    """Markdown lines of the centroid error per lighting (none when the dataset has one)."""
+    """Markdown lines of :func:`lighting_table` (none when the dataset has one lighting)."""
     if by_light.empty:
         return []
     lines = ["## Centroid error by lighting", "",
-             "The table above pools the dataset's lightings; here they are apart.", "",
-             "| detector | camera | height m | lighting | beacons | RMS px | CRB px | RMS/CRB |",
-             "|" + "|".join(["---"] * 8) + "|"]
-    for r in by_light.sort_values(["camera", "height_m", "detector", "lighting"]).to_dict("records"):
-        lines.append(f"| {r['detector']} | {r['camera']} | {r['height_m']:g} | {r['lighting']} | {r['beacons']} | "
-                     f"{_fmt(r['rms_px'], 4)} | {_fmt(r['crb_px'], 4)} | {_fmt(r['rms_over_crb'], 2)} |")
+             ("The table above pools the dataset's lightings; here they are apart, the detectors "
+              "ranked within each camera, height and lighting."), "",
+             ("| rank | detector | camera | height m | lighting | beacons | recall | precision | frames ok "
+              "| RMS px | CRB px | RMS/CRB [95 %] |"),
+             "|" + "|".join(["---"] * 12) + "|"]
+    for r in by_light.sort_values(["camera", "height_m", "lighting", "rank"]).to_dict("records"):
+        lines.append(f"| {r['rank']} | {r['detector']} | {r['camera']} | {r['height_m']:g} | {r['lighting']} | "
+                     f"{r['beacons']} | {_fmt(r['recall'])} | {_fmt(r['precision'])} | "
+                     f"{r['frames_ok']}/{r['frames']} | "
+                     f"{_fmt(r['rms_px'], 4)} | {_fmt(r['crb_px'], 4)} | {_interval(r)} |")
     return lines + [""]
 
 
@@ -279,24 +361,34 @@ def plot_error_vs_size(matches: pd.DataFrame, path: Path) -> None:
 
 def write_report(
     out_dir: str | os.PathLike[str],
-    summary: pd.DataFrame,
-    matches: pd.DataFrame,
+    tables: BenchmarkTables,
     *,
     dataset: str,
     manifest: dict,
     options: DetectorOptions,
     note: str = "",
+    seed: int = 0,
 ) -> Path:
-    """Write the Markdown report, CSV table and plots; returns the Markdown path.
+    """Write the Markdown report, CSV tables and plots; returns the Markdown path.
 
-    A dataset with several lightings also gets ``bench_detectors_by_lighting.csv`` and a
-    section of the report with the centroid error per lighting.
+    The RMS/CRB intervals draw on ``numpy.random.default_rng(seed)`` (recorded in the
+    report): first the ranking over the dataset
+    (:func:`~deckpose.detect.bench_ranking.pool_by_detector`,
+    ``bench_detectors_ranking.csv``), then the summary's cells (``bench_detectors.csv``),
+    then, for a dataset with several lightings, :func:`lighting_table`
+    (``bench_detectors_by_lighting.csv`` and a section of the report).
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    matches = tables.matches
+    rng = np.random.default_rng(seed)
+    ranking = pool_by_detector(tables.summary, matches, rng=rng)
+    summary = with_interval_and_rank(tables.summary, matches, within=("camera", "height_m"), rng=rng)
+    by_light = lighting_table(tables, rng=rng)
     with atomic_path(out / "bench_detectors.csv") as tmp:
         summary.to_csv(tmp, index=False, float_format="%.6g")
-    by_light = centroid_by_lighting(matches)
+    with atomic_path(out / "bench_detectors_ranking.csv") as tmp:
+        ranking.to_csv(tmp, index=False, float_format="%.6g")
     if not by_light.empty:
         with atomic_path(out / "bench_detectors_by_lighting.csv") as tmp:
             by_light.to_csv(tmp, index=False, float_format="%.6g")
@@ -313,6 +405,17 @@ def write_report(
         "",
         *([missing_crb, ""] if missing_crb else []),
         f"Detector options: `{dataclasses.asdict(options)}`.",
+        "",
+        "## Ranking",
+        "",
+        "The detectors pooled over the dataset's cameras, heights and lightings.",
+        "",
+        *ranking_markdown(ranking),
+        "",
+        ("frames ok = share of frames detected and identified; cut = recall of the beacons an occluder "
+         "cuts in part; the other columns as below (sums over the cells, CPU ms the median of theirs)."),
+        "",
+        "## Per camera and height",
         "",
         markdown_table(summary),
         "",
@@ -332,7 +435,15 @@ def write_report(
         "navigation lights, floodlights, glints) that drew a false detection within 4 px; "
         "occluded beacons count in the recall but not in RMS or CRB; ms/frame = median wall time of detection + "
         "identification (decoded image, this machine); CPU ms = median CPU time of the same "
-        "work on its one thread (the one-core cost when other jobs share the machine)."),
+        "work on its one thread (the one-core cost when other jobs share the machine); "
+        "frames ok = frames detected and identified, of the cell's frames."),
+        "",
+        (f"RMS/CRB = sqrt(sum(e^2) / sum(CRB)) over the uncut matched spots, with its 95 % percentile "
+         f"bootstrap interval in brackets ({N_RESAMPLES} resamples of the frames, not the beacons, "
+         f"since a frame's spots share its pose and blur; seed {seed}; a cell of one frame gives "
+         f"no interval: it collapses to the point); "
+         f"{RANK_RULE}. A group is the whole dataset in the ranking, a camera x height cell in the "
+         "table per camera and height, and a camera x height x lighting cell in the table by lighting."),
         "",
         *lighting_section(by_light),
         "![error vs height](error_vs_height.png)",
