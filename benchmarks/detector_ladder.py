@@ -123,10 +123,59 @@ def markdown(results: pd.DataFrame, what: dict[str, str], meta: dict) -> str:
              "instead, what the lens costs on top (the same as RMS/CRB without lateral colour; '—' for a dataset "
              "benchmarked before the column); "
              "CPU ms per frame, median; rank: frames ok, then recall, then precision, then RMS/CRB."), ""]
+    lines += breaks_markdown(results)
     for name, g in results.groupby("dataset", sort=False):
         lines += [f"## {name}: {what[name]}", "", *ranking_markdown(g), ""]
     lines += ["![frames identified per dataset](frames_ok.png)", ""]
     return "\n".join(lines)
+
+
+#: A detector is broken by a condition where, against the easy rung, its frames identified fall by
+#: this much or more ...
+BREAK_FRAMES_OK = 0.05
+#: ... or its recall or precision falls by this much or more.
+BREAK_RECALL = 0.02
+
+
+def breaks_markdown(results: pd.DataFrame) -> list[str]:
+    """The section that says which condition breaks which detector, against the easy rung.
+
+    Every dataset but ``easy`` is the easy rung's frames with one condition added (or a rung's
+    camera and conditions together); a detector is *broken* by it where its frames detected
+    and identified fall by :data:`BREAK_FRAMES_OK` or more, or its recall or precision by
+    :data:`BREAK_RECALL` or more. One row per dataset: each detector's frames ok and its change,
+    the detectors it breaks and what falls, and the best detector there (rank 1).
+    """
+    if "easy" not in set(results["dataset"]):
+        return []
+    base = results[results["dataset"] == "easy"].set_index("detector")
+    dets = list(base.sort_values("rank").index)
+    head = ["dataset", *dets, "broken (what falls)", "best"]
+    lines = ["## What breaks which detector", "",
+             (f"Frames detected and identified per detector, and its change against the easy rung; a detector is "
+              f"broken where its frames ok fall by {BREAK_FRAMES_OK:g} or more, or its recall or precision by "
+              f"{BREAK_RECALL:g} or more. Each dataset is the easy rung's frames with the condition added "
+              "(`real` and `hard`: a real camera and every condition at once)."), "",
+             "| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
+    for name, g in results.groupby("dataset", sort=False):
+        g = g.set_index("detector")
+        cells, broken = [], []
+        for d in dets:
+            if d not in g.index:
+                cells.append("—")
+                continue
+            r, b = g.loc[d], base.loc[d]
+            delta = r["frames_ok"] - b["frames_ok"]
+            cells.append(f"{r['frames_ok']:.3f}" if name == "easy" else f"{r['frames_ok']:.3f} ({delta:+.3f})")
+            falls = [f"{label} {r[k] - b[k]:+.3f}" for k, label, limit in
+                     (("frames_ok", "frames ok", BREAK_FRAMES_OK), ("recall", "recall", BREAK_RECALL),
+                      ("precision", "precision", BREAK_RECALL))
+                     if name != "easy" and b[k] - r[k] >= limit]
+            if falls:
+                broken.append(f"{d} ({', '.join(falls)})")
+        best = str(g["rank"].astype(float).idxmin()) if g["rank"].notna().any() else "—"
+        lines.append("| " + " | ".join([name, *cells, "; ".join(broken) if broken else "none", best]) + " |")
+    return [*lines, ""]
 
 
 def plot(results: pd.DataFrame, path: Path) -> None:
@@ -156,6 +205,22 @@ def plot(results: pd.DataFrame, path: Path) -> None:
     plt.close(fig)
 
 
+def rewrite_report(out: Path) -> int:
+    """Write ``report.md`` and ``frames_ok.png`` again from ``out``'s results and manifest (``--report-only``)."""
+    if not (out / "results.csv").exists() or not (out / "manifest.json").exists():
+        print(f"detector_ladder: {out} holds no results.csv and manifest.json to report; run the ladder "
+              "first", file=sys.stderr)
+        return 2
+    every = datasets()
+    res = pd.read_csv(out / "results.csv")
+    res = res.sort_values("dataset", key=lambda c: c.map({k: i for i, k in enumerate(every)}), kind="stable")
+    plot(res, out / "frames_ok.png")
+    with atomic_open(out / "report.md", "w") as fh:
+        fh.write(markdown(res, {k: v[1] for k, v in every.items()}, json.loads((out / "manifest.json").read_text())))
+    print((out / "report.md").read_text())
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
@@ -165,7 +230,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--only", help="comma-separated dataset names (default: all)")
     ap.add_argument("--workers", type=int, default=2, help="render worker processes")
     ap.add_argument("--seed", type=int, default=0, help="bootstrap seed")
+    ap.add_argument("--report-only", action="store_true",
+                    help="rewrite report.md and frames_ok.png from the report folder's results.csv and "
+                         "manifest.json, rendering and benchmarking nothing")
     args = ap.parse_args(argv)
+    if args.report_only:
+        return rewrite_report(Path(args.out))
     t0 = time.time()
     load0 = os.getloadavg()[0]
     # the code the run starts from (commits made while it runs are not its code)
@@ -174,6 +244,11 @@ def main(argv: list[str] | None = None) -> int:
     names = args.detectors.split(",") if args.detectors else registry.names()
     todo = datasets()
     if args.only:
+        unknown = sorted(set(args.only.split(",")) - set(todo))
+        if unknown:
+            print(f"detector_ladder: no dataset named {', '.join(unknown)}; the datasets are "
+                  f"{', '.join(todo)}", file=sys.stderr)
+            return 2
         todo = {k: v for k, v in todo.items() if k in args.only.split(",")}
     out, work = Path(args.out), Path(args.work)
     (out / "configs").mkdir(parents=True, exist_ok=True)
