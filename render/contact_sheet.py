@@ -3,7 +3,8 @@
 Each tile is a whole frame shrunk to fit, with an inset at native resolution
 (enlarged, nearest neighbour) around the red bow beacon, so the glow, colour and
 noise are visible. ``python -m deckpose.render.contact_sheet reports/contact_sheet.png``;
-``--config configs/realistic_ship.yaml`` takes that config's ``scene`` section (the ship look);
+``--config configs/realistic_ship.yaml`` takes that config's ``scene`` and ``ship_lights``
+sections (the ship look and the ship's own lights);
 shading is ``flat`` at night and dusk and ``pbr`` by day either way. ``--height-m`` sets the
 camera height (30 m).
 """
@@ -33,16 +34,20 @@ PRESETS = ("4mp", "8mp", "16mp", "64mp")
 
 
 def contact_sheet(presets: tuple[str, ...] = PRESETS, *, tile_w: int = 480, height_m: float = 30.0,
-                  seed: int = 1, scene: dict[str, Any] | None = None) -> np.ndarray:
+                  seed: int = 1, scene: dict[str, Any] | None = None,
+                  ship_lights: dict[str, Any] | None = None) -> np.ndarray:
     """Render the sheet; returns a BGR uint8 image (rows = presets, columns = lighting).
 
     ``scene``: a config's ``scene`` section (YAML data) instead of the default scene (its
-    shading is replaced: ``flat`` at night and dusk, ``pbr`` by day).
+    shading is replaced: ``flat`` at night and dusk, ``pbr`` by day); ``ship_lights``: a config's
+    ``ship_lights`` section (navigation lights, floodlights, glints), none without it.
     """
     doc: dict[str, Any] = {"cameras": [{"preset": p} for p in presets], "heights_m": [height_m],
                            "lighting": [x.value for x in Lighting], "seed": seed}
     if scene is not None:
         doc["scene"] = {**scene, "shading": "flat"}
+    if ship_lights is not None:
+        doc["ship_lights"] = ship_lights
     cfg = config_from_dict(doc)
     pbr = dataclasses.replace(cfg, scene=dataclasses.replace(cfg.scene, shading=Shading.PBR))
     flat_r = DeckRenderer(cfg.layout, cfg.scene, cfg.deck_half_size_m(), cfg.backend)
@@ -87,15 +92,17 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--height-m", type=float, default=30.0,
                     help="camera height above the deck, metres (default: %(default)s; the committed sheet: 50)")
     ap.add_argument("--config", type=Path, default=None,
-                    help="a render config whose scene section (ship, sea, light pools, bloom) the sheet uses")
+                    help="a render config whose scene section (ship, sea, light pools, bloom) and ship_lights "
+                         "section (navigation lights, floodlights, glints) the sheet uses")
     args = ap.parse_args(argv)
     try:
-        scene = None
+        scene = lights = None
         if args.config is not None:
             from deckpose.render.config import config_to_dict
 
-            scene = config_to_dict(load_config(args.config))["scene"]
-        sheet = contact_sheet(tuple(args.presets), height_m=args.height_m, scene=scene)
+            doc = config_to_dict(load_config(args.config))
+            scene, lights = doc["scene"], doc["ship_lights"]
+        sheet = contact_sheet(tuple(args.presets), height_m=args.height_m, scene=scene, ship_lights=lights)
         with atomic_path(args.out) as tmp:
             cv2.imwrite(str(tmp), sheet)
     except (DeckposeError, OSError) as exc:
