@@ -97,6 +97,19 @@ def test_shipped_configs_parse(name: str) -> None:
     assert cfg.cameras and cfg.heights_m
 
 
+#: The realistic configs (issue 23): the detector ladder's rungs and conditions, the ship look.
+REALISTIC_CONFIGS = sorted([*(p.name for p in (REPO / "configs").glob("detector_benchmark_*.yaml")),
+                            "realistic_ship.yaml", "ship_day.yaml"])
+
+
+@pytest.mark.parametrize("name", REALISTIC_CONFIGS)
+def test_realistic_configs_take_square_pixels(name: str) -> None:
+    """The thesis cameras' non-square pixels are for the thesis experiment; a real sensor's are square."""
+    cfg = load_config(REPO / "configs" / name)
+    for cam in cfg.cameras_by_name().values():
+        assert cam.fx == pytest.approx(cam.fy, rel=1e-12), (name, cam)
+
+
 def test_shipped_synthetic_dataset_config_parses() -> None:
     from deckpose.detect.synthetic_dataset import read_config
 
