@@ -34,3 +34,18 @@ def grid_points(rng: np.random.Generator, shape: tuple[int, int], n_u: int, n_v:
     vs = (np.arange(n_v) + 0.5) * H / n_v
     pts = np.array([[u, v] for u in us for v in vs], float)
     return pts + rng.uniform(-0.5, 0.5, pts.shape)
+
+
+@pytest.fixture
+def two_lighting_dataset(tiny_dataset: Path, tmp_path: Path) -> Path:
+    """A copy of ``tiny_dataset`` whose even frames are lit as night and odd ones as dusk."""
+    import shutil
+
+    import pandas as pd
+
+    ds = tmp_path / "lit"
+    shutil.copytree(tiny_dataset, ds)
+    frames = pd.read_parquet(ds / "frames.parquet")
+    frames["lighting"] = np.where(frames.frame_id % 2 == 0, "night", "dusk")
+    frames.to_parquet(ds / "frames.parquet")
+    return ds

@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import math
-import shutil
 
 import numpy as np
 import pandas as pd
@@ -159,12 +158,8 @@ def test_pooled_rows_are_ranked_with_their_interval():
     assert (pooled.rms_over_crb_lo < pooled.rms_over_crb).all() and (pooled.rms_over_crb < pooled.rms_over_crb_hi).all()
 
 
-def test_bench_detectors_writes_interval_and_rank_columns(tiny_dataset, tmp_path):
-    ds = tmp_path / "lit"
-    shutil.copytree(tiny_dataset, ds)
-    frames = pd.read_parquet(ds / "frames.parquet")
-    frames["lighting"] = np.where(frames.frame_id % 2 == 0, "night", "dusk")
-    frames.to_parquet(ds / "frames.parquet")
+def test_bench_detectors_writes_interval_and_rank_columns(two_lighting_dataset, tmp_path):
+    ds = two_lighting_dataset
     out = tmp_path / "bench"
     argv = ["bench-detectors", str(ds), "--detectors", "binary,cog", "--out", str(out), "--no-progress",
             "--seed", "7", "-q"]

@@ -212,14 +212,10 @@ def test_declared_gain_comes_from_the_manifest_sensor_block():
     assert declared_gain({}) is None  # an image folder or an old dataset: estimated per frame
 
 
-def test_bench_detectors_splits_centroid_error_by_lighting(tiny_dataset, tmp_path):
+def test_bench_detectors_splits_centroid_error_by_lighting(two_lighting_dataset, tmp_path):
     """With night and dusk frames the report adds a per-lighting table whose rows add up to
     the pooled summary: beacon counts sum, and the pooled RMS^2 is their count-weighted mean."""
-    ds = tmp_path / "lit"
-    shutil.copytree(tiny_dataset, ds)
-    frames = pd.read_parquet(ds / "frames.parquet")
-    frames["lighting"] = np.where(frames.frame_id % 2 == 0, "night", "dusk")
-    frames.to_parquet(ds / "frames.parquet")
+    ds = two_lighting_dataset
     out = tmp_path / "bench"
     argv = ["bench-detectors", str(ds), "--detectors", "cog", "--out", str(out), "--no-progress"]
     assert main(argv) == 0

@@ -2,24 +2,13 @@
 
 from __future__ import annotations
 
-import importlib.util
-import sys
-from pathlib import Path
-
 import pandas as pd
 
-REPO = Path(__file__).resolve().parents[2]
+from tests.detect.independent_generator import load_benchmark
 
 
 def _ladder():
-    if "detector_ladder" in sys.modules:
-        return sys.modules["detector_ladder"]
-    spec = importlib.util.spec_from_file_location("detector_ladder", REPO / "benchmarks" / "detector_ladder.py")
-    assert spec is not None and spec.loader is not None
-    mod = importlib.util.module_from_spec(spec)
-    sys.modules["detector_ladder"] = mod
-    spec.loader.exec_module(mod)
-    return mod
+    return load_benchmark("detector_ladder")
 
 
 def _row(dataset: str, detector: str, frames_ok: float, recall: float, precision: float, rank: int) -> dict:
