@@ -110,3 +110,32 @@ def test_glints_differ_per_frame_stream_and_repeat_per_seed() -> None:
     assert positions(1).shape == (6, 3)
     np.testing.assert_array_equal(positions(1), positions(1))
     assert not np.allclose(positions(1), positions(2))
+
+
+def test_no_sea_glint_is_seen_through_the_deck_plate() -> None:
+    """The camera straight above the deck at 20 m: glints whose ray to the camera crosses the
+    plate are hidden (checked by intersecting each segment with the plate's plane), and without
+    the ship some would have been."""
+    from deckpose.render.scene_config import ShipModelSpec
+    from deckpose.render.ship_lights import ship_occluder
+
+    cam = CameraModel(3000, 3000, [[700.0, 0, 1500.0], [0, 700.0, 1500.0], [0, 0, 1]])
+    pose = CameraPose.nadir(20.0)
+    h = 14.0
+    level = ShipPose(0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    blocker = ship_occluder(h, 6.0, ShipModelSpec())
+    blocker.apply_transform(level.T_world_from_deck)
+    sigma = cox_munk_slope_sigma(25.0)  # a rough sea: glints all over the view
+
+    def through_plate(X: np.ndarray) -> np.ndarray:
+        C = pose.position_world_m
+        t = (0.0 - X[:, 2]) / (C[2] - X[:, 2])  # where the segment meets the deck plane z = 0
+        P = X + t[:, None] * (C - X)
+        return (t > 0) & (t < 1) & np.all(np.abs(P[:, :2]) <= h, axis=1)
+
+    seen = glint_points(400, sigma, np.eye(3), np.array([0.0, 0.0, -6.0]), TO_SUN, pose, cam,
+                        np.random.default_rng(4), occluder_world=blocker)
+    assert len(seen) == 400 and not through_plate(seen).any()
+    bare = glint_points(400, sigma, np.eye(3), np.array([0.0, 0.0, -6.0]), TO_SUN, pose, cam,
+                        np.random.default_rng(4))
+    assert through_plate(bare).mean() > 0.1
