@@ -159,6 +159,52 @@ def _rms_to_truth(found: np.ndarray, truth_px: np.ndarray) -> tuple[float, int]:
     return float(np.sqrt(np.mean(near[hit] ** 2))) if hit.any() else float("nan"), int((~hit).sum())
 
 
+def _time_detect(png: Path, camera_file: Path, thr: float, repeats: int, root: Path
+                 ) -> tuple[float, float, np.ndarray, np.ndarray]:
+    """Median wall of ``deckpose detect`` and of the OpenCV script on one PNG, each a new process per run.
+
+    Returns (ours_s, peer_s, ours_xy, peer_xy): medians over ``repeats`` interleaved runs, and
+    each one's centres, pixels.
+    """
+    script = root / "opencv_peer.py"
+    script.write_text(OPENCV_SCRIPT)
+    exe = str(Path(sys.executable).parent / "deckpose")
+    ours_cmd = [exe, "detect", str(png.parent), "--camera", str(camera_file), "--detector", "cog",
+                "-o", "", "--workers", "1", "--no-progress", "-q"]
+    peer_cmd = [sys.executable, str(script), str(png), f"{thr:.3f}", str(root / "peer.npy")]
+    t_ours, t_peer = [], []
+    for k in range(repeats):  # interleaved, a new process each
+        out = root / f"ours{k}"
+        cmd = list(ours_cmd)
+        cmd[cmd.index("-o") + 1] = str(out)
+        t0 = time.perf_counter()
+        subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
+        t_ours.append(time.perf_counter() - t0)
+        t0 = time.perf_counter()
+        subprocess.run(peer_cmd, check=True)
+        t_peer.append(time.perf_counter() - t0)
+    import pandas as pd
+
+    dets = pd.read_parquet(root / "ours0" / "detections.parquet")
+    return (float(np.median(t_ours)), float(np.median(t_peer)), dets[["u_px", "v_px"]].to_numpy(float),
+            np.load(root / "peer.npy"))
+
+
+def _report_detect(what: str, repeats: int, o: float, p: float, ours_xy: np.ndarray, peer_xy: np.ndarray,
+                   truth_px: np.ndarray, crb_px: float) -> None:
+    r_ours, miss_ours = _rms_to_truth(ours_xy, truth_px)
+    r_peer, miss_peer = _rms_to_truth(peer_xy, truth_px)
+
+    def over_crb(r: float) -> str:
+        return f" = {r / crb_px:.2f}x CRB" if np.isfinite(crb_px) else ""
+
+    print(f"detect, whole process: {what}; {repeats} interleaved runs, median wall; {_load()}")
+    print(f"  OpenCV script (imread, threshold, components)  {p:6.2f} s   RMS {r_peer:.4f} px{over_crb(r_peer)}, "
+          f"{miss_peer} missed")
+    print(f"  deckpose detect --detector cog --workers 1     {o:6.2f} s   RMS {r_ours:.4f} px{over_crb(r_ours)}, "
+          f"{miss_ours} missed   ratio {o / p:.2f}x the script's time, {r_peer / r_ours:.1f}x its accuracy")
+
+
 def bench_detect(repeats: int, seed: int) -> None:
     from deckpose.camera_info import write_camera_info
 
@@ -171,42 +217,47 @@ def bench_detect(repeats: int, seed: int) -> None:
         cv2.imwrite(str(png), img)
         H, W = fr.image.shape[:2]
         write_camera_info(CameraModel(W, H, fr.K, np.zeros(0), "bench-64mp"), root / "cam.yaml")
-        script = root / "opencv_peer.py"
-        script.write_text(OPENCV_SCRIPT)
         # the peer's threshold: 6 sigma of the background noise of the channel sum, in DN
         sigma_dn = fr.gain_dn_per_e * np.sqrt(3 * (30.0 + 5.0**2))
         thr = 3 * 30.0 * fr.gain_dn_per_e + 6 * sigma_dn
-        exe = str(Path(sys.executable).parent / "deckpose")
-        ours_cmd = [exe, "detect", str(root / "frames"), "--camera", str(root / "cam.yaml"), "--detector", "cog",
-                    "-o", "", "--workers", "1", "--no-progress", "-q"]
-        peer_cmd = [sys.executable, str(script), str(png), f"{thr:.3f}", str(root / "peer.npy")]
-        t_ours, t_peer = [], []
-        for k in range(repeats):  # interleaved, a new process each
-            out = root / f"ours{k}"
-            cmd = list(ours_cmd)
-            cmd[cmd.index("-o") + 1] = str(out)
-            t0 = time.perf_counter()
-            subprocess.run(cmd, check=True, stdout=subprocess.DEVNULL)
-            t_ours.append(time.perf_counter() - t0)
-            t0 = time.perf_counter()
-            subprocess.run(peer_cmd, check=True)
-            t_peer.append(time.perf_counter() - t0)
-        import pandas as pd
+        o, p, ours_xy, peer_xy = _time_detect(png, root / "cam.yaml", thr, repeats, root)
+    _report_detect(f"one 64 MP 16-bit RGB PNG ({W}x{H}, {len(fr.centre_px)} beacons, independent generator)",
+                   repeats, o, p, ours_xy, peer_xy, fr.centre_px, float(np.sqrt(np.mean(fr.crb_px**2))))
 
-        dets = pd.read_parquet(root / "ours0" / "detections.parquet")
-        ours_xy = dets[["u_px", "v_px"]].to_numpy(float)
-        peer_xy = np.load(root / "peer.npy")
-    crb = float(np.sqrt(np.mean(fr.crb_px**2)))
-    r_ours, miss_ours = _rms_to_truth(ours_xy, fr.centre_px)
-    r_peer, miss_peer = _rms_to_truth(peer_xy, fr.centre_px)
-    o, p = float(np.median(t_ours)), float(np.median(t_peer))
-    print(f"detect, whole process: one 64 MP 16-bit RGB PNG ({W}x{H}, {len(fr.centre_px)} beacons, "
-          f"independent generator); {repeats} interleaved runs, median wall; {_load()}")
-    print(f"  OpenCV script (imread, threshold, components)  {p:6.2f} s   RMS {r_peer:.4f} px = "
-          f"{r_peer / crb:.1f}x CRB, {miss_peer} missed")
-    print(f"  deckpose detect --detector cog --workers 1     {o:6.2f} s   RMS {r_ours:.4f} px = "
-          f"{r_ours / crb:.2f}x CRB, {miss_ours} missed   ratio {o / p:.2f}x the script's time, "
-          f"{r_peer / r_ours:.1f}x its accuracy")
+
+def bench_detect_rendered(dataset: Path, frame_id: int, repeats: int) -> None:
+    """The same comparison on a frame ``deckpose render`` wrote (the issue's case: a sweep's 64 MP PNG).
+
+    The truth is the frame's visible beacons in ``beacons.parquet``; the script's threshold is
+    6 robust sigmas (1.4826 MAD) above the median of the frame's channel sum.
+    """
+    import shutil
+
+    import pandas as pd
+
+    beacons = pd.read_parquet(dataset / "beacons.parquet")
+    truth = beacons[(beacons.frame_id == frame_id) & beacons.visible]
+    src = dataset / "images" / f"{frame_id:06d}.png"
+    cams = sorted((dataset / "cameras").glob("*.yaml"))
+    img = cv2.imread(str(src), cv2.IMREAD_UNCHANGED)
+    if img is None or len(cams) != 1 or truth.empty:
+        raise SystemExit(f"bench_vs_opencv: {dataset} needs images/{frame_id:06d}.png, one camera file and that "
+                         "frame's visible beacons; render a one-camera dataset with images")
+    grey = img.astype(np.float32).sum(axis=2) if img.ndim == 3 else img.astype(np.float32)
+    med = float(np.median(grey))
+    thr = med + 6 * 1.4826 * float(np.median(np.abs(grey - med)))
+    H, W = grey.shape
+    del img, grey
+    with tempfile.TemporaryDirectory(prefix="bench_vs_opencv_") as tmp:
+        root = Path(tmp)
+        (root / "frames").mkdir()
+        png = root / "frames" / src.name
+        shutil.copyfile(src, png)
+        o, p, ours_xy, peer_xy = _time_detect(png, cams[0], thr, repeats, root)
+    crb = truth["spot_crb_px"].to_numpy(float) if "spot_crb_px" in truth else np.full(len(truth), np.nan)
+    _report_detect(f"frame {frame_id} of {dataset} ({W}x{H} PNG, {len(truth)} beacons in view, rendered)",
+                   repeats, o, p, ours_xy, peer_xy, truth[["u_px", "v_px"]].to_numpy(float),
+                   float(np.sqrt(np.nanmean(crb**2))) if np.isfinite(crb).any() else float("nan"))
 
 
 def main() -> None:
@@ -214,6 +265,10 @@ def main() -> None:
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--frames", type=int, default=2000, help="frames of the pose comparison (0: skip it)")
     ap.add_argument("--detect", action="store_true", help="also the whole-process detection comparison (64 MP)")
+    ap.add_argument("--detect-rendered", type=Path, metavar="DATASET",
+                    help="also the whole-process detection comparison on a rendered dataset's frame "
+                         "(e.g. a thesis sweep's 64 MP frame, as issue 20 measured it)")
+    ap.add_argument("--frame-id", type=int, default=0, help="the rendered frame (--detect-rendered)")
     ap.add_argument("--repeats", type=int, default=5, help="interleaved repeats (medians)")
     ap.add_argument("--seed", type=int, default=0)
     args = ap.parse_args()
@@ -222,6 +277,8 @@ def main() -> None:
         bench_pose(args.frames, args.repeats, args.seed)
     if args.detect:
         bench_detect(args.repeats, args.seed)
+    if args.detect_rendered:
+        bench_detect_rendered(args.detect_rendered, args.frame_id, args.repeats)
 
 
 if __name__ == "__main__":
