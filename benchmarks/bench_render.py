@@ -19,7 +19,9 @@ Each case runs in a fresh process (so its peak RSS is its own):
   shadows, auto-sized deck texture) under its own ``flat`` shading at night, timed and
   compared the same way; ``ship-day``: that scene by day under ``pbr`` shading (sun
   shading, glitter and shadows: the contact sheet's day tile, drawn with
-  ``render/sun_shader.py``'s shader), against ``day``, ``ours`` by day.
+  ``render/sun_shader.py``'s shader), against ``day``, ``ours`` by day;
+* ``all``, with both ``--realism`` and ``--ship``: every effect at once, the hard rung's
+  (``real``) in the ship look's scene (flat, night), against ``ours``.
 
 Usage::
 
@@ -64,7 +66,8 @@ SENSOR_EFFECT_KEYS = ("bayer", "prnu", "dsnu_e", "hot_pixel_fraction", "hot_pixe
 CASE_SECTIONS = {"real": ("detector_benchmark_hard.yaml", REALISM_SECTIONS),
                  "bloom": ("detector_benchmark_hard.yaml", REALISM_SECTIONS),
                  "ship": ("realistic_ship.yaml", ("scene",)),
-                 "ship-day": ("realistic_ship.yaml", ("scene",))}
+                 "ship-day": ("realistic_ship.yaml", ("scene",)),
+                 "all": ("detector_benchmark_hard.yaml", REALISM_SECTIONS)}
 #: The lighting of each case (night unless named).
 CASE_LIGHTING = {"day": "day", "ship-day": "day"}
 
@@ -86,7 +89,10 @@ def _case_ours(size: str, frames: int, backend: str, out: Path, realism: str = "
         doc.update({k: base[k] for k in sections})
         if realism == "ship-day":
             doc["scene"] = {**doc["scene"], "shading": "pbr"}
-        if realism in ("real", "bloom"):  # the hard rung's sensor effects, and vibration over a 10 ms exposure
+        if realism == "all":  # the hard rung's effects (below) in the ship look's scene (flat, night)
+            ship = yaml.safe_load((Path(__file__).resolve().parent.parent / "configs" / "realistic_ship.yaml").read_text())
+            doc["scene"] = {**ship["scene"], "shading": "flat"}
+        if realism in ("real", "bloom", "all"):  # the hard rung's sensor effects, and vibration over a 10 ms exposure
             doc["shutter"] = {**base["shutter"], "vibration_deg_rms": 0.05}
             doc["motion"] = {**doc["motion"], "exposure_s": 0.01}
             doc["sensor"] = {k: base["sensor"][k] for k in SENSOR_EFFECT_KEYS}
@@ -199,7 +205,8 @@ def main() -> None:
 
     for size in args.sizes:
         res: dict[str, list[dict[str, float]]] = {}
-        cases = ("ours",) + (("real", "bloom") if args.realism else ()) + (("ship", "day", "ship-day") if args.ship else ())
+        cases = (("ours",) + (("real", "bloom") if args.realism else ()) + (("ship", "day", "ship-day") if args.ship else ())
+                 + (("all",) if args.realism and args.ship else ()))
         for _ in range(args.repeat if len(cases) > 1 else 1):
             for case in cases:
                 res.setdefault(case, []).append(run(case, size, args.frames))
@@ -216,6 +223,9 @@ def main() -> None:
         if "bloom" in med:
             print(f"{size:>6} the hard rung with blooming / without, medians of {args.repeat} interleaved: "
                   f"{med['bloom'] / med['real']:.2f}x wall, {cpu['bloom'] / cpu['real']:.2f}x CPU")
+        if "all" in med:
+            print(f"{size:>6} every effect at once (the hard rung in the ship look) / ours, medians of {args.repeat} "
+                  f"interleaved: {med['all'] / med['ours']:.2f}x wall, {cpu['all'] / cpu['ours']:.2f}x CPU (budget 1.5x)")
         if "ship" in med:
             print(f"{size:>6} ship look (realistic_ship.yaml scene) / ours, medians of {args.repeat} interleaved: "
                   f"{med['ship'] / med['ours']:.2f}x wall, {cpu['ship'] / cpu['ours']:.2f}x CPU (budget 1.5x)")
