@@ -56,8 +56,8 @@ SHOWN = (("roll_rad", "roll deg"), ("pitch_rad", "pitch deg"), ("yaw_rad", "yaw 
 def poses(n: int, rng: np.random.Generator) -> list[ShipPose]:
     """``n`` deck poses: roll, pitch U(+-5 deg), yaw U(+-180 deg), surge and sway U(+-3 m), heave 0."""
     t = np.radians(5.0)
-    return [ShipPose(rng.uniform(-t, t), rng.uniform(-t, t), rng.uniform(-np.pi, np.pi), rng.uniform(-3, 3),
-                     rng.uniform(-3, 3), 0.0) for _ in range(n)]
+    return [ShipPose(roll_rad=rng.uniform(-t, t), pitch_rad=rng.uniform(-t, t), yaw_rad=rng.uniform(-np.pi, np.pi),
+                     heave_m=0.0, surge_m=rng.uniform(-3, 3), sway_m=rng.uniform(-3, 3)) for _ in range(n)]
 
 
 def cell(camera: CameraModel, height_m: float, ships: list[ShipPose], layout: DeckLayout, noise_px: float
