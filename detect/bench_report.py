@@ -252,18 +252,22 @@ def markdown_table(summary: pd.DataFrame) -> str:
 def lighting_table(tables: BenchmarkTables, *, rng: np.random.Generator) -> pd.DataFrame:
     """The centroid error per detector x camera x height x lighting, with interval and rank.
 
-    :func:`~deckpose.detect.benchmark.centroid_by_lighting`'s rows with the
-    ``frames_ok`` (of ``frames``), ``recall`` and ``precision`` of the same frames
-    (``tables.summary_by_lighting``) and
-    :func:`~deckpose.detect.bench_ranking.with_interval_and_rank`'s columns, the
-    detectors ranked within each camera x height x lighting. Empty with one lighting.
+    Every row of ``tables.summary_by_lighting`` (``frames_ok`` of ``frames``, ``recall`` and
+    ``precision``, each detector x camera x height x lighting) with
+    :func:`~deckpose.detect.benchmark.centroid_by_lighting`'s columns where the detector
+    matched a beacon there (NaN and 0 beacons where it matched none: it is still ranked) and
+    :func:`~deckpose.detect.bench_ranking.with_interval_and_rank`'s columns, the detectors
+    ranked within each camera x height x lighting. Empty with one lighting.
     """
     by_light = centroid_by_lighting(tables.matches)
     if by_light.empty:
         return by_light
     keys = ["detector", "camera", "height_m", "lighting"]
+    # every detector of every cell and lighting, its centroid figures where it matched a beacon
+    # (one that matched none there is still ranked, last on recall)
     split = tables.summary_by_lighting[[*keys, "frames", "frames_ok", "recall", "precision"]]
-    by_light = by_light.merge(split, on=keys, how="left")
+    by_light = split.merge(by_light, on=keys, how="left")
+    by_light["beacons"] = by_light["beacons"].fillna(0).astype(int)
     return with_interval_and_rank(by_light, tables.matches, within=keys[1:], rng=rng)
 
 

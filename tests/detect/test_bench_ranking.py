@@ -179,3 +179,24 @@ def test_bench_detectors_writes_interval_and_rank_columns(two_lighting_dataset, 
     md = (out / "bench_detectors.md").read_text()
     assert "## Ranking" in md and "RMS/CRB [95 %]" in md and "seed 7" in md and RANK_RULE in md
     assert "| 1 | cog |" in md and "| 2 | binary |" in md
+
+
+def test_a_detector_that_matched_nothing_in_a_lighting_is_still_ranked_there():
+    """Detector b finds no beacon at night: the per-lighting table keeps its night row, ranked last."""
+    from deckpose.detect.bench_report import BenchmarkTables, lighting_table
+
+    spots = _spots([np.full(4, 0.01)] * 2, [np.full(4, 0.01)] * 2)
+    base = {"camera": "c", "camera_height_m": 30.0}
+    matches = pd.concat([
+        spots.assign(detector="a", lighting=light, **base) for light in ("night", "dusk")
+    ] + [spots.assign(detector="b", lighting="dusk", **base),
+         spots.assign(detector="b", lighting="night", matched=False, du_px=np.nan, dv_px=np.nan, **base)],
+        ignore_index=True)
+    split = pd.DataFrame({"detector": ["a", "a", "b", "b"], "camera": "c", "height_m": 30.0,
+                          "lighting": ["night", "dusk", "night", "dusk"], "frames": 2,
+                          "frames_ok": [2, 2, 0, 2], "recall": [1.0, 1.0, 0.0, 1.0], "precision": 1.0})
+    tables = BenchmarkTables(summary=pd.DataFrame(), matches=matches, summary_by_lighting=split)
+    t = lighting_table(tables, rng=np.random.default_rng(0)).set_index(["detector", "lighting"])
+    assert len(t) == 4
+    assert t.loc[("b", "night"), "beacons"] == 0 and t.loc[("b", "night"), "rank"] == 2
+    assert t.loc[("a", "night"), "rank"] == 1 and t.loc[("a", "night"), "beacons"] == 8
