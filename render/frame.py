@@ -117,8 +117,8 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
               if shutter is None else shutter.splats)
     splats, occlusion = occlude(splats, cfg.occlusion, cfg.layout.n_beacons, _stream(spec.seed, OCCLUSION_STREAM))
     lights = ship_lights(cfg.ship_lights, cfg.deck_half_size_m(), cfg.scene.freeboard_m,
-                         _stream(spec.seed, GLINT_STREAM), spec.ship, cam_pose, camera, -SUN_TRAVEL_WORLD,
-                         cfg.scene.ship)
+                         _stream(spec.seed, GLINT_STREAM), ship=spec.ship, camera_pose=cam_pose,
+                         camera=camera, to_light_world=-SUN_TRAVEL_WORLD, ship_model=cfg.scene.ship)
     extra, lights_px, lights_in = light_splats(lights, poses, cam_pose, camera, cfg.sensor, cfg.leds, cfg.layout)
     proj = project_layout(cfg.layout, spec.ship, cam_pose, camera) if shutter is None else shutter.projection
     scale = radiance_scale(spec.lighting, cfg.scene.shading)

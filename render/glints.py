@@ -26,9 +26,10 @@ Two surfaces carry glints (:mod:`deckpose.render.ship_lights` draws them as ligh
 :func:`glint_points` keeps facets whose point lies in the image (and, for the deck, on the
 plate) and whose mirrored ray reaches the camera past the ship (the deck plate, and the hull
 and superstructure where the scene has them: a sea glint under the deck is not seen),
-drawing in batches until it has the number asked for or has tried
-``MAX_TRIES_PER_GLINT`` times as many: a light behind the camera's view gives fewer glints,
-or none, as it would.
+drawing in batches until it has the number asked for or has tried ``MAX_TRIES_PER_GLINT``
+times as many: a light behind the camera's view gives fewer glints, or none, as it would.
+The sunlight's own way to a facet is not tested against the ship's shadow: for this sun,
+54.5 degrees up, that would hide 0-1 of 256 glints at 30-80 m.
 """
 
 from __future__ import annotations
@@ -85,8 +86,9 @@ def facet_mirror_points(slopes: NDArray[np.float64], R_world_from_plane: NDArray
     Returns
     -------
     (N, 3) array of float
-        Each facet's point in the world, metres; NaN where the facet faces away from the
-        light, or its mirrored ray does not rise from the plane toward the camera.
+        Each facet's point in the world, metres; NaN where the light is not above the plane,
+        the facet faces away from it, or its mirrored ray does not rise from the plane toward
+        the camera.
     """
     s = np.asarray(slopes, float).reshape(-1, 2)
     n_plane = np.column_stack([-s[:, 0], -s[:, 1], np.ones(len(s))])
@@ -97,7 +99,7 @@ def facet_mirror_points(slopes: NDArray[np.float64], R_world_from_plane: NDArray
     normal = np.asarray(R_world_from_plane)[:, 2]
     height = float((np.asarray(camera_centre_world_m) - plane_point_world_m) @ normal)
     rise = r @ normal
-    ok = (cos_i > 0) & (rise > 1e-9) & (height > 0)
+    ok = (cos_i > 0) & (rise > 1e-9) & (height > 0) & (float(light @ normal) > 0)
     t = np.where(ok, height / np.where(ok, rise, 1.0), np.nan)
     return np.asarray(camera_centre_world_m)[None, :] - t[:, None] * r
 
@@ -158,14 +160,14 @@ def glint_points(n_glints: int, slope_sigma: float, R_world_from_plane: NDArray[
     return np.concatenate(kept)[:n_glints]
 
 
-def _hidden(X: NDArray[np.float64], camera_centre: NDArray[np.float64], occluder: trimesh.Trimesh
+def _hidden(X: NDArray[np.float64], camera_centre_world_m: NDArray[np.float64], occluder: trimesh.Trimesh
             ) -> NDArray[np.bool_]:
     """Whether the segment from each point to the camera crosses a triangle of the occluder; (N,) bool.
 
     Moller-Trumbore for every segment and triangle at once (the ship has a few dozen
     triangles); a hit within 1 mm of the point is the surface the point lies on, not an occluder.
     """
-    seg = camera_centre[None, :] - X  # (N, 3), parameter t in [0, 1] along it
+    seg = camera_centre_world_m[None, :] - X  # (N, 3), parameter t in [0, 1] along it
     tri = np.asarray(occluder.triangles, float)  # (T, 3, 3)
     e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
     pvec = np.cross(seg[:, None, :], e2[None])  # (N, T, 3)

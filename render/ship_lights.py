@@ -38,7 +38,7 @@ from deckpose.render.light import point_light_gain, transmission
 from deckpose.render.scene_config import ShipModelSpec
 from deckpose.render.sensor_config import SensorSpec
 from deckpose.render.ship_lights_config import ShipLightsSpec
-from deckpose.render.ship_model import hull_mesh, superstructure_mesh
+from deckpose.render.ship_model import hull_mesh, joined_mesh, superstructure_mesh
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
@@ -79,7 +79,7 @@ class ShipLight:
 
 
 def ship_lights(spec: ShipLightsSpec, deck_half_size_m: float, freeboard_m: float,
-                rng: np.random.Generator, ship: ShipPose, camera_pose: CameraPose, camera: CameraModel,
+                rng: np.random.Generator, *, ship: ShipPose, camera_pose: CameraPose, camera: CameraModel,
                 to_light_world: NDArray[np.float64], ship_model: ShipModelSpec = ShipModelSpec()
                 ) -> list[ShipLight]:
     """The frame's non-beacon lights, light id = list index.
@@ -132,7 +132,17 @@ def ship_lights(spec: ShipLightsSpec, deck_half_size_m: float, freeboard_m: floa
 
 
 def ship_occluder(deck_half_size_m: float, freeboard_m: float, ship_model: ShipModelSpec) -> trimesh.Trimesh:
-    """What hides a glint: the deck plate, and the hull and superstructure where drawn (deck frame, metres)."""
+    """What hides a glint from the camera, deck frame, metres.
+
+    Parameters
+    ----------
+    deck_half_size_m : float
+        Half the deck plate's side: the plate (two triangles at deck z = 0) always hides.
+    freeboard_m : float
+        Deck height above the sea (the hull's depth).
+    ship_model : ShipModelSpec
+        The hull and superstructure where the scene draws them.
+    """
     a = deck_half_size_m
     plate = trimesh.Trimesh(np.array([[-a, -a, 0.0], [a, -a, 0.0], [a, a, 0.0], [-a, a, 0.0]]),
                             np.array([[0, 1, 2], [0, 2, 3]]), process=False)
@@ -141,9 +151,7 @@ def ship_occluder(deck_half_size_m: float, freeboard_m: float, ship_model: ShipM
         parts.append(hull_mesh(a, freeboard_m))
     if ship_model.superstructure:
         parts.append(superstructure_mesh(a))
-    offsets = np.cumsum([0] + [len(m.vertices) for m in parts[:-1]])
-    return trimesh.Trimesh(np.vstack([m.vertices for m in parts]),
-                           np.vstack([m.faces + o for m, o in zip(parts, offsets, strict=True)]), process=False)
+    return joined_mesh(parts)
 
 
 def _to_cam(light: ShipLight, ship: ShipPose, camera_pose: CameraPose) -> NDArray[np.float64]:

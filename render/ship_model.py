@@ -21,10 +21,12 @@ the rays).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+
 import numpy as np
 import trimesh
 
-__all__ = ["HULL_TOP_GAP_M", "hull_mesh", "superstructure_mesh"]
+__all__ = ["HULL_TOP_GAP_M", "hull_mesh", "joined_mesh", "superstructure_mesh"]
 
 #: The hull's top is this far below the deck plate, metres (no depth fight with the plate).
 HULL_TOP_GAP_M = 0.02
@@ -75,8 +77,20 @@ def superstructure_mesh(deck_half_size_m: float) -> trimesh.Trimesh:
         (_box((a + 7.9, -(a - 2.0), 8.2), (a + 8.0, a - 2.0, 9.4)), WINDOW_RGBA),
         (_box((a + 13.8, -0.2, 10.0), (a + 14.2, 0.2, 12.0)), SUPERSTRUCTURE_RGBA),
     ]
-    offsets = np.cumsum([0] + [len(m.vertices) for m, _ in parts[:-1]])
-    return trimesh.Trimesh(np.vstack([m.vertices for m, _ in parts]),
-                           np.vstack([m.faces + o for (m, _), o in zip(parts, offsets, strict=True)]),
+    joined = joined_mesh([m for m, _ in parts])
+    return trimesh.Trimesh(joined.vertices, joined.faces,
                            face_colors=np.vstack([np.tile(np.array(c, np.uint8), (len(m.faces), 1)) for m, c in parts]),
                            process=False)
+
+
+def joined_mesh(parts: Sequence[trimesh.Trimesh]) -> trimesh.Trimesh:
+    """One mesh of ``parts``' vertices and faces, in order (no colours, nothing merged).
+
+    Parameters
+    ----------
+    parts : sequence of trimesh.Trimesh
+        Meshes in one frame, metres.
+    """
+    offsets = np.cumsum([0] + [len(m.vertices) for m in parts[:-1]])
+    return trimesh.Trimesh(np.vstack([m.vertices for m in parts]),
+                           np.vstack([m.faces + o for m, o in zip(parts, offsets, strict=True)]), process=False)

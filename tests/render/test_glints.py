@@ -79,13 +79,33 @@ def test_a_smooth_sea_far_from_its_mirror_point_shows_no_glint() -> None:
     X = glint_points(5, cox_munk_slope_sigma(0.0), np.eye(3), np.array([0.0, 0.0, -6.0]), TO_SUN,
                      CameraPose.nadir(60.0), narrow, np.random.default_rng(2))
     assert X.shape == (0, 3)
+    # the same sea seen wide has them all
+    X = glint_points(5, cox_munk_slope_sigma(0.0), np.eye(3), np.array([0.0, 0.0, -6.0]), TO_SUN,
+                     CameraPose.nadir(60.0), WIDE, np.random.default_rng(2))
+    assert X.shape == (5, 3)
+
+
+def test_glints_on_a_tilted_plane_follow_its_slope_distribution() -> None:
+    """The wet deck's path (a plane tilted with the ship, slopes in its own frame), unbounded and
+    seen wide: the slopes recovered from 3,000 glints are N(0, tan(4 deg)^2) per axis."""
+    sigma = math.tan(math.radians(4.0))
+    pose = CameraPose.nadir(40.0)
+    X = glint_points(3000, sigma, SHIP.R_world_from_deck, SHIP.t_world_from_deck, TO_SUN, pose, WIDE,
+                     np.random.default_rng(6), half_extent_m=1e6)
+    assert len(X) == 3000
+    np.testing.assert_allclose((X - SHIP.t_world_from_deck) @ SHIP.R_world_from_deck[:, 2], 0.0, atol=1e-9)
+    s = _slopes_from_points(X, SHIP.R_world_from_deck, pose.position_world_m)
+    for axis in range(2):
+        assert np.std(s[:, axis]) == pytest.approx(sigma, rel=5 / math.sqrt(2 * 3000))
+        assert stats.kstest(s[:, axis] / sigma, "norm").pvalue > 1e-3
 
 
 def test_deck_glints_lie_on_the_plate_and_ride_with_the_deck() -> None:
     cam = CameraModel(3000, 3000, [[900.0, 0, 1500.0], [0, 900.0, 1500.0], [0, 0, 1]])
     pose = CameraPose.nadir(40.0)
     spec = ShipLightsSpec(deck_glints=40, deck_slope_deg=10.0)
-    lights = ship_lights(spec, 14.0, 6.0, np.random.default_rng(3), SHIP, pose, cam, TO_SUN)
+    lights = ship_lights(spec, 14.0, 6.0, np.random.default_rng(3), ship=SHIP, camera_pose=pose, camera=cam,
+                         to_light_world=TO_SUN)
     assert len(lights) == 40 and {lt.kind for lt in lights} == {"deck_glint"}
     p = np.array([lt.position_m for lt in lights])
     assert all(lt.on_deck for lt in lights)
@@ -104,8 +124,9 @@ def test_glints_differ_per_frame_stream_and_repeat_per_seed() -> None:
     spec = ShipLightsSpec(glints=4, deck_glints=2)
 
     def positions(seed: int) -> np.ndarray:
-        return np.array([lt.position_m for lt in ship_lights(spec, 14.0, 6.0, np.random.default_rng(seed), SHIP,
-                                                              CameraPose.nadir(60.0), cam, TO_SUN)])
+        return np.array([lt.position_m for lt in ship_lights(spec, 14.0, 6.0, np.random.default_rng(seed), ship=SHIP,
+                                                              camera_pose=CameraPose.nadir(60.0), camera=cam,
+                                                              to_light_world=TO_SUN)])
 
     assert positions(1).shape == (6, 3)
     np.testing.assert_array_equal(positions(1), positions(1))
@@ -139,3 +160,34 @@ def test_no_sea_glint_is_seen_through_the_deck_plate() -> None:
     bare = glint_points(400, sigma, np.eye(3), np.array([0.0, 0.0, -6.0]), TO_SUN, pose, cam,
                         np.random.default_rng(4))
     assert through_plate(bare).mean() > 0.1
+
+
+def test_no_sea_glint_is_seen_through_the_hull() -> None:
+    """A camera above the bow: no kept glint's segment to the camera passes inside the hull (a
+    convex prism: a point is inside where it is behind every face's plane, sampled every 2 cm
+    along each segment); without the ship some would."""
+    from deckpose.render.scene_config import ShipModelSpec
+    from deckpose.render.ship_lights import ship_occluder
+    from deckpose.render.ship_model import hull_mesh
+
+    level = ShipPose()
+    pose = CameraPose.nadir(30.0, x_m=40.0, y_m=-10.0)
+    cam = CameraModel(3000, 3000, [[700.0, 0, 1500.0], [0, 700.0, 1500.0], [0, 0, 1]])
+    sea = (np.eye(3), np.array([0.0, 0.0, -6.0]), TO_SUN, pose, cam)
+    hull = hull_mesh(14.0, 6.0)
+    normals, corners = hull.face_normals, hull.triangles[:, 0]
+
+    def through_hull(X: np.ndarray) -> np.ndarray:
+        C = pose.position_world_m
+        t = np.linspace(0.0, 1.0, 3000)[1:-1]
+        pts = X[:, None, :] + t[None, :, None] * (C - X)[:, None, :]  # (N, S, 3), spacing < 2 cm
+        depth = np.einsum("nsk,fk->nsf", pts, normals) - np.einsum("fk,fk->f", corners, normals)
+        return np.any(np.all(depth < -1e-6, axis=2), axis=1)
+
+    blocker = ship_occluder(14.0, 6.0, ShipModelSpec(hull=True))
+    blocker.apply_transform(level.T_world_from_deck)
+    sigma = cox_munk_slope_sigma(25.0)
+    seen = glint_points(200, sigma, *sea, np.random.default_rng(5), occluder_world=blocker)
+    bare = glint_points(200, sigma, *sea, np.random.default_rng(5))
+    assert len(seen) == 200 and not through_hull(seen).any()
+    assert through_hull(bare).mean() > 0.05

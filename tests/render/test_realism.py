@@ -162,8 +162,8 @@ def test_wholly_hidden_beacons_leave_no_light_and_none_when_off() -> None:
 def test_ship_lights_project_where_the_camera_sees_them() -> None:
     spec = ShipLightsSpec(navigation=True, floodlights=8, glints=6, deck_glints=3, intensity=2.0)
     cam = CameraModel(3000, 3000, [[900.0, 0, 1500.0], [0, 900.0, 1500.0], [0, 0, 1]])
-    lights = ship_lights(spec, 14.0, 6.0, np.random.default_rng(2), SHIP, CameraPose.nadir(60.0), cam,
-                         -SUN_TRAVEL_WORLD)
+    lights = ship_lights(spec, 14.0, 6.0, np.random.default_rng(2), ship=SHIP, camera_pose=CameraPose.nadir(60.0),
+                         camera=cam, to_light_world=-SUN_TRAVEL_WORLD)
     kinds = [lt.kind for lt in lights]
     assert kinds[:4] == ["port", "starboard", "masthead", "stern"]
     assert kinds.count("floodlight") == 8 and kinds.count("glint") == 6 and kinds.count("deck_glint") == 3
