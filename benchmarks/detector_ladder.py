@@ -45,7 +45,7 @@ import numpy as np
 import pandas as pd
 import yaml
 from deckpose.detect import registry
-from deckpose.detect.bench_ranking import pool_by_detector
+from deckpose.detect.bench_ranking import RANK_RULE, pool_by_detector
 from deckpose.detect.bench_report import ranking_markdown, run_benchmark, write_report
 from deckpose.detect.registry import DetectorOptions
 from deckpose.detect.sources import declared_gain, open_dataset
@@ -122,7 +122,7 @@ def markdown(results: pd.DataFrame, what: dict[str, str], meta: dict) -> str:
              "mean of the red, green and blue centres); *geom.*: RMS/CRB against the geometric (green) centre "
              "instead, what the lens costs on top (the same as RMS/CRB without lateral colour; '—' for a dataset "
              "benchmarked before the column); "
-             "CPU ms per frame, median; rank: frames ok, then recall, then precision, then RMS/CRB."), ""]
+             f"CPU ms per frame, median; {RANK_RULE}."), ""]
     lines += breaks_markdown(results)
     for name, g in results.groupby("dataset", sort=False):
         lines += [f"## {name}: {what[name]}", "", *ranking_markdown(g), ""]
@@ -224,7 +224,8 @@ def rewrite_report(out: Path) -> int:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
                                  formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--work", required=True, help="folder of the rendered datasets (resumed if present)")
+    ap.add_argument("--work", help="folder of the rendered datasets (resumed if present; needed but with "
+                                    "--report-only)")
     ap.add_argument("--out", required=True, help="report folder")
     ap.add_argument("--detectors", help="comma-separated (default: every registered detector)")
     ap.add_argument("--only", help="comma-separated dataset names (default: all)")
@@ -236,6 +237,8 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if args.report_only:
         return rewrite_report(Path(args.out))
+    if not args.work:
+        ap.error("--work is needed to render and benchmark (only --report-only goes without it)")
     t0 = time.time()
     load0 = os.getloadavg()[0]
     # the code the run starts from (commits made while it runs are not its code)
