@@ -20,6 +20,9 @@ Each case runs in a fresh process (so its peak RSS is its own):
   compared the same way; ``ship-day``: that scene by day under ``pbr`` shading (sun
   shading, glitter and shadows: the contact sheet's day tile, drawn with
   ``render/sun_shader.py``'s shader), against ``day``, ``ours`` by day;
+* ``pbr-day``, with ``--ship``: the default scene by day under ``pbr`` (``pbr`` shading is
+  older than the ship look), so ``ship-day`` against it is what the ship look adds to a
+  ``pbr`` frame;
 * ``all``, with both ``--realism`` and ``--ship``: every effect at once, the hard rung's
   (``real``) in the ship look's scene (flat, night), against ``ours``.
 
@@ -69,7 +72,7 @@ CASE_SECTIONS = {"real": ("detector_benchmark_hard.yaml", REALISM_SECTIONS),
                  "ship-day": ("realistic_ship.yaml", ("scene",)),
                  "all": ("detector_benchmark_hard.yaml", REALISM_SECTIONS)}
 #: The lighting of each case (night unless named).
-CASE_LIGHTING = {"day": "day", "ship-day": "day"}
+CASE_LIGHTING = {"day": "day", "ship-day": "day", "pbr-day": "day"}
 
 
 def _case_ours(size: str, frames: int, backend: str, out: Path, realism: str = "",
@@ -83,7 +86,9 @@ def _case_ours(size: str, frames: int, backend: str, out: Path, realism: str = "
         "cameras": [{"preset": size}], "heights_m": [30.0], "lighting": [lighting], "backend": backend,
         "motion": {"source": "fixed", "attitudes_deg": [[3.0 + i, -2.0, 5.0 * i] for i in range(frames + 1)]},
     }
-    if realism:
+    if realism == "pbr-day":  # the default scene under pbr: what a pbr frame cost without the ship look
+        doc["scene"] = {"shading": "pbr"}
+    if realism in CASE_SECTIONS:
         name, sections = CASE_SECTIONS[realism]
         base = yaml.safe_load((Path(__file__).resolve().parent.parent / "configs" / name).read_text())
         doc.update({k: base[k] for k in sections})
@@ -162,7 +167,7 @@ def _child(args: argparse.Namespace) -> None:
             res = _case_naive(args.size, args.frames, args.backend, Path(tmp))
         else:
             res = _case_ours(args.size, args.frames, args.backend, Path(tmp),
-                             realism=args.case if args.case in CASE_SECTIONS else "",
+                             realism=args.case if args.case in (*CASE_SECTIONS, "pbr-day") else "",
                              lighting=CASE_LIGHTING.get(args.case, "night"))
     res["peak_rss_gib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2 ** 20
     print(json.dumps(res))
@@ -205,7 +210,7 @@ def main() -> None:
 
     for size in args.sizes:
         res: dict[str, list[dict[str, float]]] = {}
-        cases = (("ours",) + (("real", "bloom") if args.realism else ()) + (("ship", "day", "ship-day") if args.ship else ())
+        cases = (("ours",) + (("real", "bloom") if args.realism else ()) + (("ship", "day", "ship-day", "pbr-day") if args.ship else ())
                  + (("all",) if args.realism and args.ship else ()))
         for _ in range(args.repeat if len(cases) > 1 else 1):
             for case in cases:
@@ -233,6 +238,9 @@ def main() -> None:
             print(f"{size:>6} ship look by day, pbr (sun, glitter, shadows) / ours by day, medians of {args.repeat} "
                   f"interleaved: {med['ship-day'] / med['day']:.2f}x wall, {cpu['ship-day'] / cpu['day']:.2f}x CPU "
                   f"(budget 1.5x)")
+            print(f"{size:>6} ship look by day, pbr / the default scene by day under pbr too (what the ship look adds "
+                  f"to a pbr frame), medians of {args.repeat} interleaved: {med['ship-day'] / med['pbr-day']:.2f}x wall, "
+                  f"{cpu['ship-day'] / cpu['pbr-day']:.2f}x CPU")
 
 
 if __name__ == "__main__":
