@@ -205,19 +205,28 @@ def plot(results: pd.DataFrame, path: Path) -> None:
     plt.close(fig)
 
 
+def in_ladder_order(res: pd.DataFrame) -> pd.DataFrame:
+    """The results' rows in the order of :func:`datasets` (stable within a dataset)."""
+    order = {k: i for i, k in enumerate(datasets())}
+    return res.sort_values("dataset", key=lambda c: c.map(order), kind="stable")
+
+
+def write_ladder_report(out: Path, res: pd.DataFrame, meta: dict) -> None:
+    """``frames_ok.png`` and ``report.md`` of results in ladder order, printed."""
+    plot(res, out / "frames_ok.png")
+    with atomic_open(out / "report.md", "w") as fh:
+        fh.write(markdown(res, {k: v[1] for k, v in datasets().items()}, meta))
+    print((out / "report.md").read_text())
+
+
 def rewrite_report(out: Path) -> int:
     """Write ``report.md`` and ``frames_ok.png`` again from ``out``'s results and manifest (``--report-only``)."""
     if not (out / "results.csv").exists() or not (out / "manifest.json").exists():
         print(f"detector_ladder: {out} holds no results.csv and manifest.json to report; run the ladder "
               "first", file=sys.stderr)
         return 2
-    every = datasets()
-    res = pd.read_csv(out / "results.csv")
-    res = res.sort_values("dataset", key=lambda c: c.map({k: i for i, k in enumerate(every)}), kind="stable")
-    plot(res, out / "frames_ok.png")
-    with atomic_open(out / "report.md", "w") as fh:
-        fh.write(markdown(res, {k: v[1] for k, v in every.items()}, json.loads((out / "manifest.json").read_text())))
-    print((out / "report.md").read_text())
+    write_ladder_report(out, in_ladder_order(pd.read_csv(out / "results.csv")),
+                        json.loads((out / "manifest.json").read_text()))
     return 0
 
 
@@ -279,7 +288,7 @@ def main(argv: list[str] | None = None) -> int:
             res.to_csv(tmp, index=False, float_format="%.6g")
     res = pd.concat(tables, ignore_index=True)
     every = datasets()
-    res = res.sort_values("dataset", key=lambda c: c.map({k: i for i, k in enumerate(every)}), kind="stable")
+    res = in_ladder_order(res)
     this_run = {"command": " ".join([".venv/bin/python", "benchmarks/detector_ladder.py", *(argv or sys.argv[1:])]),
                 "commit": commit, "machine": f"{platform.machine()}, {os.cpu_count()} cores",
                 "load_start": load0, "load_end": os.getloadavg()[0], "minutes": (time.time() - t0) / 60,
@@ -295,12 +304,9 @@ def main(argv: list[str] | None = None) -> int:
                              if k not in ("bootstrap_seed", "detectors", "runs")})
     runs.append(this_run)
     meta = {"runs": runs, "bootstrap_seed": args.seed, "detectors": names}
-    plot(res, out / "frames_ok.png")
-    with atomic_open(out / "report.md", "w") as fh:
-        fh.write(markdown(res, {k: v[1] for k, v in every.items()}, meta))
     with atomic_open(out / "manifest.json", "w") as fh:
         json.dump(meta, fh, indent=2)
-    print((out / "report.md").read_text())
+    write_ladder_report(out, res, meta)
     return 0
 
 
