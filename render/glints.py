@@ -142,8 +142,8 @@ def glint_points(n_glints: int, slope_sigma: float, R_world_from_plane: NDArray[
     T = camera_pose.T_cam_from_world
     kept: list[NDArray[np.float64]] = []
     batch = max(64, 4 * n_glints)
-    drawn = 0
-    while sum(len(k) for k in kept) < n_glints and drawn < MAX_TRIES_PER_GLINT * n_glints:
+    drawn = n_kept = 0
+    while n_kept < n_glints and drawn < MAX_TRIES_PER_GLINT * n_glints:
         X = facet_mirror_points(rng.normal(0.0, slope_sigma, (batch, 2)), R, P0, to_light_world, C)
         drawn += batch
         X = X[np.isfinite(X).all(axis=1)]
@@ -157,6 +157,7 @@ def glint_points(n_glints: int, slope_sigma: float, R_world_from_plane: NDArray[
         if len(X) and occluder_world is not None:
             X = X[~_hidden(X, C, occluder_world)]
         kept.append(X)
+        n_kept += len(X)
     return np.concatenate(kept)[:n_glints]
 
 
