@@ -235,14 +235,17 @@ def bench_detect_rendered(dataset: Path, frame_id: int, repeats: int) -> None:
 
     import pandas as pd
 
-    beacons = pd.read_parquet(dataset / "beacons.parquet")
-    truth = beacons[(beacons.frame_id == frame_id) & beacons.visible]
     src = dataset / "images" / f"{frame_id:06d}.png"
     cams = sorted((dataset / "cameras").glob("*.yaml"))
-    img = cv2.imread(str(src), cv2.IMREAD_UNCHANGED)
+    truth = pd.DataFrame()
+    if (dataset / "beacons.parquet").is_file():
+        beacons = pd.read_parquet(dataset / "beacons.parquet")
+        truth = beacons[(beacons.frame_id == frame_id) & beacons.visible]
+    img = cv2.imread(str(src), cv2.IMREAD_UNCHANGED) if src.is_file() else None
     if img is None or len(cams) != 1 or truth.empty:
-        raise SystemExit(f"bench_vs_opencv: {dataset} needs images/{frame_id:06d}.png, one camera file and that "
-                         "frame's visible beacons; render a one-camera dataset with images")
+        raise SystemExit(f"bench_vs_opencv: {dataset} needs images/{frame_id:06d}.png, one camera file and "
+                         "beacons.parquet with that frame's visible beacons; render a one-camera dataset with "
+                         "images")
     grey = img.astype(np.float32).sum(axis=2) if img.ndim == 3 else img.astype(np.float32)
     med = float(np.median(grey))
     thr = med + 6 * 1.4826 * float(np.median(np.abs(grey - med)))
