@@ -72,47 +72,71 @@ class Splat:
     cov_px2: NDArray[np.float64] = field(default_factory=lambda: np.full((2, 2), np.nan))
 
 
-def _centre_and_jacobian(layout: DeckLayout, ship: ShipPose, camera_pose: CameraPose,
-                         camera: CameraModel, emitter: EmitterShape = EmitterShape.FLAT
-                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Light centres (N,2), Jacobians (N,2,2) px/m of deck (x, y), a usable mask (N,), and
-    the beacons' camera-frame positions (N,3) and the deck normal in the camera frame (3,).
+def _centres_and_jacobians(layout: DeckLayout, T_cam_from_deck: NDArray[np.float64], camera: CameraModel,
+                           emitter: EmitterShape = EmitterShape.FLAT
+                           ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.bool_],
+                                      NDArray[np.float64], NDArray[np.float64]]:
+    """Each beacon's light centre and Jacobian under its own transforms, in one batch.
 
-    The light centre is the projected centre for a flat emitter and the dome's light
-    centroid (:func:`deckpose.render.emitter.dome_light_centroids`) for a domed one.
+    Parameters
+    ----------
+    layout : DeckLayout
+    T_cam_from_deck : (N, k, 4, 4) array of float
+        Beacon ``i``'s deck-to-camera transform at each of its ``k`` sub-poses.
+    camera : CameraModel
+    emitter : EmitterShape
+        The light centre is the projected centre for a flat emitter and the dome's light
+        centroid (:func:`deckpose.render.emitter.dome_light_centroids`) for a domed one.
+
+    Returns
+    -------
+    centre : (N, k, 2) array of float, pixels
+    J : (N, k, 2, 2) array of float
+        px per metre of deck (x, y).
+    usable : (N, k) array of bool
+        In front of the camera, facing it (and, domed, with a light centroid).
+    P_cam : (N, k, 3) array of float
+        The beacon's centre in the camera frame, metres.
+    normal_cam : (N, k, 3) array of float
+        The deck normal in the camera frame.
     """
-    T = T_cam_from_deck(ship, camera_pose)
-    P = layout.positions_deck_m()
+    T = np.asarray(T_cam_from_deck, float)
+    R, t = T[..., :3, :3], T[..., :3, 3]
     d = layout.beacon_radius_m
     offsets = np.array([[0, 0, 0], [d, 0, 0], [-d, 0, 0], [0, d, 0], [0, -d, 0]], float)
-    pts = (P[:, None, :] + offsets[None]).reshape(-1, 3)
-    P_cam = pts @ T[:3, :3].T + T[:3, 3]
-    ok = (P_cam[:, 2] > 1e-6).reshape(-1, 5).all(axis=1)
-    n_cam = T[:3, 2]
-    centres_cam = P @ T[:3, :3].T + T[:3, 3]
-    facing = (-centres_cam) @ n_cam > 0.0
-    uv = np.full((P_cam.shape[0], 2), np.nan)
-    good = np.repeat(ok, 5)
-    if good.any():
-        uv[good] = camera.project(P_cam[good])
-    uv = uv.reshape(-1, 5, 2)
-    J = np.stack([(uv[:, 1] - uv[:, 2]) / (2 * d), (uv[:, 3] - uv[:, 4]) / (2 * d)], axis=-1)
-    centre = uv[:, 0]
+    pts = layout.positions_deck_m()[:, None, :] + offsets[None]  # (N, 5, 3)
+    P_cam = np.einsum("nkij,nsj->nksi", R, pts) + t[:, :, None, :]  # (N, k, 5, 3)
+    ok = (P_cam[..., 2] > 1e-6).all(axis=-1)
+    n_cam = R[..., :, 2]
+    centres_cam = P_cam[:, :, 0]
+    facing = np.einsum("nki,nki->nk", -centres_cam, n_cam) > 0.0
+    uv = np.full(P_cam.shape[:-1] + (2,), np.nan)
+    if ok.any():
+        uv[ok] = camera.project(P_cam[ok].reshape(-1, 3)).reshape(-1, 5, 2)
+    J = np.stack([(uv[..., 1, :] - uv[..., 2, :]) / (2 * d), (uv[..., 3, :] - uv[..., 4, :]) / (2 * d)], axis=-1)
+    centre = uv[..., 0, :]
     if emitter is EmitterShape.DOME:
-        dome = dome_light_centroids(layout, T, camera)
-        ok &= np.isfinite(dome).all(axis=1)
-        centre = dome
-    return centre, J, ok & facing, np.stack([centres_cam, np.broadcast_to(n_cam, centres_cam.shape)])
+        centre = np.stack([np.stack([dome_light_centroids(layout, Tj, camera)[i] for Tj in T[i]])
+                           for i in range(T.shape[0])])
+        ok &= np.isfinite(centre).all(axis=-1)
+    return centre, J, ok & facing, centres_cam, n_cam
 
 
-def _gaussian_patch(centre: np.ndarray, cov: np.ndarray, flux: float, row0: int, col0: int,
-                    h: int, w: int) -> NDArray[np.float32]:
-    inv = np.linalg.inv(cov)
-    norm = flux / (2 * np.pi * np.sqrt(np.linalg.det(cov)))
-    du = (np.arange(col0, col0 + w) - centre[0])[None, :]
-    dv = (np.arange(row0, row0 + h) - centre[1])[:, None]
-    q = inv[0, 0] * du * du + 2 * inv[0, 1] * du * dv + inv[1, 1] * dv * dv
-    return (norm * np.exp(-0.5 * q)).astype(np.float32)
+#: The core Gaussians' window in their own sigmas (the halo's is ``4 halo_scale`` of them): 8 sigma
+#: leaves exp(-32) = 1.3e-14 of the peak outside, far below a float32 pixel's resolution.
+CORE_WINDOW_SIGMAS = 8.0
+
+
+def _gaussian_patches(centres: NDArray[np.float64], covs: NDArray[np.float64], fluxes: NDArray[np.float64],
+                      row0: int, col0: int, h: int, w: int) -> NDArray[np.float32]:
+    """The sum of Gaussians of ``fluxes`` (M,) at ``centres`` (M, 2) with ``covs`` (M, 2, 2) on an (h, w) window."""
+    inv = np.linalg.inv(covs)
+    norm = fluxes / (2 * np.pi * np.sqrt(np.linalg.det(covs)))
+    du = np.arange(col0, col0 + w)[None, None, :] - centres[:, 0, None, None]
+    dv = np.arange(row0, row0 + h)[None, :, None] - centres[:, 1, None, None]
+    q = (inv[:, 0, 0, None, None] * du * du + 2 * inv[:, 0, 1, None, None] * du * dv
+         + inv[:, 1, 1, None, None] * dv * dv)
+    return np.asarray((norm[:, None, None] * np.exp(-0.5 * q)).astype(np.float32).sum(axis=0), np.float32)
 
 
 def spot_splat(comps: list[tuple[np.ndarray, np.ndarray, float]], rgb: tuple[float, float, float],
@@ -141,14 +165,19 @@ def spot_splat(comps: list[tuple[np.ndarray, np.ndarray, float]], rgb: tuple[flo
     if col0 + 2 * half < 0 or row0 + 2 * half < 0 or col0 >= camera.width_px or row0 >= camera.height_px:
         return None
     n = 2 * half + 1
-    patch = np.zeros((n, n), np.float32)
     k = len(comps)
-    for c, cov, flux in comps:
-        core = (1.0 - sensor.halo_fraction) * flux / k
-        patch += _gaussian_patch(c, cov, core, row0, col0, n, n)
-        if sensor.halo_fraction > 0:
-            patch += _gaussian_patch(c, cov * sensor.halo_scale ** 2, sensor.halo_fraction * flux / k,
-                                     row0, col0, n, n)
+    covs = np.array([cv for _, cv, _ in comps])
+    fluxes = np.array([f for _, _, f in comps]) / k
+    h = sensor.halo_fraction
+    # the cores on CORE_WINDOW_SIGMAS of their own sigma round the centre (beyond: < 1e-14 of the peak)
+    core_half = min(half, int(np.ceil(CORE_WINDOW_SIGMAS * np.sqrt(max(np.linalg.eigvalsh(covs)[:, -1]))
+                                      + np.ptp(centres, axis=0).max() / 2 + 1)))
+    patch = np.zeros((n, n), np.float32)
+    a = half - core_half
+    patch[a:n - a, a:n - a] = _gaussian_patches(centres, covs, (1.0 - h) * fluxes, row0 + a, col0 + a,
+                                                n - 2 * a, n - 2 * a)
+    if h > 0:  # each sub-pose's halo on the whole window
+        patch += _gaussian_patches(centres, covs * sensor.halo_scale ** 2, h * fluxes, row0, col0, n, n)
     core_flux = (1.0 - sensor.halo_fraction) * sum(f for _, _, f in comps) / k
     spread = centres - centres.mean(axis=0)
     S = sum(cv for _, cv, _ in comps) / k + spread.T @ spread / k
@@ -159,8 +188,7 @@ def spot_splat(comps: list[tuple[np.ndarray, np.ndarray, float]], rgb: tuple[flo
 
 def beacon_splats(layout: DeckLayout, poses: tuple[ShipPose, ...], camera_pose: CameraPose,
                   camera: CameraModel, sensor: SensorSpec, leds: LedSpec = LedSpec(),
-                  unit_factors: np.ndarray | None = None, *,
-                  beacon_ids: tuple[int, ...] | None = None) -> list[Splat]:
+                  unit_factors: np.ndarray | None = None) -> list[Splat]:
     """Splats of every beacon the camera can see, averaged over ``poses`` (the exposure).
 
     Parameters
@@ -176,29 +204,52 @@ def beacon_splats(layout: DeckLayout, poses: tuple[ShipPose, ...], camera_pose: 
         The beacons' light model (:func:`deckpose.render.light.beacon_flux`).
     unit_factors : (N,) array of float, optional
         Each unit's intensity factor (:func:`deckpose.render.light.unit_factors`; default 1).
-    beacon_ids : tuple of int, optional
-        Only these beacons (default: all); the rolling shutter gives each beacon its own poses.
 
     Returns
     -------
     list of Splat
         Beacons facing the camera whose window touches the image.
     """
-    per_pose = [_centre_and_jacobian(layout, p, camera_pose, camera, leds.emitter) for p in poses]
+    T = np.stack([T_cam_from_deck(p, camera_pose) for p in poses])
+    return splats_under(layout, np.broadcast_to(T, (layout.n_beacons,) + T.shape), camera, sensor, leds,
+                        unit_factors)
+
+
+def splats_under(layout: DeckLayout, T_cam_from_deck: NDArray[np.float64], camera: CameraModel,
+                 sensor: SensorSpec, leds: LedSpec = LedSpec(), unit_factors: np.ndarray | None = None
+                 ) -> list[Splat]:
+    """Splats of the beacons, each averaged over its own deck-to-camera transforms.
+
+    :func:`beacon_splats` gives every beacon the same transforms; the rolling shutter
+    (:mod:`deckpose.render.rolling_shutter`) gives each its own, at its own rows' time.
+
+    Parameters
+    ----------
+    layout : DeckLayout
+    T_cam_from_deck : (N, k, 4, 4) array of float
+        Beacon ``i``'s transform at each of the ``k`` sub-poses of its exposure.
+    camera, sensor, leds, unit_factors
+        As :func:`beacon_splats`.
+
+    Returns
+    -------
+    list of Splat
+        Beacons usable at every sub-pose whose window touches the image, in id order.
+    """
+    centre, J, ok, P_cam, n_cam = _centres_and_jacobians(layout, T_cam_from_deck, camera, leds.emitter)
+    n, k = ok.shape
     r = layout.beacon_radius_m
     s2 = sensor.psf_sigma_px ** 2
-    factors = np.ones(layout.n_beacons) if unit_factors is None else np.asarray(unit_factors, float)
-    fluxes = [beacon_flux(layout, camera, sensor, leds, J, geo[0], geo[1][0]) * factors
-              for _, J, _, geo in per_pose]
+    factors = np.ones(n) if unit_factors is None else np.asarray(unit_factors, float)
+    flux = beacon_flux(layout, camera, sensor, leds, J.reshape(-1, 2, 2), P_cam.reshape(-1, 3),
+                       n_cam.reshape(-1, 3)).reshape(n, k) * factors[:, None]
+    cov = J @ np.swapaxes(J, -1, -2) * (r * r / 4.0) + s2 * np.eye(2)
     out: list[Splat] = []
     colours = layout.beacon_rgb_all()
-    for i in range(layout.n_beacons) if beacon_ids is None else beacon_ids:
-        if not all(m[2][i] for m in per_pose):
-            continue
-        comps = [(c[i], J[i] @ J[i].T * (r * r / 4.0) + s2 * np.eye(2), float(f[i]))
-                 for (c, J, _, _), f in zip(per_pose, fluxes)]
+    for i in np.flatnonzero(ok.all(axis=1)):
+        comps = [(centre[i, j], cov[i, j], float(flux[i, j])) for j in range(k)]
         r_, g_, b_ = (float(c) for c in colours[i])
-        sp = spot_splat(comps, (r_, g_, b_), sensor, camera, i)
+        sp = spot_splat(comps, (r_, g_, b_), sensor, camera, int(i))
         if sp is not None:
             out.append(sp)
     return out

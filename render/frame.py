@@ -33,7 +33,6 @@ from deckpose.render.lens import distort, raster_camera
 from deckpose.render.light import unit_factors
 from deckpose.render.occlusion import OCCLUSION_STREAM, OcclusionRecord, occlude
 from deckpose.render.optics import (
-    NO_KERNELS,
     LensedFrame,
     OpticsRecord,
     lens_record,
@@ -60,6 +59,7 @@ from deckpose.render.ship_lights import (
     lights_in_camera_m,
     ship_lights,
 )
+from deckpose.render.split_kernels import NO_PARTS
 
 from deckpose.camera import CameraModel
 from deckpose.projection import BeaconProjection, project_layout
@@ -144,7 +144,7 @@ def render_frame(cfg: RenderConfig, spec: FrameSpec, camera: CameraModel,
     spots = lens.spots if lens else spot_record(raster, scale, splats, sensor, cfg.layout.n_beacons)
     record = lens.record if lens else None
     if record is None and sensor.bayer is not BayerPattern.NONE:  # the bound of the mosaic, no lens
-        record = lens_record(OpticsSpec(), camera, sensor, splats, [(NO_KERNELS, 1.0)] * len(splats), spots,
+        record = lens_record(OpticsSpec(), camera, sensor, splats, [(NO_PARTS, 1.0)] * len(splats), spots,
                              proj.points_px, proj.depth_m)
     pattern = fixed_pattern(sensor, cfg.seed, camera.name, *raster.shape[:2])
     gain = lens.background_gain if lens else None

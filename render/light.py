@@ -72,8 +72,9 @@ def point_light_gain(P_cam: NDArray[np.float64], normal_cam: NDArray[np.float64]
     ----------
     P_cam : (N, 3) array of float
         The lights in the camera frame, metres.
-    normal_cam : (3,) array of float or None
-        The emitters' axis in the camera frame (the deck normal); None: isotropic.
+    normal_cam : (3,) or (N, 3) array of float, or None
+        The emitters' axis in the camera frame (the deck normal), one for all or one per
+        light; None: isotropic.
     camera : CameraModel
     exponent : float
         ``m`` of the emission pattern (ignored when ``normal_cam`` is None).
@@ -83,7 +84,7 @@ def point_light_gain(P_cam: NDArray[np.float64], normal_cam: NDArray[np.float64]
     cos_phi = np.clip(P[:, 2] / d, 0.0, 1.0)
     gain = camera.fx * camera.fy * cos_phi / (d * d)
     if normal_cam is not None:
-        cos_theta = np.clip(-(P @ np.asarray(normal_cam, float)) / d, 0.0, 1.0)
+        cos_theta = np.clip(-(P * np.asarray(normal_cam, float)).sum(axis=-1) / d, 0.0, 1.0)
         gain = gain * cos_theta ** exponent
     return gain
 
@@ -104,8 +105,8 @@ def beacon_flux(layout: DeckLayout, camera: CameraModel, sensor: SensorSpec, led
         Projection Jacobians at the beacons, px per metre of deck (``disc`` model).
     P_cam : (N, 3) array of float
         Beacon centres in the camera frame, metres.
-    normal_cam : (3,) array of float
-        The deck normal in the camera frame.
+    normal_cam : (3,) or (N, 3) array of float
+        The deck normal in the camera frame (one per beacon where the poses differ).
 
     Returns
     -------

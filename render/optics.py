@@ -67,25 +67,23 @@ from deckpose.render.psf_kernels import (
     airy_kernel,
     convolve_kernels,
     disk_kernel,
-    full_convolution,
     gaussian_kernel,
     glare_kernel,
     kernel_covariance,
     mix_kernels,
-    pad_kernel,
-    shift_kernel,
     spike_angles_rad,
     spike_kernel,
 )
 from deckpose.render.sensor import SpotRecord, spot_record
 from deckpose.render.sensor_config import SensorSpec
+from deckpose.render.split_kernels import KernelParts, compose_parts, through_parts
 from deckpose.render.spot_bound import spot_crb_px
 from numpy.typing import NDArray
 
 from deckpose.camera import CameraModel
 
 __all__ = [
-    "NO_KERNELS", "OPTICS_CHANNELS", "OPTICS_COLUMNS", "KernelParts", "LensedFrame", "OpticsRecord", "SpotOptics",
+    "OPTICS_CHANNELS", "OPTICS_COLUMNS", "LensedFrame", "OpticsRecord", "SpotOptics",
     "apply_optics", "ca_centres_px", "channel_flux_e", "channel_kernels", "defocus_diameter_px", "field_sigma_px",
     "focal_length_m", "kernel_parts", "lens_record", "optics_block", "optics_record", "optics_row", "through_lens",
     "vignetting_gain", "vignetting_rows",
@@ -166,21 +164,6 @@ def field_sigma_px(points_px: NDArray[np.float64], camera: CameraModel, optics: 
     return np.asarray(optics.field_blur_px * (rho / rho_c) ** 2, float)
 
 
-@dataclass(frozen=True)
-class KernelParts:
-    """A light's kernels in the parts they are applied in (:func:`channel_kernels` composes them).
-
-    ``K_c = shift(shifts_px[c]) * (core_weight * cores[c] + wide)``: ``cores`` the red, green
-    and blue small kernels (Airy * disc * field blur), ``wide`` the glare and spikes
-    (already weighted by their fractions; None without them), the same for every channel.
-    """
-
-    cores: tuple[Kernel, Kernel, Kernel]
-    core_weight: float
-    wide: Kernel | None
-    shifts_px: NDArray[np.float64]
-
-
 def kernel_parts(optics: OpticsSpec, camera: CameraModel, depth_m: float, centre_px: NDArray[np.float64]
                  ) -> KernelParts:
     """The :class:`KernelParts` of a light at ``depth_m`` seen at ``centre_px`` (2,)."""
@@ -207,12 +190,6 @@ def _wide_kernel(optics: OpticsSpec) -> Kernel | None:
     return k
 
 
-def _shift_radius(shifts_px: NDArray[np.float64]) -> int:
-    """The radius of the channels' shift kernels (0: no chromatic aberration)."""
-    m = float(np.abs(shifts_px).max())
-    return math.ceil(m) + 1 if m > 0 else 0
-
-
 def channel_kernels(optics: OpticsSpec, camera: CameraModel, depth_m: float, centre_px: NDArray[np.float64]
                     ) -> tuple[Kernel, Kernel, Kernel]:
     """The red, green and blue kernels ``K_c`` of a light at ``depth_m`` seen at ``centre_px``.
@@ -223,53 +200,15 @@ def channel_kernels(optics: OpticsSpec, camera: CameraModel, depth_m: float, cen
         Each sums to 1; all but the CA shift point-symmetric about ``[k // 2, k // 2]``.
     """
     parts = kernel_parts(optics, camera, depth_m, centre_px)
-    return _compose(parts)
-
-
-def _compose(parts: KernelParts) -> tuple[Kernel, Kernel, Kernel]:
-    rs = _shift_radius(parts.shifts_px)
-    out = []
-    for c in range(OPTICS_CHANNELS):
-        k = mix_kernels([(parts.core_weight, parts.cores[c])] + ([(1.0, parts.wide)] if parts.wide is not None else []))
-        if rs:
-            k = convolve_kernels(k, shift_kernel(parts.shifts_px[c], rs))
-        out.append(k)
-    radius = max(k.shape[0] // 2 for k in out)
-    r, gr, b = (pad_kernel(k, radius) for k in out)
-    return r, gr, b
+    return compose_parts(parts)
 
 
 @dataclass(frozen=True)
 class SpotOptics:
-    """The optics applied to one splat: its channel kernels (composed) and vignetting gain."""
+    """The optics applied to one splat: its channel kernels (in parts) and vignetting gain."""
 
-    kernels: tuple[Kernel, Kernel, Kernel]
+    parts: KernelParts
     gain: float
-
-
-def _lens_patch(patch: NDArray[np.float32], parts: KernelParts) -> NDArray[np.float32]:
-    """A window through :class:`KernelParts`: ``(h, w)`` in, ``(h + 2R, w + 2R, 3)`` out.
-
-    By linearity, ``patch * K_c = shift_c * (core_weight (patch * core_c) + patch * wide)``:
-    the wide kernel (the costly one) is applied once, not once per channel.
-    """
-    wide = full_convolution(patch, parts.wide) if parts.wide is not None else None
-    r_core = max(k.shape[0] // 2 for k in parts.cores)
-    r_mix = max(r_core, 0 if parts.wide is None else parts.wide.shape[0] // 2)
-    rs = _shift_radius(parts.shifts_px)
-    channels = []
-    for c in range(OPTICS_CHANNELS):
-        core = full_convolution(patch, parts.cores[c]) * np.float32(parts.core_weight)
-        p = r_mix - parts.cores[c].shape[0] // 2
-        ch = np.pad(core, p) if p else core
-        if wide is not None:
-            q = r_mix - parts.wide.shape[0] // 2 if parts.wide is not None else 0
-            ch = ch + (np.pad(wide, q) if q else wide)
-        if rs:
-            ch = full_convolution(ch, shift_kernel(parts.shifts_px[c], rs))
-        channels.append(ch)
-    out = np.stack(channels, axis=-1)
-    return np.maximum(out, 0, out=out)  # light: no negative round-off of the DFT
 
 
 def apply_optics(splats: list[Splat], depth_m: NDArray[np.float64], optics: OpticsSpec, camera: CameraModel
@@ -293,23 +232,22 @@ def apply_optics(splats: list[Splat], depth_m: NDArray[np.float64], optics: Opti
         vignetting; ``cov_px2`` and ``sigma_px`` include the green kernel's second moment.
     list of SpotOptics
         What was applied, per splat (for a light that is not a beacon, ``beacon_id < 0``,
-        the kernels are not composed: (1, 1) placeholders, and its ``sigma_px`` is the core's).
+        its ``sigma_px`` is the core's: the kernels are not composed).
     """
     out: list[Splat] = []
     used: list[SpotOptics] = []
     for sp, d in zip(splats, np.asarray(depth_m, float)):
         parts = kernel_parts(optics, camera, float(d), sp.centre_px)
         gain = float(vignetting_gain(sp.centre_px, camera, optics.vignetting_exponent)[0])
-        patch = _lens_patch(sp.patch, parts) * np.float32(gain)
+        patch = np.stack(through_parts(sp.patch, parts), axis=-1)
+        patch = np.maximum(patch, 0, out=patch) * np.float32(gain)  # light: no negative round-off of the DFT
         r = (patch.shape[0] - sp.patch.shape[0]) // 2
-        # the composed kernels (the bound and sigma need them) for beacons; other lights record neither
-        one: Kernel = np.ones((1, 1))
-        kernels = _compose(parts) if sp.beacon_id >= 0 else (one, one, one)
-        cov = sp.cov_px2 + kernel_covariance(kernels[1])
-        out.append(replace(sp, row0=sp.row0 - r, col0=sp.col0 - r, patch=patch.astype(np.float32),
+        # the green kernel's second moment widens a beacon's recorded sigma; other lights record the core's
+        cov = sp.cov_px2 + kernel_covariance(compose_parts(parts)[1]) if sp.beacon_id >= 0 else sp.cov_px2
+        out.append(replace(sp, row0=sp.row0 - r, col0=sp.col0 - r, patch=patch.astype(np.float32, copy=False),
                            sigma_px=float(np.linalg.det(cov)) ** 0.25, core_flux=sp.core_flux * gain,
                            cov_px2=cov))
-        used.append(SpotOptics(kernels, gain))
+        used.append(SpotOptics(parts, gain))
     return out, used
 
 
@@ -459,7 +397,7 @@ def through_lens(optics: OpticsSpec, camera: CameraModel, sensor: SensorSpec, ra
     spots = spot_record(raster, scale_rgb, lensed, sensor, n)
     vig = vignetting_gain(points_px, camera, optics.vignetting_exponent)
     spots = replace(spots, background_e=spots.background_e * np.where(np.isfinite(vig), vig, 1.0))
-    record = lens_record(optics, camera, sensor, beacons, [(u.kernels, u.gain) for u in used], spots, points_px,
+    record = lens_record(optics, camera, sensor, beacons, [(u.parts, u.gain) for u in used], spots, points_px,
                          depth_m)
     if optics.bloom:
         vig = (camera, optics.vignetting_exponent) if optics.vignetting_exponent > 0 else None
@@ -468,12 +406,8 @@ def through_lens(optics: OpticsSpec, camera: CameraModel, sensor: SensorSpec, ra
     return LensedFrame(lensed, lensed_lights, spots, record, gain_rows)
 
 
-#: The kernels of no optics: each channel's the identity (:func:`lens_record` without a lens).
-NO_KERNELS: tuple[Kernel, Kernel, Kernel] = (np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1)))
-
-
 def lens_record(optics: OpticsSpec, camera: CameraModel, sensor: SensorSpec, beacons: list[Splat],
-                lens: list[tuple[tuple[Kernel, Kernel, Kernel], float]], spots: SpotRecord,
+                lens: list[tuple[KernelParts, float]], spots: SpotRecord,
                 points_px: NDArray[np.float64], depth_m: NDArray[np.float64]) -> OpticsRecord:
     """The frame's :class:`OpticsRecord`, with each beacon's bound (:func:`spot_crb_px`) under its lens.
 
@@ -483,7 +417,8 @@ def lens_record(optics: OpticsSpec, camera: CameraModel, sensor: SensorSpec, bea
     beacons : list of Splat
         The beacons' splats before the optics.
     lens : list of ((3 kernels), float)
-        Each splat's channel kernels and vignetting gain (no optics: :data:`NO_KERNELS` and 1).
+        Each splat's channel kernels and vignetting gain (no optics:
+        :data:`deckpose.render.split_kernels.NO_PARTS` and 1).
     spots : SpotRecord
         The spots' record (its background under the beacon, vignetted).
     points_px, depth_m : (N, 2) and (N,) arrays of float
@@ -492,9 +427,9 @@ def lens_record(optics: OpticsSpec, camera: CameraModel, sensor: SensorSpec, bea
     n = points_px.shape[0]
     crb = np.full(n, np.nan)
     rgb = np.full((n, OPTICS_CHANNELS), np.nan)
-    for sp, (kernels, gain) in zip(beacons, lens):
+    for sp, (parts, gain) in zip(beacons, lens):
         rgb[sp.beacon_id] = sp.rgb
-        crb[sp.beacon_id] = spot_crb_px(sp, kernels, gain, float(spots.background_e[sp.beacon_id]), sensor)
+        crb[sp.beacon_id] = spot_crb_px(sp, parts, gain, float(spots.background_e[sp.beacon_id]), sensor)
     return optics_record(optics, camera, points_px, depth_m, crb, channel_flux_e(spots.flux_e, rgb))
 
 

@@ -12,18 +12,37 @@ from __future__ import annotations
 import functools
 import math
 from collections.abc import Callable
+from typing import cast
 
 import cv2
 import numpy as np
+import scipy.fft
 from deckpose.render.optics_config import OpticsSpec
 from numpy.typing import NDArray
 from scipy.special import erf, j1
 
 __all__ = [
-    "AIRY_TRUNCATION", "GAUSSIAN_TRUNCATION", "GLARE_TRUNCATION", "KERNEL_OVERSAMPLE", "SPIKE_TRUNCATION",
-    "SPIKE_WIDTH_PX", "Kernel", "airy_first_zero_px", "airy_kernel", "convolve_kernels", "disk_kernel",
-    "full_convolution", "gaussian_kernel", "glare_kernel", "kernel_covariance", "mix_kernels", "pad_kernel",
-    "shift_kernel", "spike_angles_rad", "spike_kernel",
+    "AIRY_TRUNCATION",
+    "FFT_RADIUS_PX",
+    "GAUSSIAN_TRUNCATION",
+    "GLARE_TRUNCATION",
+    "KERNEL_OVERSAMPLE",
+    "SPIKE_TRUNCATION",
+    "SPIKE_WIDTH_PX",
+    "Kernel",
+    "airy_first_zero_px",
+    "airy_kernel",
+    "convolve_kernels",
+    "disk_kernel",
+    "full_convolution",
+    "gaussian_kernel",
+    "glare_kernel",
+    "kernel_covariance",
+    "mix_kernels",
+    "pad_kernel",
+    "shift_kernel",
+    "spike_angles_rad",
+    "spike_kernel",
 ]
 
 #: Sub-samples per pixel side when a kernel is integrated over pixels (odd: one falls on the centre).
@@ -148,18 +167,47 @@ def shift_kernel(shift_px: NDArray[np.float64], radius_px: int | None = None) ->
     return k
 
 
+#: Kernels of this radius or more go through their Fourier transform (scipy.fft, the kernel's
+#: transform cached), smaller ones through OpenCV's ``filter2D``: at the glare kernel's radius 24 on
+#: a 131 px window the transform is 4.5x faster; at radius 5 the two are even.
+FFT_RADIUS_PX = 8
+
+
 def full_convolution(image: NDArray[np.floating], kernel: Kernel) -> NDArray[np.floating]:
     """The full discrete convolution of an (n, m) window with a (2R+1, 2R+1) kernel, (n + 2R, m + 2R).
 
-    OpenCV's ``filter2D`` (a DFT for large kernels) on the window padded with R zeros each
-    side; it correlates, so the kernel is turned by 180 degrees. Same dtype as ``image``.
+    ``image`` may carry channels, (n, m, c), each convolved alike. Below
+    :data:`FFT_RADIUS_PX`, OpenCV's ``filter2D`` on the window padded with R zeros each side
+    (it correlates, so the kernel is turned by 180 degrees); from it on, the product of the
+    discrete Fourier transforms, zero-padded to a fast length. Same dtype as ``image``.
     """
     r = kernel.shape[0] // 2
     if r == 0:
         return image * image.dtype.type(kernel[0, 0])
+    if r >= FFT_RADIUS_PX:
+        return _fft_convolution(image, kernel)
     padded = cv2.copyMakeBorder(np.ascontiguousarray(image), r, r, r, r, cv2.BORDER_CONSTANT, value=0)
     k = np.ascontiguousarray(kernel[::-1, ::-1], dtype=image.dtype)
     return np.asarray(cv2.filter2D(padded, -1, k, borderType=cv2.BORDER_CONSTANT), image.dtype)
+
+
+def _fft_convolution(image: NDArray[np.floating], kernel: Kernel) -> NDArray[np.floating]:
+    m0, m1 = image.shape[0] + kernel.shape[0] - 1, image.shape[1] + kernel.shape[1] - 1
+    shape = (scipy.fft.next_fast_len(m0, real=True), scipy.fft.next_fast_len(m1, real=True))
+    k = np.ascontiguousarray(kernel, dtype=image.dtype)
+    spectrum = _spectrum(k.tobytes(), k.shape, k.dtype.str, shape)
+    if image.ndim == 3:
+        spectrum = spectrum[:, :, None]
+    f = cast(NDArray[np.complexfloating], scipy.fft.rfft2(image, shape, axes=(0, 1)))
+    out = cast(NDArray[np.floating], scipy.fft.irfft2(f * spectrum, shape, axes=(0, 1)))
+    return np.asarray(out[:m0, :m1], image.dtype)
+
+
+@functools.lru_cache(maxsize=64)
+def _spectrum(data: bytes, kshape: tuple[int, ...], dtype: str, shape: tuple[int, int]) -> NDArray[np.complexfloating]:
+    """The real FFT of a kernel (given by its bytes) zero-padded to ``shape``: each light's lens
+    shares the glare kernel, so its transform is made once per window size."""
+    return cast(NDArray[np.complexfloating], scipy.fft.rfft2(np.frombuffer(data, np.dtype(dtype)).reshape(kshape), shape))
 
 
 def convolve_kernels(a: Kernel, b: Kernel) -> Kernel:

@@ -45,7 +45,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from deckpose.render.beacons import Splat, beacon_splats
+from deckpose.render.beacons import Splat, splats_under
 from deckpose.render.camera_motion import CameraMotion
 from deckpose.render.leds_config import LedSpec
 from deckpose.render.motion_config import MotionSpec
@@ -58,7 +58,7 @@ from deckpose.errors import ConfigError
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose
 from deckpose.projection import BeaconProjection, project_layout
-from deckpose.rotation import R_from_zyx, zyx_from_R
+from deckpose.rotation import R_from_zyx
 
 __all__ = ["ROW_TOLERANCE_PX", "ShipTrack", "ShutterFrame", "rolling_shutter_beacons", "row_time_s"]
 
@@ -145,17 +145,6 @@ def _cam_from_deck(track: ShipTrack, motion: CameraMotion,
     return R_cam_T @ R_deck, np.einsum("mij,mj->mi", R_cam_T, v[:, [4, 5, 3]] - C)
 
 
-def _relative_poses(track: ShipTrack, motion: CameraMotion, t_s: NDArray[np.float64],
-                    cam_ref: CameraPose) -> list[ShipPose]:
-    """The deck poses (M,) that, seen from ``cam_ref``, image as the deck at ``t_s`` seen from the moving camera."""
-    R, t = _cam_from_deck(track, motion, t_s)
-    R_w = cam_ref.R_world_from_cam @ R
-    p_w = t @ cam_ref.R_world_from_cam.T + cam_ref.position_world_m
-    roll, pitch, yaw = zyx_from_R(R_w)
-    return [ShipPose(float(a), float(b), float(c), float(p[2]), float(p[0]), float(p[1]))
-            for a, b, c, p in zip(roll, pitch, yaw, p_w)]
-
-
 def _patch_centroid(sp: Splat) -> NDArray[np.float64]:
     """Light centroid ``(u, v)`` of a splat's patch (core and halo), pixels."""
     p = sp.patch.astype(np.float64)
@@ -233,10 +222,10 @@ def rolling_shutter_beacons(layout: DeckLayout, track: ShipTrack, ship_frame: Sh
         np.array([projs[i].apparent_radius_px[i] for i in range(n)]))
     k = motion_spec.blur_steps if motion_spec.exposure_s > 0 else 1
     offsets = motion_spec.exposure_s * ((np.arange(k) + 0.5) / k - 0.5)
-    splats: list[Splat] = []
-    sub = _relative_poses(track, motion, (t[:, None] + offsets[None, :]).ravel(), cam0)
-    for i in range(n):
-        poses = tuple(sub[i * k:(i + 1) * k])
-        for sp in beacon_splats(layout, poses, cam0, camera, sensor, leds, unit_factors, beacon_ids=(i,)):
-            splats.append(dataclasses.replace(sp, centre_px=_patch_centroid(sp)))
+    # beacon i's sub-poses over its own rows' exposure: the moving camera's view, as cam0 would see it
+    R, tr = _cam_from_deck(track, motion, (t[:, None] + offsets[None, :]).ravel())
+    T = np.zeros((n * k, 4, 4))
+    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = R, tr, 1.0
+    splats = [dataclasses.replace(sp, centre_px=_patch_centroid(sp))
+              for sp in splats_under(layout, T.reshape(n, k, 4, 4), camera, sensor, leds, unit_factors)]
     return ShutterFrame(splats, projection, glob.points_px, t, cam0, iterations)

@@ -12,8 +12,8 @@ import math
 import numpy as np
 from deckpose.render.bayer import filter_channels
 from deckpose.render.beacons import Splat
-from deckpose.render.psf_kernels import Kernel, full_convolution
 from deckpose.render.sensor_config import BayerPattern, SensorSpec
+from deckpose.render.split_kernels import KernelParts, through_parts
 from numpy.typing import NDArray
 
 from deckpose.spot_fisher import centre_crb_px2
@@ -37,8 +37,7 @@ def _gauss(centre: NDArray[np.float64], cov: NDArray[np.float64], row0: int, col
     return G, G * (inv[0, 0] * du + inv[0, 1] * dv), G * (inv[1, 0] * du + inv[1, 1] * dv), G * (q - 2.0)
 
 
-def spot_crb_px(base: Splat, kernels: tuple[Kernel, Kernel, Kernel], gain: float, background_e: float,
-                sensor: SensorSpec) -> float:
+def spot_crb_px(base: Splat, parts: KernelParts, gain: float, background_e: float, sensor: SensorSpec) -> float:
     """Per-axis centroid Cramér–Rao bound of a spot drawn through the optics, pixels.
 
     The spot is the base splat's Gaussian core (``centre_px``, ``cov_px2``) and halo
@@ -52,8 +51,10 @@ def spot_crb_px(base: Splat, kernels: tuple[Kernel, Kernel, Kernel], gain: float
     ----------
     base : Splat
         The splat before the optics (its window, centre, covariance, core flux, colour).
-    kernels : tuple of three (k, k) arrays of float
-        The red, green and blue kernels applied (:func:`deckpose.render.optics.channel_kernels`).
+    parts : KernelParts
+        The red, green and blue kernels applied (:func:`deckpose.render.optics.kernel_parts`;
+        whole kernels: :meth:`KernelParts.from_kernels`), through
+        :func:`deckpose.render.split_kernels.through_parts` as the drawn spot went.
     gain : float
         The vignetting gain applied.
     background_e : float
@@ -85,21 +86,21 @@ def spot_crb_px(base: Splat, kernels: tuple[Kernel, Kernel, Kernel], gain: float
     # the four images as the channels of one (OpenCV filters each channel with the same kernel)
     # float32 (7 digits: the bound to ~1e-6), which OpenCV's DFT runs several times faster than float64
     four_f32 = np.ascontiguousarray(np.moveaxis(terms, 0, -1), np.float32)
+    channels = through_parts(four_f32, parts)
     if sensor.bayer is not BayerPattern.NONE:
-        crb = _mosaic_crb_px2(four_f32, weights, kernels, background_e, extra_e2, sensor.bayer, row0, col0)
+        r = (channels[0].shape[0] - n) // 2  # the convolved window starts r before
+        crb = _mosaic_crb_px2(channels, weights, background_e, extra_e2, sensor.bayer, row0 - r, col0 - r)
         return float(math.sqrt(max(float(np.trace(crb)) / 2.0, 0.0)))
-    kernel = np.asarray(sum(w * k for w, k in zip(weights, kernels)), float)  # the channel sum (linear)
-    four = full_convolution(four_f32, kernel)
-    spot, d_u, d_v, d_s = np.moveaxis(four.astype(np.float64), -1, 0)
+    four = sum(w * ch.astype(np.float64) for w, ch in zip(weights, channels))  # the channel sum (linear)
+    spot, d_u, d_v, d_s = np.moveaxis(np.asarray(four), -1, 0)
     mu = spot + max(background_e, 0.0)
     grads = np.stack([d_u, d_v, d_s, spot, np.ones_like(spot)])
     crb = centre_crb_px2(mu, grads, extra_e2)
     return float(math.sqrt(max(float(np.trace(crb)) / 2.0, 0.0)))
 
 
-def _mosaic_crb_px2(four: NDArray[np.float32], weights: NDArray[np.float64], kernels: tuple[Kernel, Kernel, Kernel],
-                    background_e: float, extra_e2: float, pattern: BayerPattern, row0: int, col0: int
-                    ) -> NDArray[np.float64]:
+def _mosaic_crb_px2(channels: list[NDArray[np.float32]], weights: NDArray[np.float64], background_e: float,
+                    extra_e2: float, pattern: BayerPattern, row0: int, col0: int) -> NDArray[np.float64]:
     """The centre's bound from a colour filter array's photosites, (2, 2) px^2.
 
     Each photosite collects its own filter's channel only (:func:`deckpose.render.bayer.select_mosaic`),
@@ -112,30 +113,24 @@ def _mosaic_crb_px2(four: NDArray[np.float32], weights: NDArray[np.float64], ker
 
     Parameters
     ----------
-    four : (n, n, 4) array of float32
-        The unit-colour spot, its ``u``, ``v`` and dilation derivatives, electrons, on the
-        window whose top-left pixel is ``(row0, col0)``.
+    channels : list of three (n, n, 4) arrays of float32
+        The unit-colour spot, its ``u``, ``v`` and dilation derivatives, electrons, through
+        the red, green and blue kernels, on the window whose top-left pixel is ``(row0, col0)``.
     weights : (3,) array of float
         The spot's colour, per channel.
-    kernels, background_e, extra_e2
+    background_e, extra_e2
         As :func:`spot_crb_px` (``extra_e2``: read noise^2 + quantisation, e^2).
     pattern : BayerPattern
         Not ``NONE``.
     row0, col0 : int
         The window's top-left pixel in the image (the pattern's phase).
     """
-    r = kernels[0].shape[0] // 2
-    n = four.shape[0] + 2 * r
-    sites = filter_channels(pattern, n, n, row0 - r, col0 - r)  # the convolved window starts r before
-    mu = np.zeros((n, n))
-    grads = np.zeros((7, n, n))  # u, v, width, flux, and the three channels' backgrounds
-    for c in range(3):
-        on = sites == c
-        img = np.moveaxis(full_convolution(four, np.asarray(kernels[c], float)).astype(np.float64), -1, 0)
-        img *= weights[c]
-        mu[on] = img[0][on] + max(background_e, 0.0) / 3.0
-        for p in range(3):
-            grads[p][on] = img[p + 1][on]
-        grads[3][on] = img[0][on]
-        grads[4 + c][on] = 1.0
+    n = channels[0].shape[0]
+    sites = filter_channels(pattern, n, n, row0, col0)
+    on = (sites[None] == np.arange(3)[:, None, None]).astype(np.float64)  # (3, n, n): channel c's photosites
+    # each photosite sees its own channel: sum_c on_c w_c image_c, for the spot and its three derivatives
+    seen = np.einsum("chw,c,chwp->phw", on, np.asarray(weights, float), np.stack(channels).astype(np.float64))
+    mu = seen[0] + max(background_e, 0.0) / 3.0
+    # u, v, width, flux, and the three channels' backgrounds
+    grads = np.concatenate([seen[1:], seen[:1], on])
     return centre_crb_px2(mu, grads, extra_e2)

@@ -20,12 +20,12 @@ import pytest
 from deckpose.render.beacons import spot_splat
 from deckpose.render.config import SensorSpec
 from deckpose.render.sensor_config import BayerPattern
+from deckpose.render.split_kernels import NO_PARTS
 from deckpose.render.spot_bound import spot_crb_px
 
 from deckpose.camera import CameraModel
 
 CAM = CameraModel(64, 64, [[100.0, 0, 32.0], [0, 100.0, 32.0], [0, 0, 1]])
-DELTA = (np.ones((1, 1)),) * 3  # no optics: each channel's kernel the identity
 
 
 def _sensor(pattern: BayerPattern, read_noise_e: float, bit_depth: int = 12) -> SensorSpec:
@@ -37,7 +37,7 @@ def _bound(centre: tuple[float, float], sigma_px: float, flux: float, rgb: tuple
            sensor: SensorSpec, background_e: float) -> float:
     base = spot_splat([(np.array(centre), sigma_px**2 * np.eye(2), flux)], rgb, sensor, CAM, 0)
     assert base is not None
-    return spot_crb_px(base, DELTA, 1.0, background_e, sensor)
+    return spot_crb_px(base, NO_PARTS, 1.0, background_e, sensor)
 
 
 @pytest.mark.parametrize("pattern", [BayerPattern.RGGB, BayerPattern.GRBG])

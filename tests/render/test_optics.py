@@ -33,6 +33,7 @@ from deckpose.render.optics import (
 )
 from deckpose.render.psf_kernels import airy_first_zero_px, airy_kernel, disk_kernel
 from deckpose.render.sensor import expose
+from deckpose.render.split_kernels import NO_PARTS, KernelParts
 from deckpose.render.spot_bound import spot_crb_px
 from scipy.special import j1, jn_zeros
 
@@ -258,7 +259,7 @@ def test_numeric_crb_of_a_defocused_spot_against_brute_force() -> None:
     d = 3.0
     disk = disk_kernel(d)
     bg = 30.0
-    got = spot_crb_px(base, (disk, disk, disk), 1.0, bg, sensor)
+    got = spot_crb_px(base, KernelParts.from_kernels((disk, disk, disk)), 1.0, bg, sensor)
     # brute force: the Gaussian sampled at pixel centres (as the renderer draws it) convolved with a
     # uniform disc integrated over each pixel on a 41 x 41 grid (the renderer's kernel: 7 x 7)
     sub = (np.arange(41) + 0.5) / 41 - 0.5
@@ -293,7 +294,7 @@ def test_numeric_crb_of_a_defocused_spot_against_brute_force() -> None:
     # moves the bound by 0.25 % here: 1 %
     assert got == pytest.approx(want, rel=1e-2)
     # and the disc matters: the bound of the plain Gaussian is clearly smaller
-    plain = spot_crb_px(base, (np.ones((1, 1)),) * 3, 1.0, bg, sensor)
+    plain = spot_crb_px(base, NO_PARTS, 1.0, bg, sensor)
     assert plain < 0.8 * got
 
 
