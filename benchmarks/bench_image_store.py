@@ -6,7 +6,8 @@ settings (night, flat shading, 8-bit RGB; the frames come from ``configs/thesis_
 through the project's renderer, or from image files given on the command line):
 
 * PNG (OpenCV/libpng) at compression levels 0, 1 (OpenCV's default), 3 and 6, with the
-  SUB filter that ``render/dataset.py`` uses, and with no filter;
+  SUB filter that ``render/dataset.py`` uses, and with no filter; at level 1 with zlib's
+  Huffman-only and RLE strategies;
 * TIFF (OpenCV/libtiff) uncompressed, with Deflate, LZW and Zstandard;
 * WebP lossless (OpenCV/libwebp), 8-bit only;
 * the raw array compressed with Zstandard (``zstandard``) at levels 1 and 3, one thread.
@@ -87,6 +88,10 @@ def stores() -> list[Store]:
         Store("png sub, level 3", *_cv(".png", [flt, cv2.IMWRITE_PNG_FILTER_SUB, png, 3])),
         Store("png sub, level 6", *_cv(".png", [flt, cv2.IMWRITE_PNG_FILTER_SUB, png, 6])),
         Store("png no filter, level 1", *_cv(".png", [flt, cv2.IMWRITE_PNG_FILTER_NONE, png, 1])),
+        Store("png sub, Huffman only", *_cv(".png", [flt, cv2.IMWRITE_PNG_FILTER_SUB, cv2.IMWRITE_PNG_STRATEGY,
+                                                     cv2.IMWRITE_PNG_STRATEGY_HUFFMAN_ONLY])),
+        Store("png sub, RLE", *_cv(".png", [flt, cv2.IMWRITE_PNG_FILTER_SUB, cv2.IMWRITE_PNG_STRATEGY,
+                                            cv2.IMWRITE_PNG_STRATEGY_RLE])),
         Store("tiff uncompressed", *_cv(".tiff", [tif, cv2.IMWRITE_TIFF_COMPRESSION_NONE])),
         Store("tiff deflate", *_cv(".tiff", [tif, cv2.IMWRITE_TIFF_COMPRESSION_ADOBE_DEFLATE])),
         Store("tiff lzw", *_cv(".tiff", [tif, cv2.IMWRITE_TIFF_COMPRESSION_LZW])),
