@@ -89,7 +89,10 @@ def identify_one_ring(
         ids = np.full(N, UNASSIGNED, np.int64)
         ids[usable] = sub.beacon_ids
         return Identification(ids, sub.ok, sub.reason)
-    on_ring = ransac_ellipse(pts, options, max_inliers=n + 2)
+    # the brightest blobs first (every other RANSAC sample): in clutter the ring's are often among them
+    prefer = None if rgb_flux is None else np.argsort(-np.asarray(rgb_flux, float).reshape(-1, 3).sum(axis=1),
+                                                      kind="stable")[: n + 2]
+    on_ring = ransac_ellipse(pts, options, max_inliers=n + 2, ring_size=n, min_support=min_ring, prefer=prefer)
     if on_ring.sum() < min_ring:
         return failed_identification(
             N, f"only {int(on_ring.sum())} blobs lie on a common ellipse; need >= {min_ring}"
