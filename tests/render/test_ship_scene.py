@@ -1,6 +1,6 @@
 """Ship look (issue 23 item 8) against independent computations: hull and superstructure
-geometry and lines of sight (trimesh ray casting), the wave sea's formula, the light pools'
-inverse-square and cosine law, the deck texture's size from the GSD, bloom's centroid and
+geometry and lines of sight (trimesh ray casting), the wave sea's formula, the sky it reflects against Fresnel's
+equations, the light pools' inverse-square and cosine law, the deck texture's size from the GSD, bloom's centroid and
 energy, and the default frame left as it was."""
 
 from __future__ import annotations
@@ -18,7 +18,10 @@ from deckpose.render.frame import render_frame
 from deckpose.render.light_pools import AMBIENT_LUX, pool_illuminance_lux
 from deckpose.render.plan import FrameSpec
 from deckpose.render.sea import (
+    WATER_F0,
+    WATER_RGB,
     Waves,
+    sea_colour,
     sea_grid_m,
     sea_grid_surface,
     sea_height_m,
@@ -136,6 +139,37 @@ def test_rendered_sea_grid_is_the_formula_at_its_vertices() -> None:
     eta, normals = sea_grid_surface(waves, ripples, g, 12.5)
     np.testing.assert_allclose(eta, sea_height_m(waves, xy, 12.5), atol=1e-10)  # float64 rounding
     np.testing.assert_allclose(normals, sea_normals(waves, ripples, xy, 12.5), atol=1e-10)
+
+
+def _fresnel_unpolarised(cos_i: np.ndarray, n: float = 1.333) -> np.ndarray:
+    """Reflectance of still water (refractive index ``n``) for unpolarised light, Fresnel's equations."""
+    cos_t = np.sqrt(1.0 - (1.0 - cos_i ** 2) / n ** 2)
+    rs = ((cos_i - n * cos_t) / (cos_i + n * cos_t)) ** 2
+    rp = ((cos_t - n * cos_i) / (cos_t + n * cos_i)) ** 2
+    return (rs + rp) / 2
+
+
+def test_sea_reflects_the_sky_by_fresnel() -> None:
+    """The sea's colour mixes water and sky by the reflectance at the view angle: Schlick's
+    approximation of Fresnel's equations for water, which it follows within 0.06 (its largest
+    error for n = 1.333, at 84 degrees; 0.002 at normal incidence)."""
+    view_deg = np.linspace(0.0, 89.0, 90)
+    normals = np.tile([0.0, 0.0, 1.0], (view_deg.size, 1))
+    to_cam = np.stack([np.sin(np.radians(view_deg)), np.zeros(view_deg.size), np.cos(np.radians(view_deg))], axis=1)
+    sky = np.array([0.55, 0.65, 0.8])
+    colour = sea_colour(normals, to_cam, sky, None)
+    water = np.asarray(WATER_RGB)
+    reflectance = (colour - water) / (sky - water)  # the share of sky, per channel
+    np.testing.assert_allclose(reflectance, np.repeat(reflectance[:, :1], 3, axis=1), atol=1e-12)
+    exact = _fresnel_unpolarised(np.cos(np.radians(view_deg)))
+    assert abs(WATER_F0 - exact[0]) < 0.002
+    np.testing.assert_allclose(reflectance[:, 0], exact, atol=0.06)
+    assert np.all(np.diff(reflectance[:, 0]) >= 0)  # more sky toward grazing
+    # flat shading: the water (not the sky) is lit by Lambert's term toward the sun
+    sun = np.array([0.0, 0.0, 1.0])
+    lit = sea_colour(normals[:1], to_cam[:1], sky, sun)
+    f0 = reflectance[0, 0]
+    np.testing.assert_allclose(lit[0], (1 - f0) * water * (0.6 + 0.8) + f0 * sky, rtol=1e-12)
 
 
 def test_light_pool_illuminance_is_inverse_square_times_cosine() -> None:
