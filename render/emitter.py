@@ -53,30 +53,38 @@ def dome_light_centroids(layout: DeckLayout, T_cam_from_deck: NDArray[np.float64
     ----------
     layout : DeckLayout
         Beacon positions and radius (the dome's radius).
-    T_cam_from_deck : (4, 4) array of float
-        Deck to camera transform.
+    T_cam_from_deck : (4, 4) array of float, or (N, k, 4, 4)
+        Deck to camera transform; or beacon ``i``'s own transform at each of ``k``
+        sub-poses (the rolling shutter's, :func:`deckpose.render.beacons.splats_under`).
     camera : CameraModel
 
     Returns
     -------
-    (N, 2) array of float
-        ``(u, v)`` per beacon id, pixels; NaN where no part of the dome faces the camera
-        or a sample lies behind it.
+    (N, 2) or (N, k, 2) array of float
+        ``(u, v)`` per beacon id (and sub-pose), pixels; NaN where no part of the dome
+        faces the camera or a sample lies behind it.
     """
+    T = np.asarray(T_cam_from_deck, float)
+    centres = layout.positions_deck_m()
+    if T.ndim == 2:
+        return np.stack([_dome_centroid(c, layout.beacon_radius_m, T, camera) for c in centres])
+    return np.stack([np.stack([_dome_centroid(c, layout.beacon_radius_m, Tj, camera) for Tj in T[i]])
+                     for i, c in enumerate(centres)])
+
+
+def _dome_centroid(centre_deck_m: NDArray[np.float64], radius_m: float, T_cam_from_deck: NDArray[np.float64],
+                   camera: CameraModel) -> NDArray[np.float64]:
+    """The image centroid ``(u, v)`` of one dome's light under one transform (NaN: not seen)."""
     R, t = T_cam_from_deck[:3, :3], T_cam_from_deck[:3, 3]
     cam_in_deck = -R.T @ t
-    centres = layout.positions_deck_m()
-    out = np.full((centres.shape[0], 2), np.nan)
-    for i, c in enumerate(centres):
-        p = c + layout.beacon_radius_m * _GRID  # (S, 3) deck frame
-        facing = np.einsum("ij,ij->i", _GRID, cam_in_deck - p)  # n . (camera - p), metres
-        keep = facing > 0
-        if not keep.any():
-            continue
-        pc = p[keep] @ R.T + t
-        if np.any(pc[:, 2] <= 1e-6):
-            continue
-        w = facing[keep] / pc[:, 2] ** 3  # image area of the element: fx fy dA n.(c - p) / z^3
-        uv = camera.project(pc)
-        out[i] = (w[:, None] * uv).sum(axis=0) / w.sum()
-    return out
+    p = centre_deck_m + radius_m * _GRID  # (S, 3) deck frame
+    facing = np.einsum("ij,ij->i", _GRID, cam_in_deck - p)  # n . (camera - p), metres
+    keep = facing > 0
+    if not keep.any():
+        return np.full(2, np.nan)
+    pc = p[keep] @ R.T + t
+    if np.any(pc[:, 2] <= 1e-6):
+        return np.full(2, np.nan)
+    w = facing[keep] / pc[:, 2] ** 3  # image area of the element: fx fy dA n.(c - p) / z^3
+    uv = camera.project(pc)
+    return np.asarray((w[:, None] * uv).sum(axis=0) / w.sum(), float)

@@ -76,7 +76,7 @@ from deckpose.render.psf_kernels import (
 )
 from deckpose.render.sensor import SpotRecord, spot_record
 from deckpose.render.sensor_config import SensorSpec
-from deckpose.render.split_kernels import KernelParts, compose_parts, through_parts
+from deckpose.render.split_kernels import CHANNELS, KernelParts, compose_parts, through_parts
 from deckpose.render.spot_bound import spot_crb_px
 from numpy.typing import NDArray
 
@@ -90,8 +90,8 @@ __all__ = [
 ]
 
 
-#: Channels of a spot's optical patch: red, green, blue.
-OPTICS_CHANNELS = 3
+#: Channels of a spot's optical patch: red, green, blue (:data:`deckpose.render.split_kernels.CHANNELS`).
+OPTICS_CHANNELS = CHANNELS
 
 
 
@@ -416,8 +416,8 @@ def lens_record(optics: OpticsSpec, camera: CameraModel, sensor: SensorSpec, bea
     optics, camera, sensor
     beacons : list of Splat
         The beacons' splats before the optics.
-    lens : list of ((3 kernels), float)
-        Each splat's channel kernels and vignetting gain (no optics:
+    lens : list of (KernelParts, float)
+        Each splat's channel kernels, in parts, and vignetting gain (no optics:
         :data:`deckpose.render.split_kernels.NO_PARTS` and 1).
     spots : SpotRecord
         The spots' record (its background under the beacon, vignetted).

@@ -181,6 +181,8 @@ def full_convolution(image: NDArray[np.floating], kernel: Kernel) -> NDArray[np.
     (it correlates, so the kernel is turned by 180 degrees); from it on, the product of the
     discrete Fourier transforms, zero-padded to a fast length. Same dtype as ``image``.
     """
+    if kernel.ndim != 2 or kernel.shape[0] != kernel.shape[1] or kernel.shape[0] % 2 == 0:
+        raise ValueError(f"a kernel is square with an odd side, got shape {kernel.shape}")
     r = kernel.shape[0] // 2
     if r == 0:
         return image * image.dtype.type(kernel[0, 0])
@@ -191,11 +193,20 @@ def full_convolution(image: NDArray[np.floating], kernel: Kernel) -> NDArray[np.
     return np.asarray(cv2.filter2D(padded, -1, k, borderType=cv2.BORDER_CONSTANT), image.dtype)
 
 
+#: The largest kernel spectrum kept in the cache, elements (8 MiB in complex64): a window of
+#: about 2,000 px a side; spectra of larger windows are made each time (64 at most are kept).
+MAX_CACHED_SPECTRUM = 1 << 20
+
+
 def _fft_convolution(image: NDArray[np.floating], kernel: Kernel) -> NDArray[np.floating]:
+    """:func:`full_convolution` through real FFTs zero-padded to a fast length, the kernel's transform cached."""
     m0, m1 = image.shape[0] + kernel.shape[0] - 1, image.shape[1] + kernel.shape[1] - 1
-    shape = (scipy.fft.next_fast_len(m0, real=True), scipy.fft.next_fast_len(m1, real=True))
+    shape = (int(scipy.fft.next_fast_len(m0, real=True) or m0), int(scipy.fft.next_fast_len(m1, real=True) or m1))
     k = np.ascontiguousarray(kernel, dtype=image.dtype)
-    spectrum = _spectrum(k.tobytes(), k.shape, k.dtype.str, shape)
+    if shape[0] * (shape[1] // 2 + 1) <= MAX_CACHED_SPECTRUM:
+        spectrum = _spectrum(k.tobytes(), k.shape, k.dtype.str, shape)
+    else:
+        spectrum = cast(NDArray[np.complexfloating], scipy.fft.rfft2(k, shape))
     if image.ndim == 3:
         spectrum = spectrum[:, :, None]
     f = cast(NDArray[np.complexfloating], scipy.fft.rfft2(image, shape, axes=(0, 1)))
@@ -207,7 +218,10 @@ def _fft_convolution(image: NDArray[np.floating], kernel: Kernel) -> NDArray[np.
 def _spectrum(data: bytes, kshape: tuple[int, ...], dtype: str, shape: tuple[int, int]) -> NDArray[np.complexfloating]:
     """The real FFT of a kernel (given by its bytes) zero-padded to ``shape``: each light's lens
     shares the glare kernel, so its transform is made once per window size."""
-    return cast(NDArray[np.complexfloating], scipy.fft.rfft2(np.frombuffer(data, np.dtype(dtype)).reshape(kshape), shape))
+    spectrum = cast(NDArray[np.complexfloating], scipy.fft.rfft2(np.frombuffer(data, np.dtype(dtype)).reshape(kshape),
+                                                                 shape))
+    spectrum.setflags(write=False)
+    return spectrum
 
 
 def convolve_kernels(a: Kernel, b: Kernel) -> Kernel:

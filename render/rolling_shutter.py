@@ -222,7 +222,8 @@ def rolling_shutter_beacons(layout: DeckLayout, track: ShipTrack, ship_frame: Sh
         np.array([projs[i].apparent_radius_px[i] for i in range(n)]))
     k = motion_spec.blur_steps if motion_spec.exposure_s > 0 else 1
     offsets = motion_spec.exposure_s * ((np.arange(k) + 0.5) / k - 0.5)
-    # beacon i's sub-poses over its own rows' exposure: the moving camera's view, as cam0 would see it
+    # beacon i's sub-poses over its own rows' exposure: the deck-to-camera transforms of the moving
+    # camera at those times (the splats are drawn in the frame's pixels, whatever cam0 is)
     R, tr = _cam_from_deck(track, motion, (t[:, None] + offsets[None, :]).ravel())
     T = np.zeros((n * k, 4, 4))
     T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = R, tr, 1.0

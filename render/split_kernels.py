@@ -7,7 +7,8 @@ The red, green and blue kernels of :mod:`deckpose.render.optics` are
 (``*`` discrete convolution): ``core_c`` small (Airy * disc * field blur), ``wide`` the glare
 and spikes (large, the same for every channel), ``shift(d_c)`` the lateral chromatic
 aberration. By linearity a window goes through all three with one convolution by the wide
-kernel, not three (:func:`through_parts`); the spots' pixels
+kernel, not three (:func:`through_parts`; :func:`compose_parts` writes the same formula as
+whole kernels, which the recorded sigma needs, and a test holds the two equal); the spots' pixels
 (:func:`deckpose.render.optics.apply_optics`) and their Cramér–Rao bound
 (:func:`deckpose.render.spot_bound.spot_crb_px`) both go through here, so what is drawn
 and what is bounded are the same convolution.
@@ -29,7 +30,7 @@ from deckpose.render.psf_kernels import (
 )
 from numpy.typing import NDArray
 
-__all__ = ["NO_PARTS", "KernelParts", "compose_parts", "shift_radius", "through_parts"]
+__all__ = ["CHANNELS", "NO_PARTS", "KernelParts", "compose_parts", "shift_radius", "through_parts"]
 
 #: Channels of a light's kernels: red, green, blue.
 CHANNELS = 3
@@ -56,8 +57,15 @@ class KernelParts:
         return cls(kernels, 1.0, None, np.zeros((CHANNELS, 2)))
 
 
-#: No lens: every channel's kernel the identity.
-NO_PARTS = KernelParts.from_kernels((np.ones((1, 1)), np.ones((1, 1)), np.ones((1, 1))))
+def _identity() -> Kernel:
+    k = np.ones((1, 1))
+    k.setflags(write=False)
+    return k
+
+
+#: No lens: every channel's kernel the identity (read-only arrays: the record is shared).
+NO_PARTS = KernelParts.from_kernels((_identity(), _identity(), _identity()))
+NO_PARTS.shifts_px.setflags(write=False)
 
 
 def shift_radius(shifts_px: NDArray[np.float64]) -> int:

@@ -83,8 +83,8 @@ def spot_crb_px(base: Splat, parts: KernelParts, gain: float, background_e: floa
     terms *= base.core_flux * e_per_rad * gain
     gain_dn = (2 ** sensor.bit_depth - 1) / sensor.full_well_e
     extra_e2 = sensor.read_noise_e ** 2 + 1.0 / (12.0 * gain_dn ** 2)
-    # the four images as the channels of one (OpenCV filters each channel with the same kernel)
-    # float32 (7 digits: the bound to ~1e-6), which OpenCV's DFT runs several times faster than float64
+    # the four images as the channels of one window, through the same kernels as the drawn spot
+    # (split_kernels.through_parts); float32 (7 digits: the bound to ~1e-6), several times faster than float64
     four_f32 = np.ascontiguousarray(np.moveaxis(terms, 0, -1), np.float32)
     channels = through_parts(four_f32, parts)
     if sensor.bayer is not BayerPattern.NONE:

@@ -139,3 +139,51 @@ def test_a_bayer_frame_without_optics_records_the_mosaic_bound(egl_renderer_fact
     assert bow.sum() == 1
     np.testing.assert_allclose(ratio[~bow], math.sqrt(3.0), rtol=0.1)
     np.testing.assert_allclose(ratio[bow], 2.0, rtol=0.1)
+
+
+@pytest.mark.parametrize("pattern", [BayerPattern.RGGB, BayerPattern.GBRG])
+def test_mosaic_bound_through_a_lens_against_brute_force(pattern: BayerPattern) -> None:
+    """Through per-channel kernels of odd radius (discs of three sizes, red and blue shifted as
+    lateral colour shifts them): each photosite keeps its filter's channel of that channel's
+    convolved image, the mosaic's phase taken from the image's own rows and columns."""
+    from deckpose.render.psf_kernels import convolve_kernels, disk_kernel, shift_kernel
+    from deckpose.render.split_kernels import KernelParts
+    from scipy.signal import convolve2d
+
+    sensor = _sensor(pattern, read_noise_e=4.0)
+    centre, s, flux, bg, rgb = (40.37, 39.81), 1.3, 0.02, 30.0, (1.0, 0.6, 0.3)
+    kernels = (convolve_kernels(disk_kernel(5.0), shift_kernel(np.array([0.4, -0.3]), 2)),
+               disk_kernel(7.0),
+               convolve_kernels(disk_kernel(9.0), shift_kernel(np.array([-0.4, 0.3]), 2)))
+    assert max(k.shape[0] // 2 for k in kernels) % 2 == 1  # an odd radius: a wrong phase would show
+    base = spot_splat([(np.array(centre), s**2 * np.eye(2), flux)], rgb, sensor, CAM, 0)
+    assert base is not None
+    got = spot_crb_px(base, KernelParts.from_kernels(kernels), 1.0, bg, sensor)
+    n = 80
+    names = pattern.value.upper()
+    site = np.empty((n, n), int)
+    for dy in range(2):
+        for dx in range(2):
+            site[dy::2, dx::2] = "RGB".index(names[2 * dy + dx])
+    e = 15000.0
+    yy, xx = np.mgrid[0:n, 0:n].astype(float)
+
+    def mosaic(cu: float, cv: float, ss: float) -> np.ndarray:
+        g = np.exp(-0.5 * ((xx - cu) ** 2 + (yy - cv) ** 2) / ss**2) / (2 * math.pi * ss**2)
+        out = np.zeros((n, n))
+        for c in range(3):  # 'same': the kernel centred on each pixel, image coordinates kept
+            out += (site == c) * rgb[c] * convolve2d(g, kernels[c], mode="same")
+        return flux * e * out
+
+    h = 1e-4
+    cu, cv = centre
+    spot = mosaic(cu, cv, s)
+    grads = [(mosaic(cu + h, cv, s) - mosaic(cu - h, cv, s)) / (2 * h),
+             (mosaic(cu, cv + h, s) - mosaic(cu, cv - h, s)) / (2 * h),
+             (mosaic(cu, cv, s + h) - mosaic(cu, cv, s - h)) / (2 * h), spot / flux]
+    grads += [(site == c).astype(float) for c in range(3)]
+    gain = 4095 / 15000.0
+    var = spot + bg / 3 + 4.0**2 + 1 / (12 * gain**2)
+    info = np.array([[float(np.sum(gi * gj / var)) for gj in grads] for gi in grads])
+    want = math.sqrt(np.trace(np.linalg.inv(info)[:2, :2]) / 2)
+    assert got == pytest.approx(want, rel=2e-5)

@@ -20,6 +20,7 @@ import numpy as np
 import pytest
 from deckpose.render.beacons import beacon_splats, splats_under, spot_splat
 from deckpose.render.config import OpticsSpec, SensorSpec
+from deckpose.render.emitter import dome_light_centroids
 from deckpose.render.leds_config import EmitterShape, LedModel, LedSpec
 from deckpose.render.optics import kernel_parts
 from deckpose.render.psf_kernels import FFT_RADIUS_PX, full_convolution
@@ -29,6 +30,7 @@ from scipy.signal import convolve2d
 from deckpose.camera import CameraModel
 from deckpose.layout import DeckLayout
 from deckpose.pose import CameraPose, ShipPose, T_cam_from_deck
+from deckpose.projection import project_layout
 
 CAMERA = CameraModel(1920, 1080, [[1500.0, 0, 960.3], [0, 1500.0, 539.6], [0, 0, 1]])
 RNG_SEED = 7
@@ -89,6 +91,23 @@ def test_from_kernels_applies_the_kernels_whole() -> None:
 
 
 SENSOR = SensorSpec(psf_sigma_px=1.1, halo_fraction=0.05, halo_scale=4.0)
+
+
+def test_domed_beacons_are_lit_where_each_sub_pose_puts_them() -> None:
+    """A domed beacon's centre is the mean of its light centroids at its own sub-poses,
+    each from :func:`dome_light_centroids` under that one transform (the (4, 4) form)."""
+    cam_pose = CameraPose.nadir(25.0)
+    k = 3
+    T = np.stack([np.stack([T_cam_from_deck(p, cam_pose) for p in _poses(i, k)]) for i in range(LAYOUT.n_beacons)])
+    leds = LedSpec(emitter=EmitterShape.DOME)
+    splats = splats_under(LAYOUT, T, CAMERA, SENSOR, leds)
+    assert len(splats) == LAYOUT.n_beacons
+    for sp in splats:
+        i = sp.beacon_id
+        want = np.mean([dome_light_centroids(LAYOUT, T[i, j], CAMERA)[i] for j in range(k)], axis=0)
+        np.testing.assert_allclose(sp.centre_px, want, rtol=0, atol=1e-9)
+        flat = np.mean([project_layout(LAYOUT, p, cam_pose, CAMERA).points_px[i] for p in _poses(i, k)], axis=0)
+        assert 0.01 < np.linalg.norm(want - flat) < 5  # the dome's centroid is not the projected centre
 LAYOUT = DeckLayout()
 
 
@@ -119,9 +138,25 @@ def test_splats_under_each_beacons_own_transforms(k: int, leds: LedSpec) -> None
         assert np.abs(b.patch - a.patch).max() <= 1e-6 * a.patch.max()
 
 
-def test_spot_splat_is_every_gaussian_on_the_whole_window() -> None:
-    centres = [np.array([500.3, 400.7]), np.array([501.1, 401.2]), np.array([502.4, 401.9])]
-    covs = [np.array([[2.0, 0.4], [0.4, 1.3]]) * (1 + 0.1 * j) for j in range(3)]
+def _elongated(ratio: float) -> np.ndarray:
+    c, s = np.cos(0.6), np.sin(0.6)
+    R = np.array([[c, -s], [s, c]])
+    return R @ np.diag([(0.8 * ratio) ** 2, 0.8 ** 2]) @ R.T
+
+
+SUB_POSES = {
+    "near round": ([(500.3, 400.7), (501.1, 401.2), (502.4, 401.9)],
+                   [np.array([[2.0, 0.4], [0.4, 1.3]]) * (1 + 0.1 * j) for j in range(3)]),
+    # seven sub-poses at one place and the eighth 30 px away (a jolt): the mean is far from the middle
+    "lopsided": ([(900.3, 500.6)] * 7 + [(930.3, 500.6)], [0.64 * np.eye(2)] * 8),
+    "elongated": ([(700.2, 300.9), (700.9, 301.3)], [_elongated(25.0)] * 2),
+}
+
+
+@pytest.mark.parametrize("case", list(SUB_POSES))
+def test_spot_splat_is_every_gaussian_on_the_whole_window(case: str) -> None:
+    centres = [np.array(c) for c in SUB_POSES[case][0]]
+    covs = SUB_POSES[case][1]
     comps = [(c, cv, 5000.0 * (1 + 0.2 * j)) for j, (c, cv) in enumerate(zip(centres, covs))]
     sp = spot_splat(comps, (1.0, 1.0, 1.0), SENSOR, CAMERA)
     assert sp is not None
@@ -135,7 +170,18 @@ def test_spot_splat_is_every_gaussian_on_the_whole_window() -> None:
             inv = np.linalg.inv(C)
             du, dv = u - c[0], v - c[1]
             q = inv[0, 0] * du * du + 2 * inv[0, 1] * du * dv + inv[1, 1] * dv * dv
-            want += frac * f / 3 * np.exp(-0.5 * q) / (2 * math.pi * math.sqrt(np.linalg.det(C)))
+            want += frac * f / len(comps) * np.exp(-0.5 * q) / (2 * math.pi * math.sqrt(np.linalg.det(C)))
     assert np.abs(sp.patch - want).max() <= 1e-6 * want.max()
+    # every sub-pose's core lies inside the window (8 of its sigmas)
+    sd = math.sqrt(max(np.linalg.eigvalsh(cv)[-1] for cv in covs))
+    for c in centres:
+        assert sp.col0 <= c[0] - 8 * sd and c[0] + 8 * sd <= sp.col0 + n - 1
+        assert sp.row0 <= c[1] - 8 * sd and c[1] + 8 * sd <= sp.row0 + n - 1
     # the core window is smaller than the halo's: the truncation is exercised
-    assert n > 2 * math.ceil(8.0 * math.sqrt(max(np.linalg.eigvalsh(cv)[-1] for cv in covs)) + 3)
+    assert n > 2 * math.ceil(8.0 * sd + 3)
+
+
+@pytest.mark.parametrize("shape", [(16, 16), (15, 17), (15,)])
+def test_full_convolution_refuses_a_kernel_without_a_centre(shape: tuple[int, ...]) -> None:
+    with pytest.raises(ValueError, match="odd side"):
+        full_convolution(np.zeros((20, 20), np.float32), np.ones(shape))
