@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -40,29 +41,20 @@ def _bound(centre: tuple[float, float], sigma_px: float, flux: float, rgb: tuple
     return spot_crb_px(base, NO_PARTS, 1.0, background_e, sensor)
 
 
-@pytest.mark.parametrize("pattern", [BayerPattern.RGGB, BayerPattern.GRBG])
-@pytest.mark.parametrize("rgb", [(1.0, 1.0, 1.0), (1.0, 0.1, 0.05)])
-def test_mosaic_bound_against_brute_force(pattern: BayerPattern, rgb: tuple[float, float, float]) -> None:
-    sensor = _sensor(pattern, read_noise_e=4.0)
-    centre, s, flux, bg = (30.37, 29.81), 1.3, 0.02, 30.0
-    got = _bound(centre, s, flux, rgb, sensor, bg)
-    # brute force: the channels' Gaussians sampled at pixel centres (as the renderer draws a
-    # spot), each photosite keeping its filter's channel; the filter layout written out from
-    # the pattern's name
-    n = 64
+def _sites(pattern: BayerPattern, n: int) -> np.ndarray:
+    """Each pixel's filter (0 R, 1 G, 2 B), written out from the pattern's name."""
     names = pattern.value.upper()
     site = np.empty((n, n), int)
     for dy in range(2):
         for dx in range(2):
             site[dy::2, dx::2] = "RGB".index(names[2 * dy + dx])
-    e = 15000.0  # electrons per unit radiance and channel
-    w = np.asarray(rgb)[site]  # the photosite's share of the colour
-    yy, xx = np.mgrid[0:n, 0:n].astype(float)
+    return site
 
-    def mosaic(cu: float, cv: float, ss: float) -> np.ndarray:
-        g = np.exp(-0.5 * ((xx - cu) ** 2 + (yy - cv) ** 2) / ss**2) / (2 * math.pi * ss**2)
-        return flux * e * w * g
 
+def _brute_force_bound(mosaic: Callable[[float, float, float], np.ndarray], centre: tuple[float, float],
+                       s: float, flux: float, site: np.ndarray, bg: float) -> float:
+    """The centre's per-axis bound from ``mosaic(u, v, sigma)`` (electrons a photosite), derivatives
+    by central differences; nuisances: the width, the flux and a background per channel."""
     h = 1e-4
     cu, cv = centre
     spot = mosaic(cu, cv, s)
@@ -73,7 +65,29 @@ def test_mosaic_bound_against_brute_force(pattern: BayerPattern, rgb: tuple[floa
     gain = 4095 / 15000.0
     var = spot + bg / 3 + 4.0**2 + 1 / (12 * gain**2)
     info = np.array([[float(np.sum(gi * gj / var)) for gj in grads] for gi in grads])
-    want = math.sqrt(np.trace(np.linalg.inv(info)[:2, :2]) / 2)
+    return math.sqrt(np.trace(np.linalg.inv(info)[:2, :2]) / 2)
+
+
+@pytest.mark.parametrize("pattern", [BayerPattern.RGGB, BayerPattern.GRBG])
+@pytest.mark.parametrize("rgb", [(1.0, 1.0, 1.0), (1.0, 0.1, 0.05)])
+def test_mosaic_bound_against_brute_force(pattern: BayerPattern, rgb: tuple[float, float, float]) -> None:
+    sensor = _sensor(pattern, read_noise_e=4.0)
+    centre, s, flux, bg = (30.37, 29.81), 1.3, 0.02, 30.0
+    got = _bound(centre, s, flux, rgb, sensor, bg)
+    # brute force: the channels' Gaussians sampled at pixel centres (as the renderer draws a
+    # spot), each photosite keeping its filter's channel; the filter layout written out from
+    # the pattern's name
+    n = 64
+    site = _sites(pattern, n)
+    e = 15000.0  # electrons per unit radiance and channel
+    w = np.asarray(rgb)[site]  # the photosite's share of the colour
+    yy, xx = np.mgrid[0:n, 0:n].astype(float)
+
+    def mosaic(cu: float, cv: float, ss: float) -> np.ndarray:
+        g = np.exp(-0.5 * ((xx - cu) ** 2 + (yy - cv) ** 2) / ss**2) / (2 * math.pi * ss**2)
+        return flux * e * w * g
+
+    want = _brute_force_bound(mosaic, centre, s, flux, site, bg)
     # the bound's 6-sigma window against the whole 64 px frame (light beyond 6 sigma: e^-18): 0.1 %
     assert got == pytest.approx(want, rel=1e-3)
 
@@ -160,11 +174,7 @@ def test_mosaic_bound_through_a_lens_against_brute_force(pattern: BayerPattern) 
     assert base is not None
     got = spot_crb_px(base, KernelParts.from_kernels(kernels), 1.0, bg, sensor)
     n = 80
-    names = pattern.value.upper()
-    site = np.empty((n, n), int)
-    for dy in range(2):
-        for dx in range(2):
-            site[dy::2, dx::2] = "RGB".index(names[2 * dy + dx])
+    site = _sites(pattern, n)
     e = 15000.0
     yy, xx = np.mgrid[0:n, 0:n].astype(float)
 
@@ -175,15 +185,5 @@ def test_mosaic_bound_through_a_lens_against_brute_force(pattern: BayerPattern) 
             out += (site == c) * rgb[c] * convolve2d(g, kernels[c], mode="same")
         return flux * e * out
 
-    h = 1e-4
-    cu, cv = centre
-    spot = mosaic(cu, cv, s)
-    grads = [(mosaic(cu + h, cv, s) - mosaic(cu - h, cv, s)) / (2 * h),
-             (mosaic(cu, cv + h, s) - mosaic(cu, cv - h, s)) / (2 * h),
-             (mosaic(cu, cv, s + h) - mosaic(cu, cv, s - h)) / (2 * h), spot / flux]
-    grads += [(site == c).astype(float) for c in range(3)]
-    gain = 4095 / 15000.0
-    var = spot + bg / 3 + 4.0**2 + 1 / (12 * gain**2)
-    info = np.array([[float(np.sum(gi * gj / var)) for gj in grads] for gi in grads])
-    want = math.sqrt(np.trace(np.linalg.inv(info)[:2, :2]) / 2)
+    want = _brute_force_bound(mosaic, centre, s, flux, site, bg)
     assert got == pytest.approx(want, rel=2e-5)
