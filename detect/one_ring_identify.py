@@ -25,7 +25,12 @@ from __future__ import annotations
 import numpy as np
 from deckpose.detect import conic as cn
 from deckpose.detect.identification import Identification, IdentifyOptions, failed_identification
-from deckpose.detect.ring_ellipse import ransac_ellipse, relative_positions, ring_angles
+from deckpose.detect.ring_ellipse import (
+    flux_groups,
+    ransac_ellipse,
+    relative_positions,
+    ring_angles,
+)
 from deckpose.detect.ring_homography import (
     apply_homography,
     assign_ring_positions,
@@ -89,9 +94,9 @@ def identify_one_ring(
         ids = np.full(N, UNASSIGNED, np.int64)
         ids[usable] = sub.beacon_ids
         return Identification(ids, sub.ok, sub.reason)
-    # the brightest blobs first (every other RANSAC sample): in clutter the ring's are often among them
-    prefer = None if rgb_flux is None else np.argsort(-np.asarray(rgb_flux, float).reshape(-1, 3).sum(axis=1),
-                                                      kind="stable")[: n + 2]
+    # blobs of like brightness together (every other RANSAC sample): in clutter the ring's are
+    # among n + 2 consecutive blobs by flux more often than among all
+    prefer = None if rgb_flux is None else flux_groups(np.asarray(rgb_flux, float).reshape(-1, 3).sum(axis=1), n + 2)
     on_ring = ransac_ellipse(pts, options, max_inliers=n + 2, ring_size=n, min_support=min_ring, prefer=prefer)
     if on_ring.sum() < min_ring:
         return failed_identification(

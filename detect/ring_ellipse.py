@@ -17,7 +17,7 @@ from deckpose.detect import conic as cn
 from deckpose.detect.identification import IdentifyOptions
 from numpy.typing import NDArray
 
-__all__ = ["MIN_RANSAC_SAMPLES", "ransac_ellipse", "relative_positions", "ring_angles"]
+__all__ = ["MIN_RANSAC_SAMPLES", "flux_groups", "ransac_ellipse", "relative_positions", "ring_angles"]
 
 FloatArray = NDArray[np.float64]
 
@@ -40,6 +40,30 @@ def _ellipse_inliers(
 MIN_RANSAC_SAMPLES = 8
 
 
+def flux_groups(flux: FloatArray, size: int) -> tuple[NDArray[np.intp], ...]:
+    """Blobs of like brightness: windows of ``size`` consecutive blobs by flux, brightest first,
+    half a window apart (the last one ending with the dimmest); one window when there are few.
+
+    Parameters
+    ----------
+    flux : (N,) array of float
+        Each blob's flux (any unit).
+    size : int
+        Blobs a window (the ring's count and a spare or two).
+
+    Returns
+    -------
+    tuple of arrays of int
+        Indices into ``flux``.
+    """
+    order = np.argsort(-np.asarray(flux, float), kind="stable")
+    n = order.size
+    if n <= size:
+        return (order,)
+    starts = sorted(set(range(0, n - size, max(1, size // 2))) | {n - size})
+    return tuple(order[s:s + size] for s in starts)
+
+
 def _ring_support(points: FloatArray, inliers: NDArray[np.bool_], ring_size: int) -> int:
     """How many of the inliers sit in whole ring steps round their ellipse (:func:`relative_positions`); 0: none."""
     conic = cn.fit_conic(points[inliers])
@@ -50,7 +74,7 @@ def _ring_support(points: FloatArray, inliers: NDArray[np.bool_], ring_size: int
 
 def ransac_ellipse(
     points: FloatArray, opts: IdentifyOptions, max_inliers: int, ring_size: int | None = None,
-    min_support: int = 5, prefer: NDArray[np.intp] | None = None,
+    min_support: int = 5, prefer: tuple[NDArray[np.intp], ...] | None = None,
 ) -> NDArray[np.bool_]:
     """Largest set of points (at most ``max_inliers``) on one ellipse (boolean mask).
 
@@ -63,12 +87,13 @@ def ransac_ellipse(
     ``min_support`` (the fewest ring blobs identification accepts) keeps a small chance
     set of evenly spaced points from outranking it there.
 
-    ``prefer`` (indices of the points likeliest to be the ring, e.g. the brightest): when
-    there are more points than ``max_inliers``, each uniform sample is followed by one
-    drawn from them alone (from a stream of its own). Among 33 blobs of which 12 are the
-    ring, one uniform sample in 300 is all ring, and 1,000 samples missed it in 4 % of
-    frames; the uniform samples are today's, so a ring that is not among the preferred
-    points is found as often as before (at most twice ``opts.max_ransac`` samples in all).
+    ``prefer`` (groups of point indices likeliest to hold the ring together, e.g. blobs of
+    like brightness): when there are more points than ``max_inliers``, each uniform sample
+    is followed by one drawn from a group alone, the groups in turn (from a stream of its
+    own). Among 33 blobs of which 12 are the ring, one uniform sample in 300 is all ring, and
+    1,000 samples missed it in 4 % of frames (among 44, in half); the uniform samples are
+    today's, so a ring in no group is found as often as before (at most twice
+    ``opts.max_ransac`` samples in all).
 
     The samples' conics are fitted a chunk at a time (:func:`~deckpose.detect.conic.fit_conics`,
     each as alone), and the samples are then taken in their order, as one at a time: the
@@ -84,7 +109,8 @@ def ransac_ellipse(
     # The local optimisation's result (and the ring steps' support) is a function of the
     # inlier set alone: most samples of a ring share one, whose refit is made once.
     refits: dict[bytes, tuple[NDArray[np.bool_] | None, FloatArray, float, int]] = {}
-    preferred = prefer if prefer is not None and n > max_inliers and len(prefer) >= 5 else None
+    groups = tuple(g for g in prefer or () if len(g) >= 5) if n > max_inliers else ()
+    preferred = groups or None
     for chunk in _sample_chunks(n, opts, exhaustive, preferred):
         for c in cn.fit_conics(points[chunk]):
             inl, d, tol = _ellipse_inliers(c, points, opts)
@@ -110,10 +136,10 @@ def ransac_ellipse(
             if rank < best_rank:
                 best, best_rank = inl, rank
                 # Adaptive stopping: samples needed to draw one all-inlier 5-set with 99.9 %
-                # (with preferred points, every other sample is theirs, with odds of its own).
+                # (with preferred groups, every other sample is a group's, with odds of its own).
                 w5 = ((support or k) / n) ** 5
                 if preferred is not None:
-                    w5 = 0.5 * w5 + 0.5 * (int(inl[preferred].sum()) / len(preferred)) ** 5
+                    w5 = 0.5 * w5 + 0.5 * float(np.mean([(int(inl[g].sum()) / len(g)) ** 5 for g in preferred]))
                 needed = math.ceil(math.log(1e-3) / math.log1p(-w5)) if w5 < 1 else 1
             tried += 1
             if not exhaustive and tried >= max(needed, MIN_RANSAC_SAMPLES):
@@ -128,12 +154,12 @@ _FIRST_CHUNK = 16
 _MAX_CHUNK = 128
 
 
-def _sample_chunks(n: int, opts: IdentifyOptions, exhaustive: bool, prefer: NDArray[np.intp] | None = None
-                   ) -> Iterator[NDArray[np.intp]]:
+def _sample_chunks(n: int, opts: IdentifyOptions, exhaustive: bool,
+                   prefer: tuple[NDArray[np.intp], ...] | None = None) -> Iterator[NDArray[np.intp]]:
     """The RANSAC samples of 5 point indices, (m, 5) a chunk: every 5-set, or ``opts.max_ransac`` drawn.
 
     Drawn samples come from ``default_rng(opts.seed)``, one ``choice`` each, in order; with
-    ``prefer``, each is followed by one drawn from those indices alone, by
+    ``prefer``, each is followed by one drawn from a group alone (the groups in turn), by
     ``default_rng([opts.seed, 1])`` (chunks twice as long).
     """
     if exhaustive:
@@ -150,8 +176,11 @@ def _sample_chunks(n: int, opts: IdentifyOptions, exhaustive: bool, prefer: NDAr
         if prefer is None:
             yield np.array(uniform, np.intp)
         else:
-            yield np.array([s for u in uniform for s in (u, prefer[prefer_rng.choice(len(prefer), 5, replace=False)])],
-                           np.intp)
+            rows = []
+            for j, u in enumerate(uniform):
+                g = prefer[(drawn + j) % len(prefer)]
+                rows += [u, g[prefer_rng.choice(len(g), 5, replace=False)]]
+            yield np.array(rows, np.intp)
         drawn += m
         size = min(2 * size, _MAX_CHUNK)
 
