@@ -201,25 +201,28 @@ MAX_CACHED_SPECTRUM = 1 << 20
 def _fft_convolution(image: NDArray[np.floating], kernel: Kernel) -> NDArray[np.floating]:
     """:func:`full_convolution` through real FFTs zero-padded to a fast length, the kernel's transform cached."""
     m0, m1 = image.shape[0] + kernel.shape[0] - 1, image.shape[1] + kernel.shape[1] - 1
-    shape = (int(scipy.fft.next_fast_len(m0, real=True) or m0), int(scipy.fft.next_fast_len(m1, real=True) or m1))
+    shape = (cast(int, scipy.fft.next_fast_len(m0, real=True)), cast(int, scipy.fft.next_fast_len(m1, real=True)))
     k = np.ascontiguousarray(kernel, dtype=image.dtype)
     if shape[0] * (shape[1] // 2 + 1) <= MAX_CACHED_SPECTRUM:
         spectrum = _spectrum(k.tobytes(), k.shape, k.dtype.str, shape)
     else:
-        spectrum = cast(NDArray[np.complexfloating], scipy.fft.rfft2(k, shape))
+        spectrum = _rfft2(k, shape)
     if image.ndim == 3:
         spectrum = spectrum[:, :, None]
-    f = cast(NDArray[np.complexfloating], scipy.fft.rfft2(image, shape, axes=(0, 1)))
-    out = cast(NDArray[np.floating], scipy.fft.irfft2(f * spectrum, shape, axes=(0, 1)))
+    out = cast(NDArray[np.floating], scipy.fft.irfft2(_rfft2(image, shape) * spectrum, shape, axes=(0, 1)))
     return np.asarray(out[:m0, :m1], image.dtype)
+
+
+def _rfft2(a: NDArray[np.floating], shape: tuple[int, int]) -> NDArray[np.complexfloating]:
+    """The real FFT of ``a`` over its first two axes, zero-padded to ``shape``."""
+    return cast(NDArray[np.complexfloating], scipy.fft.rfft2(a, shape, axes=(0, 1)))
 
 
 @functools.lru_cache(maxsize=64)
 def _spectrum(data: bytes, kshape: tuple[int, ...], dtype: str, shape: tuple[int, int]) -> NDArray[np.complexfloating]:
-    """The real FFT of a kernel (given by its bytes) zero-padded to ``shape``: each light's lens
-    shares the glare kernel, so its transform is made once per window size."""
-    spectrum = cast(NDArray[np.complexfloating], scipy.fft.rfft2(np.frombuffer(data, np.dtype(dtype)).reshape(kshape),
-                                                                 shape))
+    """:func:`_rfft2` of a kernel given by its bytes, read-only: each light's lens shares the
+    glare kernel, so its transform is made once per window size."""
+    spectrum = _rfft2(np.frombuffer(data, np.dtype(dtype)).reshape(kshape), shape)
     spectrum.setflags(write=False)
     return spectrum
 
